@@ -1,0 +1,1 @@
+"""Thin command-line interface: one module per verb, errors become one line."""

@@ -1,0 +1,71 @@
+"""``dancekit`` entry point: one sub-command per verb.
+
+Each verb lives in its own module ``dancekit.cli.<verb>`` exposing
+``add_parser(subparsers)`` (which registers the sub-command and sets
+``func``). Known errors (:class:`~dancekit.errors.DancekitError`) are printed
+as one line on stderr with exit code 2; a traceback is shown only when
+``DANCEKIT_DEBUG=1``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+
+from dancekit import __version__
+from dancekit.errors import DancekitError
+
+# verb → module; modules are imported lazily so `dancekit --help` stays fast.
+VERBS: dict[str, str] = {
+    "features": "dancekit.cli.features",
+    "info": "dancekit.cli.info",
+    "prepare": "dancekit.cli.prepare",
+    "train": "dancekit.cli.train",
+    "evaluate": "dancekit.cli.evaluate",
+    "dance": "dancekit.cli.dance",
+    "render": "dancekit.cli.render",
+    "models": "dancekit.cli.models",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="dancekit",
+        description="Turn music into dance and dance into music.",
+    )
+    parser.add_argument("--version", action="version", version=f"dancekit {__version__}")
+    sub = parser.add_subparsers(dest="verb", metavar="VERB")
+    for verb, module_name in VERBS.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name == module_name:  # verb not implemented yet
+                continue
+            raise
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        result = args.func(args)
+    except DancekitError as exc:
+        if os.environ.get("DANCEKIT_DEBUG") == "1":
+            raise
+        print(f"dancekit {args.verb}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"dancekit {args.verb}: interrupted", file=sys.stderr)
+        return 130
+    return int(result or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

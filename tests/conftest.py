@@ -1,0 +1,56 @@
+"""Shared fixtures: a seeded rng, paths to ../shared (tests needing it skip when absent)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared"
+TANG2018 = SHARED / "data" / "tang2018"
+MUSIC = SHARED / "music"
+FIXTURES = SHARED / "fixtures"
+
+# the three real songs (the other two recordings are non-music, for robustness tests)
+SONGS = [
+    MUSIC / "Kevin_MacLeod_-_P_I_Tchaikovsky_Dance_of_the_Sugar_Plum_Fairy.ogg",
+    MUSIC / "Kevin_MacLeod_-_Vibe_Ace.ogg",
+    MUSIC / "brahms_hungarian_dance_5.ogg",
+]
+NON_MUSIC = [
+    MUSIC / "456440__inspectorj__bird-whistling-robin-single-13.ogg",
+    MUSIC / "glacier-bay-humpback.ogg",
+]
+
+
+def _need(path: Path) -> Path:
+    if not path.exists():
+        pytest.skip(f"{path} not available (../shared is not beside the repository)")
+    return path
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(0)
+
+
+@pytest.fixture
+def shared_dir() -> Path:
+    return _need(SHARED)
+
+
+@pytest.fixture
+def tang2018_dir() -> Path:
+    return _need(TANG2018)
+
+
+@pytest.fixture
+def music_dir() -> Path:
+    return _need(MUSIC)
+
+
+@pytest.fixture
+def fixtures_dir() -> Path:
+    return _need(FIXTURES)
