@@ -54,3 +54,29 @@ def music_dir() -> Path:
 @pytest.fixture
 def fixtures_dir() -> Path:
     return _need(FIXTURES)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _isolated_feature_cache(tmp_path_factory):
+    """Tests never read or write the user's feature cache."""
+    import os
+
+    old = os.environ.get("DANCEKIT_CACHE")
+    os.environ["DANCEKIT_CACHE"] = str(tmp_path_factory.mktemp("feature_cache"))
+    yield
+    if old is None:
+        os.environ.pop("DANCEKIT_CACHE", None)
+    else:
+        os.environ["DANCEKIT_CACHE"] = old
+
+
+@pytest.fixture(scope="session")
+def prepared_tang2018(tmp_path_factory):
+    """All 37 tang2018 dances prepared once per session (music2dance features only, to stay fast)."""
+    if not TANG2018.exists():
+        pytest.skip(f"{TANG2018} not available")
+    from dancekit.data import PreparedData, prepare_tang2018
+
+    out = tmp_path_factory.mktemp("prepared") / "tang2018"
+    prepare_tang2018(TANG2018, out, presets=("music2dance",), progress=False)
+    return PreparedData(out)

@@ -1,0 +1,104 @@
+"""A torch ``Dataset`` of fixed-length (music, dance) windows from a prepared dataset."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from dancekit.data.prepared import PreparedData
+from dancekit.data.representation import encode_motion
+from dancekit.data.stats import NormStats
+from dancekit.errors import ParameterError
+
+
+def load_pairs(
+    data: PreparedData, names: list[str], *, preset: str, representation: str = "positions3d"
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Whole-dance ``(music (T, D), dance (T, P))`` float32 pairs, unnormalised, in ``names`` order."""
+    pairs = []
+    for name in names:
+        music = np.asarray(data.features(name, preset)["features"], np.float32)
+        dance = encode_motion(data.motion(name), representation)
+        T = min(len(music), len(dance))
+        pairs.append((music[:T], dance[:T]))
+    return pairs
+
+
+def compute_stats(data: PreparedData, *, preset: str, representation: str = "positions3d") -> NormStats:
+    """Normalisation statistics on the *training split only*."""
+    pairs = load_pairs(data, data.names("train"), preset=preset, representation=representation)
+    return NormStats.compute([m for m, _ in pairs], [d for _, d in pairs])
+
+
+class WindowDataset(Dataset):
+    """Windows of ``window`` frames from every dance of ``split``.
+
+    Items are dicts ``{"music": (L, D) float32, "dance": (L, P) float32, "genre": int64 scalar,
+    "index": int64 scalar}``, both normalised with ``stats`` (computed on the training split when
+    not given; pass the training set's ``stats`` to the validation set).
+
+    Windows start every ``stride`` frames (default ``window // 4``); with ``random_offset=True``
+    each item is shifted by a random amount in ``[0, stride)`` (data augmentation). Dances shorter
+    than ``window`` are skipped and listed in ``skipped``.
+    """
+
+    def __init__(
+        self,
+        data: PreparedData,
+        split: str,
+        *,
+        preset: str = "revolution",
+        window: int = 240,
+        stride: int | None = None,
+        stats: NormStats | None = None,
+        representation: str = "positions3d",
+        random_offset: bool = False,
+        seed: int = 0,
+    ):
+        if window < 2:
+            raise ParameterError(f"window must be at least 2 frames, got {window}")
+        self.data, self.split, self.preset, self.window = data, split, preset, int(window)
+        self.stride = int(stride or max(1, window // 4))
+        self.representation = representation
+        self.random_offset = random_offset
+        self._rng = np.random.default_rng(seed)
+        self.stats = stats if stats is not None else compute_stats(data, preset=preset, representation=representation)
+        self.names = data.names(split)
+        pairs = load_pairs(data, self.names, preset=preset, representation=representation)
+        self.music = [self.stats.normalize_music(m) for m, _ in pairs]
+        self.dance = [self.stats.normalize_dance(d) for _, d in pairs]
+        self.genres = [data.genre_index(n) for n in self.names]
+        self.index: list[tuple[int, int]] = []
+        self.skipped: list[str] = []
+        for i, (m, _) in enumerate(pairs):
+            T = len(m)
+            if T < self.window:
+                self.skipped.append(self.names[i])
+                continue
+            for s in range(0, T - self.window + 1, self.stride):
+                self.index.append((i, s))
+
+    @property
+    def music_dim(self) -> int:
+        return int(self.music[0].shape[1]) if self.music else 0
+
+    @property
+    def pose_dim(self) -> int:
+        return int(self.dance[0].shape[1]) if self.dance else 0
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def __getitem__(self, k: int) -> dict[str, torch.Tensor]:
+        i, s = self.index[k]
+        if self.random_offset:
+            T = len(self.music[i])
+            s = min(s + int(self._rng.integers(0, self.stride)), T - self.window)
+        sl = slice(s, s + self.window)
+        return {
+            "music": torch.from_numpy(self.music[i][sl]),
+            "dance": torch.from_numpy(self.dance[i][sl]),
+            "genre": torch.tensor(self.genres[i], dtype=torch.int64),
+            "index": torch.tensor(i, dtype=torch.int64),
+        }

@@ -1,0 +1,169 @@
+"""dancekit.data: splits, representations, normalisation, and the prepared tang2018 dataset."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from dancekit.data import (
+    GENRES,
+    NormStats,
+    PreparedData,
+    WindowDataset,
+    decode_motion,
+    encode_motion,
+    pose_dim,
+    split_by_genre,
+    tang2018_genre,
+)
+from dancekit.errors import DatasetError, ParameterError
+from dancekit.motion import Motion, get_skeleton
+
+
+def _names(code, n):
+    return [f"DANCE_{code}_{i}" for i in range(n)]
+
+
+def test_split_is_by_whole_dance_stratified_and_seeded():
+    by_genre = {"waltz": _names("W", 26), "rumba": _names("R", 6), "chacha": _names("C", 4), "tango": _names("T", 1)}
+    a = split_by_genre(by_genre, seed=0)
+    b = split_by_genre(by_genre, seed=0)
+    c = split_by_genre(by_genre, seed=1)
+    assert a == b and a != c
+    every = a["train"] + a["val"] + a["test"]
+    assert sorted(every) == sorted(sum(by_genre.values(), []))  # each dance exactly once
+    assert len(set(every)) == len(every)
+    for genre, names in by_genre.items():
+        n_test = sum(n in a["test"] for n in names)
+        assert (n_test >= 1) == (len(names) >= 3), genre  # every genre with >= 3 dances is tested
+    assert "DANCE_T_0" in a["train"]  # a single-dance genre is only trained on
+
+
+def test_genre_from_folder_name():
+    assert tang2018_genre("DANCE_W_12") == "waltz"
+    assert tang2018_genre("/x/DANCE_C_2") == "chacha"
+    with pytest.raises(DatasetError, match="DANCE_X_1"):
+        tang2018_genre("DANCE_X_1")
+
+
+def _random_motion(rng, T=50):
+    skel = get_skeleton("tang2018")
+    rest = np.zeros((skel.num_joints, 3))
+    for j, p in enumerate(skel.parents):
+        if p >= 0:
+            rest[j] = rest[p] + skel.offsets[j]
+    pos = rest[None] + rng.normal(0, 2.0, (T, skel.num_joints, 3))
+    pos += np.cumsum(rng.normal(0, 1.0, (T, 1, 3)), axis=0)  # wandering root
+    return Motion(skeleton=skel, fps=25.0, positions=pos.astype(np.float32))
+
+
+def test_positions3d_round_trip_keeps_pose_and_trajectory(rng):
+    m = _random_motion(rng)
+    x = encode_motion(m, "positions3d")
+    assert x.shape == (50, pose_dim(m.skeleton, "positions3d")) == (50, 72)
+    back = decode_motion(x, m.skeleton, m.fps, "positions3d").to_positions()
+    orig = m.to_positions().astype(np.float64)
+    # decoding starts the root at the horizontal origin: compare after removing that offset
+    shift = orig[0, m.skeleton.root] - back[0, m.skeleton.root]
+    np.testing.assert_allclose(back + shift, orig, atol=1e-3)
+    assert abs(shift[1]) < 1e-4  # the height is kept, only the horizontal start moves
+
+
+def test_positions3d_bad_shape_names_the_shape():
+    skel = get_skeleton("tang2018")
+    with pytest.raises(ParameterError, match=r"\(T, 72\)"):
+        decode_motion(np.zeros((10, 71)), skel, 25, "positions3d")
+    with pytest.raises(ParameterError, match="representation"):
+        encode_motion(Motion(skeleton=skel, fps=25, positions=np.zeros((3, 23, 3), np.float32)), "nope")
+
+
+def test_norm_stats_normalise_and_save_round_trip(tmp_path, rng):
+    music = [rng.normal(3, 2, (100, 4)), rng.normal(3, 2, (50, 4))]
+    dance = [rng.normal(-1, 5, (100, 6)), rng.normal(-1, 5, (50, 6))]
+    music[0][:, 2] = 7.0  # a constant column
+    music[1][:, 2] = 7.0
+    s = NormStats.compute(music, dance)
+    z = s.normalize_music(np.concatenate(music))
+    np.testing.assert_allclose(z[:, [0, 1, 3]].mean(0), 0, atol=1e-5)
+    np.testing.assert_allclose(z[:, [0, 1, 3]].std(0), 1, atol=1e-4)
+    assert np.all(np.isfinite(z)) and np.allclose(z[:, 2], 0)
+    d = np.concatenate(dance).astype(np.float32)
+    np.testing.assert_allclose(s.denormalize_dance(s.normalize_dance(d)), d, atol=1e-4)
+    s.save(tmp_path / "stats.npz")
+    s2 = NormStats.load(tmp_path / "stats.npz")
+    for k, v in s.as_arrays().items():
+        np.testing.assert_array_equal(v, s2.as_arrays()[k])
+
+
+def test_prepared_data_missing_folder_is_a_named_error(tmp_path):
+    with pytest.raises(DatasetError, match="meta.json"):
+        PreparedData(tmp_path)
+
+
+# ---- the real tang2018 data, prepared once per test session (one preset, to stay fast) ----
+
+
+def test_prepared_tang2018_alignment_every_dance(prepared_tang2018):
+    data = prepared_tang2018
+    names = data.names()
+    assert len(names) == 37
+    for name in names:
+        T = data.frames(name)
+        motion = data.motion(name)
+        feats = data.features(name, "music2dance")
+        assert motion.num_frames == T == len(feats["features"]), name
+        # the features were computed on exactly T / fps seconds of the song: 1 + T frames before
+        # dropping the last, i.e. feature frame i is motion frame i.
+        assert data.meta["dances"][name]["feature_frames_raw"] == T + 1, name
+        ref = data.audio(name)
+        assert abs((ref.end - ref.start) - T / data.fps) < 1e-9
+        assert np.all(feats["beat_times"] < T / data.fps)
+        assert data.genre(name) in GENRES
+
+
+def test_prepared_tang2018_floor_and_splits(prepared_tang2018):
+    data = prepared_tang2018
+    split = data.splits
+    assert set(split["train"]).isdisjoint(split["test"]) and set(split["train"]).isdisjoint(split["val"])
+    assert {data.genre(n) for n in split["test"]} == {"waltz", "rumba", "chacha"}
+    up = 1
+    feet = [data.skeleton.index(f) for f in data.skeleton.feet]
+    for name in data.names("test"):
+        pos = data.motion(name).to_positions()
+        lowest = pos[:, feet, up].min(axis=1)
+        assert abs(np.percentile(lowest, 2)) < 1e-3, name  # floor at 0
+        assert pos[:, data.skeleton.index("head"), up].mean() > 100  # a standing adult, in cm
+        assert data.motion(name).rotations is not None
+
+
+def test_window_dataset_shapes_and_train_only_stats(prepared_tang2018):
+    data = prepared_tang2018
+    train = WindowDataset(data, "train", preset="music2dance", window=100, stride=200)
+    val = WindowDataset(data, "val", preset="music2dance", window=100, stride=200, stats=train.stats)
+    item = train[0]
+    assert item["music"].shape == (100, 15) and item["dance"].shape == (100, 72)
+    assert item["music"].dtype == torch.float32 and item["genre"].dtype == torch.int64
+    assert val.stats is train.stats
+    # statistics come from the training split only: normalised training frames are centred
+    all_train = np.concatenate(train.dance)
+    np.testing.assert_allclose(all_train.mean(0), 0, atol=1e-3)
+    assert abs(np.concatenate(val.dance).mean()) > 1e-4  # held-out data is not centred by construction
+    assert len(train) > len(val) > 0
+
+
+def test_prepare_cli_bad_source_exits_nonzero(tmp_path, capsys):
+    from dancekit.cli.main import main
+
+    code = main(["prepare", "tang2018", str(tmp_path / "nowhere"), "-o", str(tmp_path / "out")])
+    assert code != 0
+    err = capsys.readouterr().err
+    assert "nowhere" in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_meta_json_is_plain_json(prepared_tang2018):
+    meta = json.loads((prepared_tang2018.root / "meta.json").read_text())
+    assert meta["source"] == "tang2018" and meta["fps"] == 25.0
