@@ -1,0 +1,104 @@
+"""The toolkit's public motion file: ``.npz`` (documented in docs/MOTION.md).
+
+Keys:
+
+``positions``        (T, J, 3) or (T, J, 2) float32, world positions in skeleton units
+``fps``              float64 scalar, frames per second
+``joint_names``      (J,) unicode strings
+``parents``          (J,) int64, -1 for the root
+``skeleton``         0-d unicode string: JSON of ``Skeleton.to_dict()`` (roles, offsets, units, up axis...)
+``rotations``        (T, J, 3, 3) float32, local rotations (optional, when known)
+``root_translation`` (T, 3) float32 (optional, with ``rotations``)
+``format``           0-d string ``"dancekit-motion"``; ``version`` int64 scalar, currently 1
+
+Files are read with ``allow_pickle=False``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from dancekit._io import atomic_path
+from dancekit.errors import DancekitError, MotionFormatError
+from dancekit.motion.motion import Motion
+from dancekit.motion.skeleton import Skeleton
+
+__all__ = ["read_npz", "write_npz"]
+
+FORMAT = "dancekit-motion"
+VERSION = 1
+
+
+def write_npz(path: str | os.PathLike, motion: Motion) -> None:
+    """Write ``motion`` to ``path`` (``.npz``, float32 arrays, atomically).
+
+    Positions are always written (forward kinematics if the motion only has
+    rotations); rotations and root translation when the motion has them.
+    """
+    sk = motion.skeleton
+    arrays = {
+        "positions": np.asarray(motion.to_positions(), dtype=np.float32),
+        "fps": np.float64(motion.fps),
+        "joint_names": np.asarray(sk.joint_names, dtype=str),
+        "parents": np.asarray(sk.parents, dtype=np.int64),
+        "skeleton": np.asarray(json.dumps(sk.to_dict())),
+        "format": np.asarray(FORMAT),
+        "version": np.int64(VERSION),
+    }
+    if motion.rotations is not None:
+        arrays["rotations"] = np.asarray(motion.rotations, dtype=np.float32)
+        arrays["root_translation"] = np.asarray(motion.root_translation, dtype=np.float32)
+    with atomic_path(path, suffix=".npz") as tmp:
+        np.savez(tmp, **arrays)
+
+
+def read_npz(path: str | os.PathLike) -> Motion:
+    """Read a motion ``.npz`` written by :func:`write_npz`.
+
+    A file without the ``skeleton`` key but with ``joint_names`` and
+    ``parents`` gets a skeleton with zero offsets (positions only).
+
+    Raises
+    ------
+    MotionFormatError
+        If the file is missing, not an npz, lacks keys, or holds bad arrays (the message names the file).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MotionFormatError(f"motion file not found: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise MotionFormatError(f"cannot read motion npz {path}: {exc}") from exc
+    missing = [k for k in ("positions", "fps") if k not in data]
+    if missing:
+        raise MotionFormatError(f"{path}: missing keys {missing} (has {sorted(data)})")
+    try:
+        if "skeleton" in data:
+            skeleton = Skeleton.from_dict(json.loads(str(data["skeleton"])))
+        elif "joint_names" in data and "parents" in data:
+            names = tuple(str(n) for n in data["joint_names"])
+            skeleton = Skeleton(
+                name=path.stem, joint_names=names, parents=tuple(int(p) for p in data["parents"]),
+                offsets=np.zeros((len(names), 3)),
+            )
+        else:
+            raise MotionFormatError(f"{path}: no 'skeleton' (or 'joint_names' + 'parents') key")
+        fps = float(np.asarray(data["fps"]).reshape(()))
+        return Motion(
+            skeleton=skeleton,
+            fps=fps,
+            positions=data["positions"],
+            rotations=data.get("rotations"),
+            root_translation=data.get("root_translation"),
+        )
+    except MotionFormatError:
+        raise
+    except (DancekitError, ValueError, TypeError, KeyError) as exc:
+        raise MotionFormatError(f"{path}: {exc}") from exc
