@@ -129,12 +129,18 @@ def test_prepared_tang2018_floor_and_splits(prepared_tang2018):
     split = data.splits
     assert set(split["train"]).isdisjoint(split["test"]) and set(split["train"]).isdisjoint(split["val"])
     assert {data.genre(n) for n in split["test"]} == {"waltz", "rumba", "chacha"}
+    from scipy.ndimage import percentile_filter
+
     up = 1
     feet = [data.skeleton.index(f) for f in data.skeleton.feet]
     for name in data.names("test"):
         pos = data.motion(name).to_positions()
         lowest = pos[:, feet, up].min(axis=1)
-        assert abs(np.percentile(lowest, 2)) < 1e-3, name  # floor at 0
+        # the floor is at 0 all along the dance, not just on average (the capture drifts up to 50 cm)
+        running_floor = percentile_filter(lowest, 5, size=75, mode="nearest")
+        assert np.abs(running_floor).max() < 3.0, name
+        lo, hi = data.meta["dances"][name]["floor_offset"]
+        assert hi - lo > 5.0, name  # a drifting floor was removed
         assert pos[:, data.skeleton.index("head"), up].mean() > 100  # a standing adult, in cm
         assert data.motion(name).rotations is not None
 

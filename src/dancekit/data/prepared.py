@@ -13,10 +13,13 @@ Features are computed on the slice ``[start, start + T / fps)`` of the song, whi
 ``1 + T`` feature frames (centred frames, ``sr = fps * hop_length``); the last one is dropped so
 feature frame ``i`` is motion frame ``i`` and both have exactly ``T`` frames.
 
-The floor: tang2018 dances are recorded with the floor at different heights (the feet of
-DANCE_W_1 sit ~30 cm above those of DANCE_T_5). Each dance is shifted along the up axis so
-that its floor is at 0, the floor being the 2nd percentile over frames of the lowest foot joint
-(``meta.json`` records the shift as ``floor_offset``).
+The floor: the tang2018 capture drifts vertically. The floor sits at a different height in every
+dance and moves *during* a dance (the lowest foot's running 5th percentile over 3 s wanders by
+7–50 cm within one dance; e.g. DANCE_W_31 by 51 cm). Each dance is therefore shifted along the up
+axis frame by frame so that its floor is at 0, the floor at frame t being the 5th percentile of
+the lowest foot joint's height in a 3-second window around t, smoothed by a 1-second moving
+average (:func:`floor_curve`). ``meta.json`` records the range of the removed curve as
+``floor_offset`` ([min, max], skeleton units).
 """
 
 from __future__ import annotations
@@ -78,12 +81,23 @@ def split_by_genre(
     return {k: sorted(v) for k, v in out.items()}
 
 
-def floor_height(positions: np.ndarray, skeleton: Skeleton, *, percentile: float = 2.0) -> float:
-    """Floor height of a dance: a low percentile over frames of its lowest foot joint (skeleton units)."""
+def floor_curve(
+    positions: np.ndarray, skeleton: Skeleton, *, fps: float, window_s: float = 3.0, percentile: float = 5.0
+) -> np.ndarray:
+    """Floor height at every frame ``(T,)``, in skeleton units.
+
+    The ``percentile`` of the lowest foot joint's height in a ``window_s`` window around each frame,
+    smoothed with a 1-second moving average. A dancer's feet touch the floor most of the time, so
+    jumps do not lift the curve; a drifting capture floor is followed.
+    """
+    from scipy.ndimage import percentile_filter, uniform_filter1d
+
     up = {"x": 0, "y": 1, "z": 2}[skeleton.up_axis]
     feet = [skeleton.index(f) for f in skeleton.feet] or list(range(skeleton.num_joints))
-    lowest = positions[:, feet, up].min(axis=1)
-    return float(np.percentile(lowest, percentile))
+    lowest = np.asarray(positions, np.float64)[:, feet, up].min(axis=1)
+    size = max(1, int(round(window_s * fps)))
+    floor = percentile_filter(lowest, percentile, size=size, mode="nearest")
+    return uniform_filter1d(floor, size=max(1, int(round(fps))), mode="nearest")
 
 
 def prepare_tang2018(
@@ -139,9 +153,9 @@ def prepare_tang2018(
                 motion = motion.resample(fps)
             skel = motion.skeleton
             positions = motion.to_positions().astype(np.float64)
-            floor = floor_height(positions, skel)
+            floor = floor_curve(positions, skel, fps=fps)
             up = {"x": 0, "y": 1, "z": 2}[skel.up_axis]
-            positions[..., up] -= floor
+            positions[..., up] -= floor[:, None]
             T = len(positions)
             start = float(audio.start)
             end = start + T / fps
@@ -175,7 +189,7 @@ def prepare_tang2018(
             dances[folder.name] = {
                 "genre": genre,
                 "frames": int(T),
-                "floor_offset": floor,
+                "floor_offset": [float(floor.min()), float(floor.max())],
                 "feature_frames_raw": int(raw_frames) if raw_frames is not None else None,
                 "audio": [str(Path(audio.path).resolve()), start, start + T / fps],
             }

@@ -1,0 +1,86 @@
+"""``dancekit render MOTION -o OUT.mp4|OUT.html``: a dance (and its song) to a video or a web page.
+
+MOTION is anything :func:`dancekit.motion.formats.read_motion` reads (npz, BVH, AIST++
+pkl, OpenPose folder, tang2018 dance folder). A tang2018 folder brings its own song
+slice; otherwise give ``--audio`` (and optionally ``--start`` / ``--end``, seconds
+into the song, where frame 0 plays at ``--start``).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from dancekit.errors import ParameterError
+
+_FORMATS = {".mp4": "mp4", ".html": "html", ".htm": "html"}
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser(
+        "render",
+        help="render a dance to an mp4 (with its song) or a self-contained html player",
+        description="Render a dance (and its song) to an mp4 video or a self-contained html player. "
+        "MOTION is any motion file the toolkit reads; a tang2018 dance folder brings its own song slice.",
+    )
+    p.add_argument(
+        "motion", metavar="MOTION", help="motion file or folder (npz, bvh, pkl, tang2018 folder, ...)"
+    )
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output .mp4 or .html")
+    p.add_argument("--audio", metavar="A", help="song to play with the dance")
+    p.add_argument(
+        "--start", type=float, metavar="S", help="second of the song at which the dance starts (default 0)"
+    )
+    p.add_argument(
+        "--end",
+        type=float,
+        metavar="S",
+        help="second of the song at which it ends (default: start + dance length)",
+    )
+    p.add_argument("--width", type=int, help="video width in pixels (mp4 only; default 640)")
+    p.add_argument("--height", type=int, help="video height in pixels (mp4 only; default 480)")
+    p.add_argument("--title", help="page title (html only; default: the output's file name)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Path(args.output)
+    kind = _FORMATS.get(out.suffix.lower())
+    if kind is None:
+        raise ParameterError(f"output must end in .mp4 or .html, got {str(out)!r}")
+    if kind == "html" and (args.width is not None or args.height is not None):
+        raise ParameterError("--width / --height apply to .mp4 output only")
+    if kind == "mp4" and args.title is not None:
+        raise ParameterError("--title applies to .html output only")
+    if not out.parent.is_dir() and str(out.parent):
+        raise ParameterError(f"output folder does not exist: {out.parent}")
+
+    from dancekit.motion.formats import detect_format, read_motion, read_tang2018
+
+    src = Path(args.motion)
+    audio, start, end = args.audio, args.start, args.end
+    if src.is_dir() and detect_format(src) == "tang2018":
+        motion, song = read_tang2018(src)
+        if audio is None:  # the folder's own song slice; --start / --end override it
+            audio = song.path
+            start = song.start if start is None else start
+            end = song.end if end is None else end
+    else:
+        motion = read_motion(src)
+    if audio is None and (start is not None or end is not None):
+        raise ParameterError("--start / --end need --audio")
+
+    from dancekit.render import render_motion_html, render_motion_mp4
+
+    if kind == "mp4":
+        render_motion_mp4(
+            out, motion, audio_path=audio, audio_start=start, audio_end=end,
+            width=640 if args.width is None else args.width, height=480 if args.height is None else args.height,
+            progress=not args.quiet,
+        )  # fmt: skip
+    else:
+        render_motion_html(out, motion, audio_path=audio, audio_start=start, audio_end=end, title=args.title)
+    if not args.quiet:
+        print(out)
+    return 0

@@ -1,0 +1,208 @@
+"""Render a dance to ONE self-contained html file: a 3D player with the song embedded.
+
+The page needs no network: the player (``assets/player.js``, a small hand-written
+Canvas-2D perspective renderer) and its style (``assets/player.css``) are inlined, the
+motion is embedded as base64 little-endian uint16 (quantised per axis to 1/65535 of
+the motion's extent, well under a millimetre for a dance on a stage) and the song
+slice as a base64 MP3 ``data:`` URI. The dance follows the audio clock
+(frame = floor(currentTime x fps)); without audio it plays on a wall clock.
+"""
+
+from __future__ import annotations
+
+import base64
+import html as html_lib
+import json
+import math
+import os
+from importlib import resources
+
+import numpy as np
+
+from dancekit._io import atomic_path
+from dancekit.errors import ParameterError
+from dancekit.render._ffmpeg import audio_span, encode_audio_slice
+from dancekit.render._scene import Scene, camera_basis, default_azimuth, fit_distance, prepare_scene
+
+_FOV = 40.0  # degrees, vertical; must match FOV in player.js
+_ELEVATION = 12.0
+_ASPECT = 4.0 / 3.0  # the initial distance frames the dance in a 4:3 (or wider) window
+
+
+def _asset(name: str) -> str:
+    text = resources.files("dancekit.render").joinpath("assets", name).read_text(encoding="utf-8")
+    assert "</script" not in text.lower() and "</style" not in text.lower(), name
+    return text
+
+
+def _quantise(p: np.ndarray) -> tuple[bytes, list[float], list[float]]:
+    """``p (T, J, 3)`` -> (uint16 LE bytes, offset (3,), scale (3,)); ``p ~ offset + v * scale``."""
+    lo = p.reshape(-1, 3).min(axis=0).astype(np.float64)
+    hi = p.reshape(-1, 3).max(axis=0).astype(np.float64)
+    scale = np.maximum(hi - lo, 1e-6) / 65535.0
+    v = np.clip(np.rint((p - lo) / scale), 0, 65535).astype("<u2")
+    return v.tobytes(), lo.tolist(), scale.tolist()
+
+
+def page_html(
+    scene: Scene,
+    *,
+    audio: tuple[bytes, str] | None = None,
+    duration: float | None = None,
+    title: str = "dancekit",
+) -> str:
+    """The html text of a player page for ``scene`` (``audio``: encoded bytes and MIME type)."""
+    az = default_azimuth(scene)
+    tan_y = math.tan(math.radians(_FOV) / 2)
+    basis = camera_basis(math.radians(az), math.radians(_ELEVATION))
+    dist = fit_distance(scene, basis, tan_half_x=tan_y * _ASPECT, tan_half_y=tan_y)
+    qbytes, offset, scale = _quantise(scene.positions)
+    data = {
+        "version": 1,
+        "title": title,
+        "fps": scene.fps,
+        "frames": scene.num_frames,
+        "joints": int(scene.positions.shape[1]),
+        "duration": float(duration if duration is not None else scene.num_frames / scene.fps),
+        "bones": scene.bones.tolist(),
+        "sides": scene.sides.astype(int).tolist(),
+        "head": scene.head,
+        "height": scene.height,
+        "azimuth": az,
+        "elevation": _ELEVATION,
+        "distance": dist,
+        "offset": offset,
+        "scale": scale,
+        "positions": base64.b64encode(qbytes).decode("ascii"),
+        "target": base64.b64encode(scene.target.astype("<f4").tobytes()).decode("ascii"),
+    }
+    blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
+    audio_tag = ""
+    if audio is not None:
+        b64 = base64.b64encode(audio[0]).decode("ascii")
+        audio_tag = f'<audio id="dk-audio" preload="auto" src="data:{audio[1]};base64,{b64}"></audio>\n'
+    esc = html_lib.escape(title)
+    # the first script records errors (even a syntax error in the player) on <html data-dk-error>
+    return (
+        "<!doctype html>\n"
+        '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
+        f"<title>{esc}</title>\n"
+        "<script>\n"
+        "(function () {\n"
+        "  function note(msg) { var d = document.documentElement;\n"
+        "    d.dataset.dkError = (d.dataset.dkError ? d.dataset.dkError + ' | ' : '') + msg; }\n"
+        "  window.addEventListener('error', function (e) { note(e.message || 'error'); });\n"
+        "  window.addEventListener('unhandledrejection', function (e) { note(String(e.reason)); });\n"
+        "  var err = console.error; console.error = function () {\n"
+        "    note(Array.prototype.join.call(arguments, ' ')); err.apply(console, arguments); };\n"
+        "})();\n"
+        "</script>\n"
+        f"<style>\n{_asset('player.css')}</style>\n"
+        "</head>\n<body>\n"
+        '<div id="dk-player">\n'
+        '<canvas id="dk-canvas"></canvas>\n'
+        f'<div id="dk-title">{esc}</div>\n'
+        '<div id="dk-help">drag: rotate &middot; wheel: zoom &middot; double-click: reset &middot; space: play</div>\n'
+        '<div id="dk-controls">\n'
+        '<button id="dk-play" type="button" aria-label="play">&#9654;</button>\n'
+        '<input id="dk-scrub" type="range" min="0" max="0" step="1" value="0" aria-label="time">\n'
+        '<span id="dk-time">0:00.0</span>\n'
+        "</div>\n</div>\n"
+        f"{audio_tag}"
+        f'<script id="dk-data" type="application/json">{blob}</script>\n'
+        f"<script>\n{_asset('player.js')}</script>\n"
+        "</body>\n</html>\n"
+    )
+
+
+def render_html(
+    path: str | os.PathLike,
+    positions: np.ndarray,
+    *,
+    parents,
+    fps: float,
+    up_axis: str = "y",
+    unit_scale: float = 0.01,
+    sides=None,
+    head: int | None = None,
+    audio_path: str | os.PathLike | None = None,
+    audio_start: float | None = None,
+    audio_end: float | None = None,
+    title: str | None = None,
+) -> None:
+    """Write a self-contained html player for a dance (and its song).
+
+    The file opens in any browser without network access: play/pause, a scrubbing
+    slider, the time, and an orbit camera (drag to rotate, wheel to zoom, double-click
+    to reset). With audio the dance follows the audio clock.
+
+    Parameters
+    ----------
+    path : path-like
+        Output ``.html`` (written to a temporary file and renamed; nothing is left on failure).
+    positions : np.ndarray, (T, J, 3)
+        Joint positions in the skeleton's units at ``fps`` frames per second.
+    parents : array-like, (J,) int
+        Parent of each joint (``-1`` for the root).
+    fps : float
+        Frames per second.
+    up_axis : {"y", "z", "x", "-y"}
+        Which axis of ``positions`` points up.
+    unit_scale : float
+        Metres per unit of ``positions`` (0.01 for centimetres).
+    sides : array-like, (J,) or None
+        ``+1`` left (blue) / ``-1`` right (orange) / ``0`` centre per joint.
+    head : int or None
+        Joint drawn as a head disc.
+    audio_path : path-like or None
+        Song; its slice ``[audio_start, audio_end]`` (seconds; defaults 0 and
+        ``audio_start + T / fps``, clipped to the song) is embedded as MP3.
+    title : str or None
+        Page title (default: the output file's stem).
+
+    Raises
+    ------
+    ParameterError
+        On bad arrays or times.
+    AudioError
+        If the song is missing or unreadable.
+    ExternalToolError
+        If ffmpeg fails to encode the slice.
+    DancekitError
+        If the output folder does not exist or is not writable.
+
+    Examples
+    --------
+    >>> render_html("dance.html", motion.positions, parents=skeleton.parents, fps=25,
+    ...             audio_path="song.mp3", audio_start=12.0)  # doctest: +SKIP
+    """
+    scene = prepare_scene(
+        positions, parents=parents, fps=fps, up_axis=up_axis, unit_scale=unit_scale, sides=sides, head=head
+    )
+    audio = None
+    duration = None
+    if audio_path is not None:
+        span = audio_span(
+            audio_path, start=audio_start, end=audio_end, motion_duration=scene.num_frames / scene.fps
+        )
+        audio = encode_audio_slice(span)
+        duration = span.duration
+    elif audio_start is not None or audio_end is not None:
+        raise ParameterError("audio_start / audio_end need an audio_path")
+    if title is None:
+        title = os.path.splitext(os.path.basename(os.fspath(path)))[0]
+    text = page_html(scene, audio=audio, duration=duration, title=str(title))
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def render_motion_html(path: str | os.PathLike, motion, **kwargs) -> None:
+    """:func:`render_html` for a :class:`dancekit.motion.Motion` (skeleton, fps and sides taken from it).
+
+    Keyword arguments (``audio_path``, ``audio_start``, ``audio_end``, ``title``) are
+    passed on to :func:`render_html`.
+    """
+    from dancekit.render._motion import motion_arrays
+
+    render_html(path, **motion_arrays(motion), **kwargs)
