@@ -1,1 +1,55 @@
-"""dancekit.features"""
+"""dancekit.features: music features frame-aligned to a motion frame rate.
+
+Pure NumPy functions with keyword-only arguments (``spectral``, ``rhythm``),
+three presets (``revolution`` 438-D, ``music2dance`` 15-D, ``dual`` 53-D)
+computed by :func:`extract` on audio arrays or :func:`extract_file` on files
+(with an on-disk cache). Audio is resampled to ``sr = fps * hop_length`` so
+feature frame ``i`` is motion frame ``i``; see ``docs/FEATURES.md``.
+"""
+
+from dancekit.features.cache import FEATURES_VERSION, cache_key, default_cache_dir, extract_file
+from dancekit.features.featureset import FeatureSet, parse_names
+from dancekit.features.madmom_backend import import_madmom, madmom_available, madmom_downbeat_track
+from dancekit.features.presets import BACKENDS, PRESET_DIMS, PRESETS, extract, feature_sr
+from dancekit.features.rhythm import BEAT_HOP, BEAT_SR, beat_onehot, beat_track, downbeats, fold_meter
+from dancekit.features.spectral import (
+    chroma_cqt,
+    hpss,
+    log_melspectrogram,
+    mfcc,
+    mfcc_delta,
+    n_frames,
+    onset_strength,
+    tempogram,
+)
+
+__all__ = [
+    "BACKENDS",
+    "BEAT_HOP",
+    "BEAT_SR",
+    "FEATURES_VERSION",
+    "PRESETS",
+    "PRESET_DIMS",
+    "FeatureSet",
+    "beat_onehot",
+    "beat_track",
+    "cache_key",
+    "chroma_cqt",
+    "default_cache_dir",
+    "downbeats",
+    "extract",
+    "extract_file",
+    "feature_sr",
+    "fold_meter",
+    "hpss",
+    "import_madmom",
+    "log_melspectrogram",
+    "madmom_available",
+    "madmom_downbeat_track",
+    "mfcc",
+    "mfcc_delta",
+    "n_frames",
+    "onset_strength",
+    "parse_names",
+    "tempogram",
+]

@@ -1,0 +1,381 @@
+"""Reading, validating, resampling and writing audio.
+
+All audio inside dancekit is a float32 NumPy array: ``(n,)`` for mono, or
+``(channels, n)`` when ``mono=False`` (the librosa convention), with its
+sample rate ``sr`` in Hz carried beside it.
+
+Decoding goes through libsndfile (``soundfile``: wav, flac, ogg/vorbis,
+ogg/opus, mp3, aiff, ...) and falls back to the ffmpeg binary bundled with
+the ``imageio-ffmpeg`` wheel for everything else (m4a/aac, wma, video
+containers, ...). :func:`validate_audio` is the one place decoded samples are
+checked.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import struct
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import soundfile as sf
+
+from dancekit._io import atomic_path
+from dancekit.errors import AudioError, ExternalToolError, ParameterError
+
+__all__ = ["MIN_DURATION", "check_audio_path", "load", "resample", "save_wav", "validate_audio"]
+
+#: Shortest audio accepted by :func:`validate_audio`, in seconds.
+MIN_DURATION = 1.0
+
+# frames read (or written) per block, so long files never need a second full-size copy
+_BLOCK = 1 << 18
+
+
+def _describe(path: str | os.PathLike | None) -> str:
+    return f"audio file {str(path)!r}" if path is not None else "audio"
+
+
+def check_audio_path(path: str | os.PathLike) -> None:
+    """Raise :class:`AudioError` (naming the file) if ``path`` is missing, a folder, unreadable or 0 bytes."""
+    path = Path(path)
+    if not path.exists():
+        raise AudioError(f"audio file not found: {str(path)!r}")
+    if path.is_dir():
+        raise AudioError(f"expected an audio file but got a folder: {str(path)!r}")
+    if not os.access(path, os.R_OK):
+        raise AudioError(f"audio file is not readable (permissions): {str(path)!r}")
+    if path.stat().st_size == 0:
+        raise AudioError(f"audio file is empty (0 bytes): {str(path)!r}")
+
+
+def validate_audio(y: np.ndarray, *, sr: int, path: str | os.PathLike | None = None) -> None:
+    """Check decoded samples; the one place audio is validated.
+
+    Parameters
+    ----------
+    y : np.ndarray, shape (n,) or (channels, n)
+        Floating-point samples.
+    sr : int
+        Sample rate in Hz (> 0).
+    path : str or PathLike, optional
+        File the samples came from; named in every error message.
+
+    Raises
+    ------
+    ParameterError
+        ``sr`` is not a positive integer.
+    AudioError
+        ``y`` is not a floating-point array of 1 or 2 dimensions, is empty,
+        is shorter than :data:`MIN_DURATION` (1 s), or holds NaN/inf.
+        Silent (all-zero) audio is valid.
+    """
+    if isinstance(sr, bool) or not isinstance(sr, int | np.integer) or sr <= 0:
+        raise ParameterError(f"sr must be a positive integer sample rate in Hz, got {sr!r}")
+    what = _describe(path)
+    if not isinstance(y, np.ndarray):
+        raise AudioError(f"{what}: samples must be a NumPy array, got {type(y).__name__}")
+    if not np.issubdtype(y.dtype, np.floating):
+        raise AudioError(f"{what}: samples must be floating point, got dtype {y.dtype}")
+    if y.ndim not in (1, 2):
+        raise AudioError(f"{what}: samples must have shape (n,) or (channels, n), got {y.shape}")
+    n = y.shape[-1]
+    if y.size == 0:
+        raise AudioError(f"{what} holds no samples (zero-length audio)")
+    if n < MIN_DURATION * sr:
+        raise AudioError(
+            f"{what} is too short: {n / sr:.3f} s ({n} samples at {sr} Hz); need at least {MIN_DURATION:g} s"
+        )
+    finite = np.isfinite(y)
+    if not finite.all():
+        bad = int(y.size - np.count_nonzero(finite))
+        first = int(np.argmin(finite.reshape(-1, n).all(axis=0)))
+        raise AudioError(
+            f"{what} holds {bad} non-finite samples (NaN or inf), the first at {first / sr:.3f} s"
+        )
+
+
+def resample(y: np.ndarray, *, orig_sr: int, target_sr: int) -> np.ndarray:
+    """Resample along the last axis with soxr (high quality); float32 out.
+
+    Returns ``y`` itself (as float32) when the rates are equal.
+    """
+    y = np.asarray(y, dtype=np.float32)
+    if int(orig_sr) == int(target_sr):
+        return y
+    import librosa
+
+    return librosa.resample(y, orig_sr=int(orig_sr), target_sr=int(target_sr), res_type="soxr_hq").astype(
+        np.float32, copy=False
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# truncation checks (libsndfile silently returns fewer samples for a cut-off wav or ogg)
+
+
+def _wav_truncated(path: Path) -> bool:
+    """True if the RIFF header declares more bytes than the file holds."""
+    with open(path, "rb") as f:
+        head = f.read(12)
+    if len(head) < 12 or head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+        return False
+    (riff_size,) = struct.unpack("<I", head[4:8])
+    if riff_size in (0, 0xFFFFFFFF):  # streamed (size unknown): nothing to compare
+        return False
+    # 1 byte of slack: some writers omit the pad byte after an odd-sized last chunk
+    return riff_size + 8 > path.stat().st_size + 1
+
+
+def _ogg_truncated(path: Path) -> bool:
+    """True if the last Ogg page is incomplete or lacks the end-of-stream flag."""
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        f.seek(max(0, size - (1 << 16)))
+        tail = f.read()
+    at = tail.rfind(b"OggS")
+    if at < 0:
+        return True
+    page = tail[at:]
+    if len(page) < 27:
+        return True
+    header_type = page[5]
+    n_segments = page[26]
+    if len(page) < 27 + n_segments:
+        return True
+    body = sum(page[27 : 27 + n_segments])
+    if len(page) < 27 + n_segments + body:
+        return True
+    return not header_type & 0x04
+
+
+def _check_truncated(path: Path, fmt: str) -> None:
+    if (fmt in ("WAV", "WAVEX") and _wav_truncated(path)) or (fmt == "OGG" and _ogg_truncated(path)):
+        raise AudioError(f"audio file is truncated (the file ends before its declared length): {str(path)!r}")
+
+
+# ---------------------------------------------------------------------------------------------
+# decoders
+
+
+def _read_soundfile(
+    f: sf.SoundFile, path: Path, start: float | None, end: float | None, mono: bool
+) -> np.ndarray:
+    """Read [start, end) of an open SoundFile in blocks; (n,) if mono else (channels, n)."""
+    sr = f.samplerate
+    total = f.frames
+    a = 0 if start is None else int(round(start * sr))
+    b = total if end is None else min(total, int(round(end * sr)))
+    _check_range(path, start, end, total / sr)
+    if a > 0:
+        f.seek(a)
+    blocks = []
+    remaining = max(0, b - a)
+    while remaining > 0:
+        block = f.read(min(_BLOCK, remaining), dtype="float32", always_2d=True)
+        if block.shape[0] == 0:
+            break
+        remaining -= block.shape[0]
+        blocks.append(block.mean(axis=1) if mono else block.T.copy())
+    if remaining > 0:
+        raise AudioError(
+            f"audio file is truncated or corrupt: {str(path)!r} declares {total} frames but only "
+            f"{total - remaining} could be decoded"
+        )
+    if not blocks:
+        return np.zeros((0,) if mono else (f.channels, 0), dtype=np.float32)
+    return np.concatenate(blocks, axis=-1).astype(np.float32, copy=False)
+
+
+def _ffmpeg_exe() -> str:
+    try:
+        import imageio_ffmpeg
+
+        return imageio_ffmpeg.get_ffmpeg_exe()
+    except Exception as exc:  # the wheel raises RuntimeError when its binary is missing
+        raise ExternalToolError(f"ffmpeg is not available (imageio-ffmpeg): {exc}") from exc
+
+
+def _read_ffmpeg(path: Path, mono: bool) -> tuple[np.ndarray, int]:
+    """Decode a whole file to float32 through ffmpeg; (n,) if mono else (channels, n)."""
+    exe = _ffmpeg_exe()
+    cmd = [exe, "-nostdin", "-hide_banner", "-v", "info", "-i", str(path), "-vn", "-map", "0:a:0"]
+    if mono:
+        cmd += ["-ac", "1"]
+    cmd += ["-f", "f32le", "-c:a", "pcm_f32le", "pipe:1"]
+    try:
+        proc = subprocess.run(cmd, check=True, capture_output=True)
+    except subprocess.CalledProcessError as exc:
+        lines = [ln for ln in exc.stderr.decode("utf-8", "replace").splitlines() if ln.strip()]
+        reason = lines[-1].strip() if lines else f"ffmpeg exit status {exc.returncode}"
+        raise AudioError(
+            f"cannot decode audio file {str(path)!r}: not a readable audio file ({reason})"
+        ) from None
+    except OSError as exc:
+        raise ExternalToolError(f"cannot run ffmpeg ({exe}): {exc}") from exc
+    err = proc.stderr.decode("utf-8", "replace")
+    # the output stream line ("Stream #0:0...: Audio: pcm_f32le, 44100 Hz, stereo, ...") gives rate and layout
+    out_part = err.split("Output #0", 1)[-1]
+    m = re.search(r"Audio: pcm_f32le[^,]*, (\d+) Hz, ([^,]+),", out_part)
+    if m is None:
+        raise AudioError(f"cannot decode audio file {str(path)!r}: ffmpeg found no audio stream")
+    sr = int(m.group(1))
+    layout = m.group(2).strip()
+    channels = 1 if mono else _channels_from_layout(layout)
+    data = np.frombuffer(proc.stdout, dtype="<f4")
+    n = data.size // channels
+    y = data[: n * channels].reshape(n, channels).T
+    y = y[0] if mono else y
+    return np.ascontiguousarray(y, dtype=np.float32), sr
+
+
+def _channels_from_layout(layout: str) -> int:
+    named = {"mono": 1, "stereo": 2, "2.1": 3, "quad": 4, "4.0": 4, "5.0": 5, "5.1": 6, "6.1": 7, "7.1": 8}
+    if layout in named:
+        return named[layout]
+    m = re.match(r"(\d+) channels", layout)
+    if m:
+        return int(m.group(1))
+    base = layout.split("(")[0]
+    if base in named:
+        return named[base]
+    raise AudioError(f"unsupported channel layout {layout!r} reported by ffmpeg")
+
+
+def _check_range(path: Path, start: float | None, end: float | None, duration: float) -> None:
+    if start is not None and not start < duration:
+        raise ParameterError(f"start={start:g} s is beyond the end of {str(path)!r} ({duration:.3f} s long)")
+
+
+def _validate_range(start: float | None, end: float | None) -> None:
+    for name, value in (("start", start), ("end", end)):
+        if value is not None and (not np.isfinite(value) or value < 0):
+            raise ParameterError(f"{name} must be a finite number of seconds >= 0, got {value!r}")
+    if start is not None and end is not None and not start < end:
+        raise ParameterError(f"start must be before end, got start={start:g} s, end={end:g} s")
+
+
+def load(
+    path: str | os.PathLike,
+    *,
+    sr: int | None = None,
+    mono: bool = True,
+    start: float | None = None,
+    end: float | None = None,
+) -> tuple[np.ndarray, int]:
+    """Decode an audio file to float32 samples.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        wav / flac / ogg / mp3 (read through libsndfile, in blocks) or any
+        format the bundled ffmpeg decodes (m4a, aac, wma, mp4, ...).
+    sr : int, optional
+        Target sample rate in Hz; ``None`` keeps the file's own rate.
+        Resampling uses soxr (``soxr_hq``).
+    mono : bool
+        Mix all channels down to one (the mean). With ``False`` the result is
+        ``(channels, n)``.
+    start, end : float, optional
+        Excerpt bounds in seconds from the start of the file. ``start`` must
+        lie inside the file and be before ``end``; an ``end`` past the end of
+        the file is clipped to it.
+
+    Returns
+    -------
+    y : np.ndarray, float32, shape (n,) (or (channels, n) if ``mono=False``)
+    sr : int
+        Sample rate of ``y`` in Hz.
+
+    Raises
+    ------
+    AudioError
+        Missing file, a folder, an unreadable / corrupt / truncated file, or
+        audio that fails :func:`validate_audio` (empty, shorter than 1 s,
+        non-finite samples). The message names the file.
+    ParameterError
+        Bad ``sr``, ``start`` or ``end``.
+
+    Examples
+    --------
+    >>> y, sr = load("song.ogg", sr=22050, start=10.0, end=40.0)  # doctest: +SKIP
+    >>> y.shape, sr  # doctest: +SKIP
+    ((661500,), 22050)
+    """
+    path = Path(path)
+    if sr is not None and (isinstance(sr, bool) or not isinstance(sr, int | np.integer) or sr <= 0):
+        raise ParameterError(f"sr must be a positive integer sample rate in Hz or None, got {sr!r}")
+    _validate_range(start, end)
+    check_audio_path(path)
+
+    try:
+        f = sf.SoundFile(path)
+    except (sf.LibsndfileError, RuntimeError):
+        f = None
+    if f is not None:
+        with f:
+            _check_truncated(path, f.format)
+            try:
+                y = _read_soundfile(f, path, start, end, mono)
+            except sf.LibsndfileError as exc:
+                raise AudioError(f"cannot decode audio file {str(path)!r}: corrupt data ({exc})") from None
+            native_sr = f.samplerate
+    else:
+        y, native_sr = _read_ffmpeg(path, mono)
+        duration = y.shape[-1] / native_sr
+        if duration == 0:
+            raise AudioError(f"audio file {str(path)!r} holds no samples (zero-length audio)")
+        _check_range(path, start, end, duration)
+        a = 0 if start is None else int(round(start * native_sr))
+        b = y.shape[-1] if end is None else min(y.shape[-1], int(round(end * native_sr)))
+        y = np.ascontiguousarray(y[..., a:b])
+
+    if y.shape[-1] == 0:
+        raise AudioError(f"audio file {str(path)!r} holds no samples (zero-length audio)")
+    validate_audio(y, sr=int(native_sr), path=path)
+    if sr is not None and int(sr) != native_sr:
+        y = resample(y, orig_sr=native_sr, target_sr=int(sr))
+        return y, int(sr)
+    return y, int(native_sr)
+
+
+def save_wav(path: str | os.PathLike, y: np.ndarray, *, sr: int, subtype: str = "PCM_16") -> Path:
+    """Write samples to a WAV file atomically (temporary file + rename), in blocks.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Output ``.wav`` path; its folder must exist.
+    y : np.ndarray, shape (n,) or (channels, n)
+        Samples in [-1, 1]; values outside are clipped for integer subtypes.
+    sr : int
+        Sample rate in Hz.
+    subtype : str
+        libsndfile subtype: ``"PCM_16"`` (default), ``"PCM_24"``, ``"FLOAT"``.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    if isinstance(sr, bool) or not isinstance(sr, int | np.integer) or sr <= 0:
+        raise ParameterError(f"sr must be a positive integer sample rate in Hz, got {sr!r}")
+    y = np.asarray(y)
+    if y.ndim not in (1, 2):
+        raise ParameterError(f"y must have shape (n,) or (channels, n), got {y.shape}")
+    frames = y.reshape(1, -1) if y.ndim == 1 else y
+    channels = frames.shape[0]
+    clip = subtype.startswith("PCM")
+    path = Path(path)
+    with atomic_path(path, suffix=".wav") as tmp:
+        with sf.SoundFile(
+            tmp, "w", samplerate=int(sr), channels=channels, format="WAV", subtype=subtype
+        ) as f:
+            for a in range(0, frames.shape[1], _BLOCK):
+                block = np.asarray(frames[:, a : a + _BLOCK].T, dtype=np.float32)
+                if clip:
+                    block = np.clip(block, -1.0, 1.0)
+                f.write(block)
+    return path
