@@ -1,0 +1,181 @@
+"""``dancekit evaluate`` and :func:`dancekit.metrics.evaluate.evaluate_dirs` on synthetic folders."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dancekit.cli.main import main
+from dancekit.errors import DatasetError
+from dancekit.metrics.evaluate import EvalSettings, evaluate_dirs, format_markdown, group_predictions
+from dancekit.motion import Motion, get_skeleton, write_motion
+
+SK = get_skeleton("tang2018")
+
+
+def rest_pose() -> np.ndarray:
+    rest = np.zeros((SK.num_joints, 3))
+    for j in SK.topological_order:
+        p = SK.parents[j]
+        rest[j] = SK.offsets[j] + (rest[p] if p >= 0 else 0.0)
+    rest[:, 1] -= rest[[SK.index(f) for f in SK.feet], 1].min()
+    return rest
+
+
+def dance(seed: int, seconds: float = 24.0, fps: float = 25.0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * fps))[:, None, None] / fps
+    J = SK.num_joints
+    amp = rng.uniform(3.0, 12.0, size=(1, J, 3))
+    freq = rng.uniform(0.3, 1.5, size=(1, J, 3))
+    phase = rng.uniform(0, 2 * np.pi, size=(1, J, 3))
+    return (rest_pose()[None] + amp * np.sin(2 * np.pi * freq * t + phase)).astype(np.float32)
+
+
+@pytest.fixture
+def folders(tmp_path):
+    ref, pred = tmp_path / "ref", tmp_path / "pred"
+    ref.mkdir()
+    pred.mkdir()
+    for k in range(4):
+        p = dance(k)
+        write_motion(ref / f"D{k}.npz", Motion(skeleton=SK, fps=25.0, positions=p))
+        write_motion(pred / f"D{k}.npz", Motion(skeleton=SK, fps=25.0, positions=p))  # a perfect copy
+        frozen = np.repeat(p[:1], len(p), axis=0)
+        write_motion(pred / f"D{k}__frozen.npz", Motion(skeleton=SK, fps=25.0, positions=frozen))
+    return ref, pred
+
+
+def test_group_predictions(tmp_path):
+    paths = [tmp_path / n for n in ("A.npz", "A__1.npz", "A__x.npz", "B_2.npz")]
+    assert {k: len(v) for k, v in group_predictions(paths).items()} == {"A": 3, "B_2": 1}
+
+
+def test_evaluate_perfect_copies(folders, tmp_path):
+    ref, pred = folders
+    copies = tmp_path / "copies"
+    copies.mkdir()
+    for f in ref.glob("*.npz"):
+        (copies / f.name).write_bytes(f.read_bytes())
+    report = evaluate_dirs(copies, ref, classifier=None, settings=EvalSettings(segment_seconds=6.0))
+    m = report["metrics"]
+    assert m["fid_k"] == pytest.approx(0.0, abs=1e-6) and m["fid_g"] == pytest.approx(0.0, abs=1e-6)
+    assert m["fd_dual_mean_joint_distance_cm"] == 0.0
+    assert m["smoothed_energy_ratio"] == pytest.approx(1.0)
+    assert report["settings"]["fid_reference"] == "ref" and report["settings"]["segment_seconds"] == 6.0
+    assert report["counts"] == {"generated_files": 4, "songs": 4, "samples_per_song": {f"D{k}": 1 for k in range(4)},
+                                "reference_dances": 4, "fid_reference_dances": 4}
+    assert "bas_bailando" not in m  # no music given
+
+
+def test_cli_evaluate_writes_report_and_table(folders, tmp_path, capsys):
+    ref, pred = folders
+    out = tmp_path / "report.json"
+    rc = main(["evaluate", "--pred", str(pred), "--ref", str(ref), "-o", str(out), "--no-style",
+               "--segment-seconds", "6"])
+    assert rc == 0
+    printed = capsys.readouterr().out
+    assert "| FID_k (AIST++) |" in printed and "Stillness share" in printed
+    report = json.loads(out.read_text())
+    m, real = report["metrics"], report["real"]
+    # half of the generated dances are frozen: half of the windows are still, FID_k is large
+    assert m["stillness_share"] == pytest.approx(0.5)
+    assert real["stillness_share"] == 0.0
+    assert m["fid_k"] > 1.0 and real["fid_k"] == pytest.approx(0.0, abs=1e-6)
+    assert report["counts"]["samples_per_song"] == {f"D{k}": 2 for k in range(4)}
+    assert len(report["per_dance"]) == 8
+    assert not list(tmp_path.glob(".report.json*"))  # written atomically, no temp file left
+
+
+def test_cli_evaluate_with_audio_beats(tmp_path):
+    from dancekit.audio import save_wav, synth
+
+    ref, pred, audio = tmp_path / "ref", tmp_path / "pred", tmp_path / "audio"
+    for d in (ref, pred, audio):
+        d.mkdir()
+    for k in range(2):
+        p = dance(k, seconds=8.0)
+        write_motion(ref / f"D{k}.npz", Motion(skeleton=SK, fps=25.0, positions=p))
+        write_motion(pred / f"D{k}.npz", Motion(skeleton=SK, fps=25.0, positions=p[::-1].copy()))
+        save_wav(audio / f"D{k}.wav", synth.click_track(bpm=120, duration=8.0, sr=22050), sr=22050)
+    out = tmp_path / "r.json"
+    assert main(["evaluate", "--pred", str(pred), "--ref", str(ref), "--audio", str(audio), "-o", str(out),
+                 "--no-style", "--segment-seconds", "4"]) == 0
+    report = json.loads(out.read_text())
+    m = report["metrics"]
+    assert 0.0 <= m["bas_bailando"] <= 1.0 and 0.0 <= m["beat_hit_rate"] <= 1.0
+    assert report["settings"]["beat_source"] == "beat_track on the audio files"
+
+
+def test_cli_evaluate_unknown_names_fail_cleanly(folders, tmp_path, capsys):
+    ref, pred = folders
+    write_motion(pred / "NOPE.npz", Motion(skeleton=SK, fps=25.0, positions=dance(9)))
+    rc = main(["evaluate", "--pred", str(pred), "--ref", str(ref), "-o", str(tmp_path / "r.json"), "--no-style"])
+    assert rc == 2
+    assert "NOPE.npz" in capsys.readouterr().err
+    with pytest.raises(DatasetError, match="not found"):
+        evaluate_dirs(tmp_path / "missing", ref, classifier=None)
+
+
+def test_format_markdown_skips_missing_rows():
+    report = {"metrics": {"fid_k": 1.5}, "real": {"fid_k": 0.0}, "counts": {"generated_files": 1, "songs": 1,
+              "fid_reference_dances": 2}, "settings": {"fid_reference": "ref"}, "notes": ["n"]}
+    text = format_markdown(report)
+    assert "| FID_k (AIST++) | 1.50 | 0.00 |" in text and "BAS" not in text and "- n" in text
+
+
+def _prepared(root, dances: dict[str, np.ndarray], splits: dict[str, list[str]], beats: np.ndarray):
+    """A minimal prepared-dataset folder (the layout of dancekit.data.prepare_tang2018)."""
+    meta = {"source": "synthetic", "fps": 25.0, "hop_length": 512, "skeleton": SK.to_dict(),
+            "presets": ["revolution"], "genres": ["waltz", "rumba", "chacha", "tango"], "dances": {}}
+    for k, (name, p) in enumerate(dances.items()):
+        d = root / "dances" / name
+        d.mkdir(parents=True)
+        write_motion(d / "motion.npz", Motion(skeleton=SK, fps=25.0, positions=p))
+        np.savez(d / "features_revolution.npz", features=np.zeros((len(p), 4), np.float32),
+                 names=np.asarray(["a", "b", "c", "d"]), beat_times=beats, fps=np.float64(25.0),
+                 preset=np.asarray("revolution"))
+        meta["dances"][name] = {"genre": "waltz" if k % 2 == 0 else "rumba", "frames": len(p),
+                                "audio": ["song.wav", 0.0, len(p) / 25.0]}
+    (root / "meta.json").write_text(json.dumps(meta))
+    (root / "splits.json").write_text(json.dumps({**splits, "seed": 0}))
+
+
+def test_evaluate_with_a_prepared_dataset(tmp_path):
+    data = tmp_path / "data"
+    dances = {f"D{k}": dance(k, seconds=12.0) for k in range(5)}
+    _prepared(data, dances, {"train": ["D0", "D1", "D2"], "val": [], "test": ["D3", "D4"]}, 0.5 * np.arange(1, 24))
+    pred = tmp_path / "pred"
+    pred.mkdir()
+    for n in ("D3", "D4"):
+        write_motion(pred / f"{n}.npz", Motion(skeleton=SK, fps=25.0, positions=dances[n]))
+    report = evaluate_dirs(pred, data, data=data, classifier=None, settings=EvalSettings(segment_seconds=4.0))
+    assert report["settings"]["fid_reference"] == "train"
+    assert report["settings"]["beat_source"] == "prepared features_revolution.npz beat_times"
+    assert report["counts"]["fid_reference_dances"] == 3 and report["counts"]["reference_dances"] == 2
+    m, real = report["metrics"], report["real"]
+    assert m["bas_bailando"] == pytest.approx(real["bas_bailando"])  # the generated dances are the real ones
+    assert m["fid_k"] == pytest.approx(real["fid_k"]) and m["fid_k"] > 0  # test dances vs the training split
+
+
+def test_evaluate_real_dances_with_the_shipped_classifier(tang2018_dir):
+    from dancekit.metrics.evaluate import evaluate_motions
+    from dancekit.metrics.style import DEFAULT_CLASSIFIER, load_style_classifier
+    from dancekit.motion.formats import read_tang2018
+
+    if not (DEFAULT_CLASSIFIER / "config.json").is_file():
+        pytest.skip("no classifier shipped yet")
+    genres = {"DANCE_C_6": "chacha", "DANCE_R_2": "rumba", "DANCE_W_1": "waltz"}  # test split
+    ref = {n: read_tang2018(tang2018_dir / n)[0] for n in genres}
+    frozen = {n: Motion(skeleton=m.skeleton, fps=m.fps, positions=np.repeat(m.to_positions()[:1], m.num_frames, 0))
+              for n, m in ref.items()}
+    pred = {n: [ref[n], frozen[n]] for n in genres}
+    report = evaluate_motions(pred, ref, genres=genres, classifier=load_style_classifier(),
+                              settings=EvalSettings(segment_seconds=10.0))
+    real, m = report["real"], report["metrics"]
+    # the feature covariance has eigenvalues from 1e-7 to 3e3: sqrtm's rounding is ~1e-5 here
+    assert real["style_acc"] == 1.0 and real["style_fid"] == pytest.approx(0.0, abs=1e-3)
+    assert m["style_fid"] > 1.0 and m["style_multimodality"] > 0
+    assert len(report["fid_curve"]) >= 10 and report["classifier"]["genres"] == ["waltz", "rumba", "chacha", "tango"]
