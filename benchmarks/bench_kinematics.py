@@ -1,5 +1,8 @@
 """Speed of inverse / forward kinematics on a 3-minute tang2018-sized dance (target: IK < 1 s on one core).
 
+IK returns rotations on the tang2018 rig (28 joints: the 23 plus 5 pelvis branch joints); FK is
+``rig_forward_kinematics`` back to the 23 joints.
+
 Run by hand::
 
     OMP_NUM_THREADS=1 python benchmarks/bench_kinematics.py [--frames 4500] [--repeat 3]
@@ -18,7 +21,7 @@ import numpy as np
 import torch
 
 from dancekit.motion import Motion, get_skeleton
-from dancekit.motion.kinematics import forward_kinematics, inverse_kinematics
+from dancekit.motion.kinematics import forward_kinematics, inverse_kinematics, rig_forward_kinematics
 from dancekit.motion.rotations import axis_angle_to_matrix
 
 TANG = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "tang2018" / "DANCE_W_1"
@@ -53,7 +56,7 @@ def main() -> None:
             t0 = time.perf_counter()
             R, tr = inverse_kinematics(x, sk)
             t1 = time.perf_counter()
-            forward_kinematics(R, tr, offsets=sk.offsets, parents=sk.parents)
+            rig_forward_kinematics(R, tr, sk)
             t2 = time.perf_counter()
             best_ik, best_fk = min(best_ik, t1 - t0), min(best_fk, t2 - t1)
         print(f"  {str(dtype):14s} IK {best_ik:.3f} s   FK {best_fk:.3f} s")

@@ -1,4 +1,5 @@
-"""Motion file formats: real fixtures, round trips, known answers, malformed input, `dancekit info`."""
+"""Motion file formats: real fixtures, round trips (rig rotations with branch joints included), known answers,
+malformed input, `dancekit info`."""
 
 from __future__ import annotations
 
@@ -18,14 +19,17 @@ from dancekit.motion.formats import detect_format, read_motion, read_tang2018, w
 from dancekit.motion.formats.aistpp import read_aistpp
 from dancekit.motion.formats.bvh import format_bvh, guess_roles, parse_bvh, read_bvh, write_bvh
 from dancekit.motion.formats.openpose import interpolate_missing, read_openpose, write_openpose
+from dancekit.motion.kinematics import normalize_bone_lengths
 from dancekit.motion.rotations import axis_angle_to_matrix
 
 BVH_FIXTURES = ["bandai_namco_dance_short_001.bvh", "pymo_walk.bvh"]
+DANCES = ["DANCE_C_2", "DANCE_R_2", "DANCE_T_5", "DANCE_W_1"]  # cha-cha, rumba, tango, waltz
 
 
 def _tang_motion(rng, T=20) -> Motion:
+    """Random rotations on the tang2018 rig (28 joints: branch joints turned too)."""
     sk = get_skeleton("tang2018")
-    R = axis_angle_to_matrix(torch.from_numpy(rng.normal(scale=0.4, size=(T, 23, 3)))).numpy()
+    R = axis_angle_to_matrix(torch.from_numpy(rng.normal(scale=0.4, size=(T, 28, 3)))).numpy()
     tr = np.cumsum(rng.normal(size=(T, 3)), axis=0) + [0, 95, 0]
     return Motion(sk, 25, rotations=R, root_translation=tr).with_positions()
 
@@ -46,6 +50,19 @@ def test_npz_round_trip(tmp_path, rng):
         assert list(z["joint_names"]) == list(m.skeleton.joint_names)
         assert z["parents"].tolist() == list(m.skeleton.parents)
         assert json.loads(str(z["skeleton"]))["name"] == "tang2018"
+        assert json.loads(str(z["skeleton"]))["branch_joints"] == ["pelvis"]
+        # rotations are on the rig, which the file spells out
+        assert z["rotations"].shape == (20, 28, 3, 3) and int(z["version"]) == 2
+        assert tuple(z["rig_joint_names"]) == m.skeleton.rig().joint_names
+        assert z["rig_parents"].tolist() == list(m.skeleton.rig().parents)
+        # FK on (rig_parents, skeleton offsets + zeros) without dancekit's Motion gives the positions
+        from dancekit.motion.kinematics import forward_kinematics
+
+        offsets = np.concatenate([np.asarray(json.loads(str(z["skeleton"]))["offsets"]), np.zeros((5, 3))])
+        fk = forward_kinematics(torch.from_numpy(z["rotations"].astype(np.float64)),
+                                torch.from_numpy(z["root_translation"].astype(np.float64)),
+                                offsets=offsets, parents=z["rig_parents"].tolist())
+        assert np.abs(fk.numpy()[:, :23] - z["positions"]).max() < 1e-3
     # positions-only motions (and 2D motions) too
     p2 = m.project_2d()
     write_motion(tmp_path / "p2.npz", p2)
@@ -130,11 +147,18 @@ def test_bvh_write_read_any_order(tmp_path, rng, order):
     write_bvh(out, m, rotation_order=order)
     text = out.read_text()
     assert f"{order[0]}rotation {order[1]}rotation {order[2]}rotation" in text
+    assert text.count("OFFSET 0.000000 0.000000 0.000000") == 6  # the root and 5 branch joints
     back = read_bvh(out)
+    assert back.skeleton.branch_joints == ("pelvis",)
     names = list(m.skeleton.joint_names)
     perm = [names.index(n) for n in back.skeleton.joint_names]
-    assert np.abs(back.rotations - m.rotations[:, perm]).max() < 1e-6
+    rig_names = list(m.skeleton.rig().joint_names)
+    assert sorted(back.skeleton.rig().joint_names) == sorted(rig_names)
+    rig_perm = [rig_names.index(n) for n in back.skeleton.rig().joint_names]
+    assert np.abs(back.rotations - m.rotations[:, rig_perm]).max() < 1e-6
     assert np.abs(back.positions - m.positions[:, perm]).max() < 1e-4
+    fk = Motion(back.skeleton, back.fps, rotations=back.rotations, root_translation=back.root_translation)
+    assert np.abs(fk.to_positions() - back.positions).max() < 1e-4  # FK on the re-read rig
     assert back.skeleton.units == "cm" and back.skeleton.index("left_knee") == perm.index(17)
 
 
@@ -145,6 +169,89 @@ def test_bvh_from_positions_only_uses_ik(tmp_path, rng):
     back = read_motion(tmp_path / "p.bvh")
     perm = [list(m.skeleton.joint_names).index(n) for n in back.skeleton.joint_names]
     assert np.abs(back.positions - m.positions[:, perm]).max() < 1e-4  # rigid input: IK is exact
+
+
+@pytest.mark.shared
+def test_bvh_from_real_dance_positions_rereads_the_joints(tang2018_dir, tmp_path):
+    """positions -> write_bvh -> read_bvh: the 23 joints equal the bone-length-normalised input (1e-3 cm)."""
+    sk = get_skeleton("tang2018")
+    for name in DANCES:
+        motion, _ = read_tang2018(tang2018_dir / name)
+        pos = motion.positions[:400].astype(np.float64)
+        out = tmp_path / f"{name}.bvh"
+        write_bvh(out, Motion(sk, motion.fps, positions=pos))
+        data = parse_bvh(out)
+        assert len(data.names) == 28 and "pelvis_to_left_hip" in data.names
+        back = read_bvh(out)
+        assert back.fps == 25 and back.num_frames == 400
+        assert sorted(back.skeleton.joint_names) == sorted(sk.joint_names)
+        assert back.skeleton.branch_joints == ("pelvis",) and back.rotations.shape == (400, 28, 3, 3)
+        ref = normalize_bone_lengths(pos, sk)
+        idx = [sk.index(n) for n in back.skeleton.joint_names]
+        err = np.abs(back.positions - ref[:, idx]).max()
+        assert err < 1e-3, (name, err)
+
+
+def _branch_bvh(second_child: str) -> str:
+    return f"""HIERARCHY
+ROOT P
+{{
+  OFFSET 0 0 0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT P_to_A
+  {{
+    OFFSET 0 0 0
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    JOINT A
+    {{
+      OFFSET 1 0 0
+      CHANNELS 3 Zrotation Xrotation Yrotation
+      End Site
+      {{
+        OFFSET 1 0 0
+      }}
+    }}
+  }}
+  JOINT {second_child}
+  {{
+    OFFSET 0 0 0
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    JOINT B
+    {{
+      OFFSET -1 0 0
+      CHANNELS 3 Zrotation Xrotation Yrotation
+      End Site
+      {{
+        OFFSET -1 0 0
+      }}
+    }}
+  }}
+}}
+MOTION
+Frames: 1
+Frame Time: 0.04
+0 0 0 0 0 0 90 0 0 0 0 0 0 0 0 0 0 0
+"""
+
+
+def test_bvh_branch_joints_known_answer(tmp_path):
+    p = tmp_path / "branch.bvh"
+    p.write_text(_branch_bvh("P_to_B"))
+    m = read_bvh(p)
+    assert m.skeleton.joint_names == ("P", "A", "B") and m.skeleton.parents == (-1, 0, 0)
+    assert m.skeleton.branch_joints == ("P",) and m.skeleton.rig().joint_names == ("P", "A", "B", "P_to_A", "P_to_B")
+    # P_to_A turns A by 90 degrees about z; B is unaffected
+    assert np.allclose(m.positions[0], [[0, 0, 0], [0, 1, 0], [-1, 0, 0]], atol=1e-12)
+    assert np.allclose(m.rotations[0, 3], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)
+    assert np.allclose(m.rotations[0, [0, 1, 2, 4]], np.eye(3), atol=1e-12)
+    write_bvh(tmp_path / "again.bvh", m)
+    assert parse_bvh(tmp_path / "again.bvh").names == ["P", "P_to_A", "A", "P_to_B", "B"]
+    # a zero-offset joint that is not named as a branch joint stays an ordinary joint
+    q = tmp_path / "plain.bvh"
+    q.write_text(_branch_bvh("Spacer"))
+    m2 = read_bvh(q)
+    assert m2.skeleton.joint_names == ("P", "P_to_A", "A", "Spacer", "B") and m2.skeleton.branch_joints == ()
+    assert np.allclose(m2.positions[0, [0, 2, 4]], m.positions[0], atol=1e-12)
 
 
 def test_guess_roles_common_names():
@@ -316,6 +423,29 @@ def test_malformed_openpose(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(MotionFormatError, match="empty"):
         read_openpose(tmp_path / "empty")
+
+
+def test_npz_rotations_must_fit_the_rig(tmp_path, rng):
+    m = _tang_motion(rng)
+    write_motion(tmp_path / "m.npz", m)
+    with np.load(tmp_path / "m.npz", allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    # a version-1 file: rotations of the 23 joints (branch joints at the identity), no rig keys
+    v1 = {k: v for k, v in arrays.items() if not k.startswith("rig_")}
+    v1["rotations"] = v1["rotations"][:, :23]
+    v1["version"] = np.int64(1)
+    np.savez(tmp_path / "v1.npz", **v1)
+    back = read_motion(tmp_path / "v1.npz")
+    assert back.rotations.shape == (20, 28, 3, 3) and np.allclose(back.rotations[:, 23:], np.eye(3))
+    # rig keys that disagree with the stored skeleton
+    bad = dict(arrays, rig_joint_names=arrays["rig_joint_names"][::-1])
+    np.savez(tmp_path / "badrig.npz", **bad)
+    with pytest.raises(MotionFormatError, match="badrig.npz.*rig"):
+        read_motion(tmp_path / "badrig.npz")
+    wrong = dict(arrays, rotations=arrays["rotations"][:, :27])
+    np.savez(tmp_path / "wrong.npz", **wrong)
+    with pytest.raises(MotionFormatError, match=r"wrong.npz.*\(T, 28, 3, 3\)"):
+        read_motion(tmp_path / "wrong.npz")
 
 
 def test_malformed_npz(tmp_path):

@@ -164,7 +164,7 @@ def test_to_positions_and_with_rotations(rng):
     pos = m.to_positions()
     assert pos.shape == (30, 23, 3)
     m2 = Motion(m.skeleton, m.fps, positions=pos).with_rotations()
-    assert m2.rotations.shape == (30, 23, 3, 3) and m2.positions is pos
+    assert m2.rotations.shape == (30, m.skeleton.rig().num_joints, 3, 3) == (30, 28, 3, 3) and m2.positions is pos
     # rigid motion: IK rotations reproduce the positions
     again = Motion(m.skeleton, m.fps, rotations=m2.rotations, root_translation=m2.root_translation)
     assert np.allclose(again.to_positions(), pos, atol=1e-8)

@@ -39,8 +39,12 @@ class Motion:
         Frames per second (> 0). Frame ``i`` is at ``i / fps`` seconds.
     positions : np.ndarray, shape (T, J, 3) or (T, J, 2), optional
         World joint positions in skeleton units (2D for image skeletons).
-    rotations : np.ndarray, shape (T, J, 3, 3), optional
-        Local joint rotations (see :mod:`dancekit.motion.kinematics`).
+    rotations : np.ndarray, shape (T, J_rig, 3, 3) or (T, J, 3, 3), optional
+        Local joint rotations on the skeleton's rig, ``skeleton.rig()`` (its J
+        joints, then its zero-offset branch joints: ``J_rig`` is 28 for
+        tang2018, ``J`` for skeletons without branch joints); see
+        :mod:`dancekit.motion.kinematics`. Rotations of the J joints alone are
+        accepted and stored with identity branch joints (the same pose).
     root_translation : np.ndarray, shape (T, 3), optional
         World position of the root; required with ``rotations`` unless
         ``positions`` are given (then it defaults to the root's positions).
@@ -95,8 +99,15 @@ class Motion:
             if D != 3:
                 raise ParameterError(f"rotations need a 3D skeleton, {sk.name!r} is 2D")
             rot = _float_array(self.rotations, "rotations")
-            if rot.ndim != 4 or rot.shape[1:] != (J, 3, 3):
-                raise ParameterError(f"rotations must have shape (T, {J}, 3, 3), got {rot.shape}")
+            Jr = sk.rig().num_joints
+            if rot.ndim != 4 or rot.shape[1:] not in ((J, 3, 3), (Jr, 3, 3)):
+                also = f" (or (T, {J}, 3, 3) without its branch joints)" if Jr != J else ""
+                raise ParameterError(
+                    f"rotations must have shape (T, {Jr}, 3, 3) for skeleton {sk.name!r}{also}, got {rot.shape}"
+                )
+            if rot.shape[1] != Jr:  # the same pose with identity branch joints (kinematics.rig_rotations)
+                eye = np.broadcast_to(np.eye(3, dtype=rot.dtype), (rot.shape[0], Jr - J, 3, 3))
+                rot = np.concatenate([rot, eye], axis=1)
             if T is not None and rot.shape[0] != T:
                 raise ParameterError(f"rotations have {rot.shape[0]} frames but positions have {T}")
             if not np.all(np.isfinite(rot)):
@@ -140,19 +151,18 @@ class Motion:
 
     # -------------------------------------------------------------- kinematics
     def to_positions(self) -> np.ndarray:
-        """World positions ``(T, J, 3|2)``: stored ones, else forward kinematics of the rotations."""
+        """World positions ``(T, J, 3|2)``: stored ones, else forward kinematics of the rotations on the rig."""
         if self.positions is not None:
             return self.positions
         import torch
 
-        from dancekit.motion.kinematics import forward_kinematics
+        from dancekit.motion.kinematics import rig_forward_kinematics
 
         assert self.rotations is not None and self.root_translation is not None
-        pos = forward_kinematics(
+        pos = rig_forward_kinematics(
             torch.from_numpy(np.ascontiguousarray(self.rotations)),
             torch.from_numpy(np.ascontiguousarray(self.root_translation, dtype=self.rotations.dtype)),
-            offsets=self.skeleton.offsets,
-            parents=self.skeleton.parents,
+            self.skeleton,
         )
         return pos.numpy()
 
@@ -165,9 +175,12 @@ class Motion:
     def with_rotations(self) -> Motion:
         """This motion with ``rotations`` and ``root_translation`` (inverse kinematics if needed).
 
-        Positions are kept as they are (IK follows bone directions; see
-        :func:`dancekit.motion.kinematics.inverse_kinematics`). The rotations
-        get the dtype of the positions.
+        Positions are kept as they are. The rotations, on ``skeleton.rig()``
+        (``(T, J_rig, 3, 3)``), follow every bone direction, so their forward
+        kinematics is the positions with the rest bone lengths
+        (:func:`dancekit.motion.kinematics.inverse_kinematics`,
+        :func:`~dancekit.motion.kinematics.normalize_bone_lengths`). They get
+        the dtype of the positions.
 
         Raises
         ------
@@ -224,7 +237,7 @@ class Motion:
 
             R = torch.from_numpy(self.rotations.astype(np.float64))
             q = matrix_to_quaternion(R)
-            tt = torch.from_numpy(w)[:, None].expand(n, self.skeleton.num_joints)
+            tt = torch.from_numpy(w)[:, None].expand(n, R.shape[1])
             rot = quaternion_to_matrix(quaternion_slerp(q[i0], q[i1], tt)).numpy().astype(self.rotations.dtype)
         return Motion(self.skeleton, new_fps, lerp(self.positions), rot, lerp(self.root_translation))
 

@@ -7,6 +7,16 @@ root) and rest ``offsets`` (``(J, 3)``, each joint's position relative to its
 parent in the rest pose, in ``units``). Forward kinematics of identity rotations
 reproduces the rest pose.
 
+Rotations live on the skeleton's *rig* (:meth:`Skeleton.rig`): the same
+joints, plus one zero-offset virtual *branch joint* per child of every joint
+listed in ``branch_joints`` (joints whose children do not keep a rigid layout,
+such as the tang2018 pelvis, which carries the hips, the shoulders and the
+head without any spine joint). Each branch joint has its own rotation, so
+every real bone hangs from a joint that rotates for it alone and inverse
+kinematics reproduces every bone direction exactly (see
+:mod:`dancekit.motion.kinematics`). Skeletons without ``branch_joints`` (SMPL,
+BODY_25, BVH files) are their own rig.
+
 Canonical roles let metrics and models find body parts on any skeleton:
 ``pelvis``, ``spine`` (optional), ``neck``, ``head`` and the ``left_``/``right_``
 twins of ``shoulder``, ``elbow``, ``wrist``, ``hip``, ``knee``, ``ankle``, ``toe``.
@@ -41,8 +51,10 @@ import numpy as np
 from dancekit.errors import MotionFormatError, ParameterError
 
 __all__ = [
+    "BRANCH_SEPARATOR",
     "CANONICAL_ROLES",
     "Skeleton",
+    "branch_joint_name",
     "body25_skeleton",
     "get_skeleton",
     "smpl_skeleton",
@@ -59,6 +71,14 @@ CANONICAL_ROLES: tuple[str, ...] = (
 )
 
 _UP_AXES = ("y", "z", "-y")
+
+#: Branch joints of the rig are named ``f"{parent}{BRANCH_SEPARATOR}{child}"``, e.g. ``"pelvis_to_left_hip"``.
+BRANCH_SEPARATOR = "_to_"
+
+
+def branch_joint_name(parent: str, child: str) -> str:
+    """Name of the rig's branch joint between joint ``parent`` and its child ``child``."""
+    return f"{parent}{BRANCH_SEPARATOR}{child}"
 _UNIT_SCALE = {"cm": 0.01, "m": 1.0, "mm": 0.001, "px": 1.0}
 
 
@@ -90,6 +110,10 @@ class Skeleton:
         Joints used for foot contact (ankles, heels, toes).
     end_effectors : tuple of str
         Joints at the ends of the chains.
+    branch_joints : tuple of str
+        Joints (each with at least two children) whose children move relative
+        to each other; :meth:`rig` gives each of their children its own
+        zero-offset branch joint. Default: none (the skeleton is its own rig).
 
     Raises
     ------
@@ -107,6 +131,7 @@ class Skeleton:
     left_right: tuple[tuple[str, str], ...] = ()
     feet: tuple[str, ...] = ()
     end_effectors: tuple[str, ...] = ()
+    branch_joints: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         names = tuple(str(n) for n in self.joint_names)
@@ -160,6 +185,19 @@ class Skeleton:
         for n in feet + ends:
             if n not in name_set:
                 raise ParameterError(f"skeleton {self.name!r}: unknown joint {n!r} in feet/end_effectors")
+        branch = tuple(str(n) for n in self.branch_joints)
+        for n in branch:
+            if n not in name_set:
+                raise ParameterError(f"skeleton {self.name!r}: unknown branch joint {n!r}")
+            bi = names.index(n)
+            kids = [names[j] for j, p in enumerate(parents) if p == bi]
+            if len(kids) < 2:
+                raise ParameterError(f"skeleton {self.name!r}: branch joint {n!r} needs at least 2 children, has {kids}")
+            clash = [branch_joint_name(n, c) for c in kids if branch_joint_name(n, c) in name_set]
+            if clash:
+                raise ParameterError(f"skeleton {self.name!r}: joint names {clash} are reserved for branch joints")
+        if len(set(branch)) != len(branch):
+            raise ParameterError(f"skeleton {self.name!r}: duplicate branch joints {branch}")
         set_ = object.__setattr__
         set_(self, "joint_names", names)
         set_(self, "parents", parents)
@@ -168,6 +206,8 @@ class Skeleton:
         set_(self, "left_right", left_right)
         set_(self, "feet", feet)
         set_(self, "end_effectors", ends)
+        set_(self, "branch_joints", tuple(sorted(branch, key=names.index)))
+        set_(self, "_rig", None)
         set_(self, "_index", {n: j for j, n in enumerate(names)})
         set_(self, "_order", tuple(order))
 
@@ -247,6 +287,55 @@ class Skeleton:
             perm[ia], perm[ib] = ib, ia
         return perm
 
+    def rig(self) -> Skeleton:
+        """The skeleton that rotations live on: this one plus a branch joint per child of each branch joint.
+
+        The rig's first ``num_joints`` joints are this skeleton's joints, in the
+        same order, with the same names and offsets (so ``rig_positions[...,
+        :num_joints, :]`` are this skeleton's positions). Then, for each joint
+        ``p`` in ``branch_joints`` (in index order) and each child ``c`` of ``p``
+        (in index order), one virtual joint named ``branch_joint_name(p, c)``
+        (``"pelvis_to_left_hip"``) with parent ``p``, a zero offset and ``c``
+        as its only child. A branch joint sits where ``p`` is; its rotation
+        turns ``c``'s bone alone. Roles, feet and end effectors are unchanged;
+        branch joints of mirrored children are mirror pairs. The rig itself has
+        no ``branch_joints``; a skeleton without them is its own rig.
+
+        Examples
+        --------
+        >>> sk = get_skeleton("tang2018")
+        >>> rig = sk.rig()
+        >>> rig.num_joints, rig.joint_names[23], rig.joint_names[rig.parents[7]]
+        (28, 'pelvis_to_head_right', 'pelvis_to_right_hip')
+        """
+        if not self.branch_joints:
+            return self
+        cached: Skeleton | None = self._rig  # type: ignore[attr-defined]
+        if cached is not None:
+            return cached
+        names = list(self.joint_names)
+        parents = list(self.parents)
+        offsets = [np.asarray(self.offsets)]
+        branch_of: dict[str, str] = {}
+        for p in sorted(self.index(n) for n in self.branch_joints):
+            for c in self.children(p):
+                b = branch_joint_name(names[p], self.joint_names[c])
+                branch_of[self.joint_names[c]] = b
+                parents[c] = len(names)
+                names.append(b)
+                parents.append(p)
+        offsets.append(np.zeros((len(names) - self.num_joints, 3)))
+        pairs = list(self.left_right) + [
+            (branch_of[a], branch_of[b]) for a, b in self.left_right if a in branch_of and b in branch_of
+        ]
+        rig = Skeleton(
+            name=f"{self.name}_rig", joint_names=tuple(names), parents=tuple(parents),
+            offsets=np.concatenate(offsets), up_axis=self.up_axis, units=self.units, roles=dict(self.roles),
+            left_right=tuple(pairs), feet=self.feet, end_effectors=self.end_effectors,
+        )
+        object.__setattr__(self, "_rig", rig)
+        return rig
+
     def bone_lengths(self) -> np.ndarray:
         """``(J,)`` rest length of the bone ending at each joint (0 at the root)."""
         return np.linalg.norm(self.offsets, axis=-1)
@@ -265,6 +354,7 @@ class Skeleton:
             "left_right": [list(p) for p in self.left_right],
             "feet": list(self.feet),
             "end_effectors": list(self.end_effectors),
+            "branch_joints": list(self.branch_joints),
         }
 
     @classmethod
@@ -288,6 +378,7 @@ class Skeleton:
                 left_right=tuple(tuple(p) for p in d.get("left_right", ())),
                 feet=tuple(d.get("feet", ())),
                 end_effectors=tuple(d.get("end_effectors", ())),
+                branch_joints=tuple(d.get("branch_joints", ())),
             )
         except (KeyError, TypeError) as exc:
             raise ParameterError(f"bad skeleton dict: {exc!r}") from exc
@@ -298,13 +389,13 @@ class Skeleton:
             "name": self.name, "joint_names": self.joint_names, "parents": self.parents,
             "offsets": self.offsets, "up_axis": self.up_axis, "units": self.units,
             "roles": dict(self.roles), "left_right": self.left_right, "feet": self.feet,
-            "end_effectors": self.end_effectors,
+            "end_effectors": self.end_effectors, "branch_joints": self.branch_joints,
         }
         d.update(changes)
         return Skeleton(**d)
 
     def same_as(self, other: Skeleton, *, atol: float = 1e-6) -> bool:
-        """Structural equality: names, tree, units, roles, pairs and offsets (to ``atol``)."""
+        """Structural equality: names, tree, units, roles, pairs, branch joints and offsets (to ``atol``)."""
         return (
             self.joint_names == other.joint_names
             and self.parents == other.parents
@@ -312,6 +403,7 @@ class Skeleton:
             and self.units == other.units
             and dict(self.roles) == dict(other.roles)
             and self.left_right == other.left_right
+            and self.branch_joints == other.branch_joints
             and np.allclose(self.offsets, other.offsets, atol=atol)
         )
 
@@ -370,7 +462,9 @@ _TANG2018_NAMES = (
 # Tree: the neck is virtual in this data, so the shoulders and the head hang
 # directly from the pelvis; each foot is a chain ankle -> heel -> toe and each
 # undrawn marker hangs from the wrist, so every joint below the pelvis has at
-# most one child (inverse kinematics is then exact below the pelvis).
+# most one child. The pelvis is a branch joint: its five children (head,
+# shoulders, hips) move relative to each other as the torso bends, so the rig
+# gives each of them its own zero-offset branch joint (Skeleton.rig).
 _TANG2018_PARENTS = (2, 0, -1, 2, 3, 4, 5, 2, 7, 8, 9, 10, 2, 12, 13, 14, 2, 16, 17, 18, 19, 15, 6)
 
 # Rest offsets (cm) = the mean pose of the data set: for every bone, the mean of
@@ -427,6 +521,11 @@ def tang2018_skeleton() -> Skeleton:
     joint 21 is *not* symmetric to it: it sits 6 cm from 14 and 14.7 cm from
     the left wrist 15. The neck is virtual (midpoint of 3 and 12), so there
     is no ``neck`` role. Offsets: see ``_TANG2018_OFFSETS`` and docs/MOTION.md.
+
+    ``branch_joints = ("pelvis",)``: the rig (:meth:`Skeleton.rig`, 28 joints)
+    adds ``pelvis_to_head_right``, ``pelvis_to_right_shoulder``,
+    ``pelvis_to_right_hip``, ``pelvis_to_left_shoulder`` and
+    ``pelvis_to_left_hip`` (joints 23-27) between the pelvis and its children.
     """
     names = _TANG2018_NAMES
     roles = {
@@ -447,6 +546,7 @@ def tang2018_skeleton() -> Skeleton:
         left_right=pairs,
         feet=("left_ankle", "left_heel", "left_toe", "right_ankle", "right_heel", "right_toe"),
         end_effectors=("head_left", "left_toe", "right_toe", "left_aux", "right_aux"),
+        branch_joints=("pelvis",),
     )
 
 

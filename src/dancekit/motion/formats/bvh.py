@@ -7,6 +7,11 @@ Two levels:
   joint, End Sites); ``format_bvh(parse_bvh(f))`` reproduces the channel values
   to 1e-6.
 - :func:`read_bvh` / :func:`write_bvh` convert to and from a :class:`Motion`.
+  :func:`write_bvh` writes the skeleton's rig (:meth:`Skeleton.rig`: tang2018
+  gets five zero-offset joints ``pelvis_to_<child>`` between the pelvis and
+  its children, each with its own rotation); :func:`read_bvh` folds such
+  branch joints back into ``Skeleton.branch_joints``, so a written motion
+  reads back with the same joints and rotations.
 
 Conventions: rotation channels are intrinsic Euler angles in degrees, applied
 in the order they are listed (``CHANNELS 3 Zrotation Xrotation Yrotation`` →
@@ -36,7 +41,7 @@ from dancekit._io import atomic_path
 from dancekit.errors import DancekitError, MotionFormatError, ParameterError
 from dancekit.motion.motion import Motion
 from dancekit.motion.rotations import euler_angles_to_matrix, matrix_to_euler_angles
-from dancekit.motion.skeleton import Skeleton
+from dancekit.motion.skeleton import Skeleton, branch_joint_name
 
 __all__ = ["BvhData", "format_bvh", "guess_roles", "parse_bvh", "read_bvh", "write_bvh"]
 
@@ -397,6 +402,14 @@ def read_bvh(path: str | os.PathLike, *, units: str | None = None) -> Motion:
     unless given. ``fps = 1 / Frame Time``, rounded to an integer when within
     0.1 % of one.
 
+    Branch joints are folded: when every child of a joint ``p`` (at least
+    two) is a zero-offset joint without position channels named
+    ``"{p}_to_{c}"`` (:func:`~dancekit.motion.skeleton.branch_joint_name`)
+    whose only child is ``c``, as :func:`write_bvh` writes the tang2018
+    pelvis, those joints are dropped from ``joint_names`` and ``positions``,
+    ``p`` is listed in ``skeleton.branch_joints``, and ``rotations`` keep
+    them in the order of ``skeleton.rig()``. Forward kinematics is unchanged.
+
     Position channels on non-root joints are honoured in ``positions``. A
     static root (constant channels) with a single child whose translation is
     animated (as in the Bandai-Namco data set, ``joint_Root`` → ``Hips``) is
@@ -446,6 +459,21 @@ def read_bvh(path: str | os.PathLike, *, units: str | None = None) -> Motion:
             stacklevel=2,
         )
     positions = _fk_translations(rot, trans, parents)
+    # fold branch joints (p -> "p_to_c" -> c) back into Skeleton.branch_joints
+    branches = _find_branch_joints(names, parents, offsets, animated)
+    branch_parents: tuple[str, ...] = ()
+    file_names = list(names)
+    if branches:
+        drop = {b for bs in branches.values() for b in bs}
+        keep = [j for j in range(len(names)) if j not in drop]
+        remap = {old: new for new, old in enumerate(keep)}
+        parents = [-1 if parents[j] < 0 else remap[parents[parents[j]] if parents[j] in drop else parents[j]]
+                   for j in keep]
+        names = [names[j] for j in keep]
+        offsets = offsets[keep]
+        positions = positions[:, keep]
+        root = remap[root]
+        branch_parents = tuple(file_names[p] for p in sorted(branches))
     roles, pairs = guess_roles(names, parents)
     up = _guess_up(positions, roles, names)
     if units is None:
@@ -460,27 +488,53 @@ def read_bvh(path: str | os.PathLike, *, units: str | None = None) -> Motion:
         skeleton = Skeleton(
             name=path.stem, joint_names=tuple(names), parents=tuple(parents), offsets=offsets,
             up_axis=up, units=units, roles=roles, left_right=pairs, feet=feet, end_effectors=leaves,
+            branch_joints=branch_parents,
         )
+        file_index = {n: j for j, n in enumerate(file_names)}
+        rig_order = [file_index[n] for n in skeleton.rig().joint_names]
+        assert sorted(rig_order) == list(range(len(file_names)))
         fps = 1.0 / data.frame_time
         if abs(fps - round(fps)) < 1e-3 * fps:
             fps = float(round(fps))
-        return Motion(skeleton=skeleton, fps=fps, positions=positions, rotations=rot,
-                      root_translation=trans[:, root].copy())
+        return Motion(skeleton=skeleton, fps=fps, positions=positions, rotations=rot[:, rig_order],
+                      root_translation=trans[:, file_index[names[root]]].copy())
     except ParameterError as exc:
         raise MotionFormatError(f"{path}: {exc}") from exc
+
+
+def _find_branch_joints(names: list[str], parents: list[int], offsets: np.ndarray,
+                        animated: np.ndarray) -> dict[int, list[int]]:
+    """Joints whose children are all branch joints: ``{parent: [branch joint indices]}`` (see :func:`read_bvh`)."""
+    children: dict[int, list[int]] = {}
+    for j, p in enumerate(parents):
+        children.setdefault(p, []).append(j)
+    scale = max(float(np.abs(offsets).max()), 1e-9)
+
+    def is_branch(b: int) -> bool:
+        kids = children.get(b, [])
+        return (len(kids) == 1 and not animated[b] and float(np.abs(offsets[b]).max()) <= 1e-9 * scale
+                and names[b] == branch_joint_name(names[parents[b]], names[kids[0]]))
+
+    return {p: kids for p, kids in children.items()
+            if p >= 0 and len(kids) >= 2 and all(is_branch(b) for b in kids)}
 
 
 # -------------------------------------------------------------- from Motion
 def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = "ZXY") -> None:
     """Write a motion as BVH (atomically).
 
-    The root gets ``Xposition Yposition Zposition`` + rotation channels, the
-    other joints rotation channels only, in ``rotation_order`` (intrinsic,
-    default ``Zrotation Xrotation Yrotation``), angles in degrees, lengths in
-    the skeleton's units (import into Blender with scale 0.01 for cm). A
-    motion with positions only gets rotations by inverse kinematics first.
-    Leaf joints get an End Site at 30 % of their own bone offset, so that
-    importers draw a visible last bone.
+    The joints are those of the skeleton's rig (:meth:`Skeleton.rig`: for
+    tang2018, the 23 joints plus the zero-offset branch joints
+    ``pelvis_to_head_right``, ``pelvis_to_right_shoulder``, ... between the
+    pelvis and its children), parents first. The root gets ``Xposition
+    Yposition Zposition`` + rotation channels, the other joints rotation
+    channels only, in ``rotation_order`` (intrinsic, default ``Zrotation
+    Xrotation Yrotation``), angles in degrees, lengths in the skeleton's units
+    (import into Blender with scale 0.01 for cm). A motion with positions only
+    gets rotations by inverse kinematics first; the file's forward kinematics
+    then reproduces the positions with the skeleton's rest bone lengths
+    (exactly on tang2018). Leaf joints get an End Site at 30 % of their own
+    bone offset, so that importers draw a visible last bone.
 
     Raises
     ------
@@ -501,9 +555,10 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
     R = torch.from_numpy(np.asarray(m.rotations, dtype=np.float64))
     eul = np.rad2deg(matrix_to_euler_angles(R, order).numpy())  # (T, J, 3)
     rot_ch = tuple(f"{a}rotation" for a in order)
-    J = sk.num_joints
+    rig = sk.rig()
+    J = rig.num_joints
     channels, cols = [], []
-    root = sk.root
+    root = rig.root
     for j in range(J):
         if j == root:
             channels.append(("Xposition", "Yposition", "Zposition") + rot_ch)
@@ -512,21 +567,21 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
             channels.append(rot_ch)
             cols.append(eul[:, j])
     # joints in a DFS order where parents precede children (BVH nesting)
-    order_idx = list(sk.topological_order)
+    order_idx = list(rig.topological_order)
     remap = {old: new for new, old in enumerate(order_idx)}
-    parents = [-1 if sk.parents[j] < 0 else remap[sk.parents[j]] for j in order_idx]
-    has_child = set(sk.parents)
+    parents = [-1 if rig.parents[j] < 0 else remap[rig.parents[j]] for j in order_idx]
+    has_child = set(rig.parents)
     end_sites = {}
     for j in order_idx:
         if j not in has_child:
-            off = np.asarray(sk.offsets[j], np.float64) * 0.3
+            off = np.asarray(rig.offsets[j], np.float64) * 0.3
             if not np.any(off):
-                off = np.eye(3)[sk.up_index] * 0.05 / sk.unit_scale
+                off = np.eye(3)[rig.up_index] * 0.05 / rig.unit_scale
             end_sites[remap[j]] = [off]
     data = BvhData(
-        names=[sk.joint_names[j] for j in order_idx],
+        names=[rig.joint_names[j] for j in order_idx],
         parents=parents,
-        offsets=np.asarray(sk.offsets, np.float64)[order_idx],
+        offsets=np.asarray(rig.offsets, np.float64)[order_idx],
         channels=[channels[j] for j in order_idx],
         end_sites=end_sites,
         frame_time=1.0 / m.fps,

@@ -6,10 +6,21 @@ Keys:
 ``fps``              float64 scalar, frames per second
 ``joint_names``      (J,) unicode strings
 ``parents``          (J,) int64, -1 for the root
-``skeleton``         0-d unicode string: JSON of ``Skeleton.to_dict()`` (roles, offsets, units, up axis...)
-``rotations``        (T, J, 3, 3) float32, local rotations (optional, when known)
+``skeleton``         0-d unicode string: JSON of ``Skeleton.to_dict()`` (roles, offsets, units, up axis,
+                     branch joints...)
+``rotations``        (T, J_rig, 3, 3) float32, local rotations on the skeleton's rig (optional, when known)
 ``root_translation`` (T, 3) float32 (optional, with ``rotations``)
-``format``           0-d string ``"dancekit-motion"``; ``version`` int64 scalar, currently 1
+``rig_joint_names``  (J_rig,) unicode, with ``rotations``: the rig's joints (the J joints, then the
+                     zero-offset branch joints ``"{parent}_to_{child}"``)
+``rig_parents``      (J_rig,) int64, with ``rotations``: the rig's parents
+``format``           0-d string ``"dancekit-motion"``; ``version`` int64 scalar, currently 2
+
+The rig is ``Skeleton.from_dict(json.loads(skeleton)).rig()``; for a skeleton
+without ``branch_joints`` it is the skeleton itself (``J_rig == J``). Its
+offsets are the skeleton's offsets followed by zeros, so forward kinematics
+of ``rotations`` on (``rig_parents``, those offsets) gives the joint positions
+with the skeleton's rest bone lengths (see docs/MOTION.md). Version-1 files
+(rotations on the J joints, no ``rig_*`` keys) read the same way.
 
 Files are read with ``allow_pickle=False``.
 """
@@ -31,14 +42,15 @@ from dancekit.motion.skeleton import Skeleton
 __all__ = ["read_npz", "write_npz"]
 
 FORMAT = "dancekit-motion"
-VERSION = 1
+VERSION = 2
 
 
 def write_npz(path: str | os.PathLike, motion: Motion) -> None:
     """Write ``motion`` to ``path`` (``.npz``, float32 arrays, atomically).
 
     Positions are always written (forward kinematics if the motion only has
-    rotations); rotations and root translation when the motion has them.
+    rotations); rotations (on ``skeleton.rig()``, with ``rig_joint_names`` and
+    ``rig_parents``) and root translation when the motion has them.
     """
     sk = motion.skeleton
     arrays = {
@@ -53,6 +65,9 @@ def write_npz(path: str | os.PathLike, motion: Motion) -> None:
     if motion.rotations is not None:
         arrays["rotations"] = np.asarray(motion.rotations, dtype=np.float32)
         arrays["root_translation"] = np.asarray(motion.root_translation, dtype=np.float32)
+        rig = sk.rig()
+        arrays["rig_joint_names"] = np.asarray(rig.joint_names, dtype=str)
+        arrays["rig_parents"] = np.asarray(rig.parents, dtype=np.int64)
     with atomic_path(path, suffix=".npz") as tmp:
         np.savez(tmp, **arrays)
 
@@ -66,7 +81,9 @@ def read_npz(path: str | os.PathLike) -> Motion:
     Raises
     ------
     MotionFormatError
-        If the file is missing, not an npz, lacks keys, or holds bad arrays (the message names the file).
+        If the file is missing, not an npz, lacks keys, or holds bad arrays
+        (rotations that do not fit the skeleton's rig included); the message
+        names the file.
     """
     path = Path(path)
     if not path.is_file():
@@ -91,6 +108,15 @@ def read_npz(path: str | os.PathLike) -> Motion:
         else:
             raise MotionFormatError(f"{path}: no 'skeleton' (or 'joint_names' + 'parents') key")
         fps = float(np.asarray(data["fps"]).reshape(()))
+        if "rig_joint_names" in data and "rotations" in data:
+            rig = skeleton.rig()
+            names = tuple(str(n) for n in data["rig_joint_names"])
+            parents = tuple(int(p) for p in data.get("rig_parents", rig.parents))
+            if names != rig.joint_names or parents != rig.parents:
+                raise MotionFormatError(
+                    f"{path}: rig_joint_names/rig_parents do not match the rig of the stored skeleton "
+                    f"{skeleton.name!r} ({rig.num_joints} joints)"
+                )
         return Motion(
             skeleton=skeleton,
             fps=fps,
