@@ -7,9 +7,9 @@ Data flows one way: ``audio`` → ``features`` → ``models`` → ``motion`` →
 from dancekit.errors import (
     AudioError,
     CheckpointError,
+    DancekitError,
     DatasetError,
     ExternalToolError,
-    DancekitError,
     MotionFormatError,
     ParameterError,
 )
