@@ -1,0 +1,596 @@
+"""Dance Revolution (Huang et al., ICLR 2021): music encoder with local self-attention + LSTM dance decoder.
+
+One file, one model: :class:`RevolutionConfig` (a dataclass that travels with the weights) and
+:class:`RevolutionModel` (an ``nn.Module(config)``).
+
+Architecture (paper §3.2)
+    * Music encoder: linear embedding ``U = X W^E`` + positional encoding + ``n_layers`` transformer
+      layers whose self-attention is *local*: frame ``i`` attends to frames ``|i - j| <= window // 2``
+      (Eq. 1–2). It is computed block-wise (blocks of ``window // 2`` frames attend to their own and the
+      two neighbouring blocks), so memory is O(n·k), never an n×n score matrix.
+      Ablations of Table 3: ``encoder="global"`` (full self-attention, O(n²)), ``"lstm"`` (bidirectional
+      LSTM) and ``"conv"`` (ConvS2S-style gated convolutions with residual connections).
+    * Dance decoder: a multi-layer LSTM whose initial hidden and cell states are drawn from N(0, 1)
+      with the caller's ``torch.Generator`` (same song, another seed → another dance), and
+      ``ŷ_i = [h_i; z_i] W^S + b`` (Eq. 3). The LSTM input is the previous pose ``ŷ_{i-1}`` (Eq. 4),
+      concatenated with ``z_i`` when ``condition_on_music`` (the default; with ``False`` the music enters
+      only through the output layer, exactly as Eq. 3–4 are written). ``y_0`` is a learned
+      begin-of-pose (``bop="learned"``) or zeros (``bop="zero"``).
+    * Dynamic auto-condition (§3.3): in training the decoder input alternates ``p`` generated frames and
+      ``q`` ground-truth frames, ``Y_in = {y_0, ŷ_1..ŷ_p, y_{p+1}..y_{p+q}, ŷ_{p+q+1}, ...}``
+      (:func:`auto_condition_mask`); ``p = 0`` is teacher forcing. Ground-truth runs go through
+      ``nn.LSTM`` in one call, generated runs step by step. Loss: mean L1 (Eq. 5).
+
+Positional encoding
+    ``pos_encoding="relative"`` (default): a learned bias per head and relative offset
+    ``clip(j - i, -window//2, window//2)`` added to the attention logits (as in the Music Transformer the
+    paper builds on). The local encoder is then translation-equivariant, so a whole song encoded in
+    overlapping chunks (:meth:`RevolutionModel.encode`) equals the song encoded in one go, and training
+    windows and 10-minute songs see the same encoder. ``"sinusoidal"``: the absolute encoding of
+    Vaswani et al., restarted at 0 in every chunk.
+
+The LSTM baseline of the paper (Shlizerman et al. 2018, Table 2 "LSTM") is ``baseline=True``: an LSTM
+music encoder (``encoder="lstm"`` is required) and the same LSTM decoder trained with plain teacher
+forcing (the training objective ignores the curriculum for such a model).
+
+The model is agnostic to the pose representation: ``pose_dim=72`` is ``positions3d`` of the tang2018
+skeleton, ``pose_dim=50`` the ``keypoints2d`` BODY_25 setting. Inputs are normalised features
+``(B, n, music_dim)`` at the dataset's fps (one feature frame per motion frame).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from dancekit.errors import ParameterError
+
+ENCODERS = ("local", "global", "lstm", "conv")
+POS_ENCODINGS = ("relative", "sinusoidal")
+
+
+@dataclass
+class RevolutionConfig:
+    """Hyper-parameters of :class:`RevolutionModel` (saved as ``config.json`` with the weights).
+
+    The defaults are sized to train on the tang2018 training split on 2 CPU cores in well under an
+    hour (see ``benchmarks/bench_revolution.py``); the paper's own sizes are ``d_model=256,
+    n_heads=8, d_ff=1024, window=100, decoder_layers=3, decoder_hidden=1024``.
+    """
+
+    music_dim: int = 438  # D, acoustic features per frame (the `revolution` preset)
+    pose_dim: int = 72  # P, 72 = positions3d of tang2018 (23 joints), 50 = keypoints2d BODY_25
+    d_model: int = 128  # d_z, width of the music encoder
+    n_layers: int = 2  # encoder layers
+    n_heads: int = 4
+    d_ff: int = 512  # hidden units of the position-wise feed-forward sublayer
+    window: int = 100  # k: frame i attends to |i - j| <= k // 2 (frames at the dataset fps; ±2 s at 25 fps)
+    dropout: float = 0.1
+    encoder: str = "local"  # local | global | lstm | conv (Table 3)
+    pos_encoding: str = "relative"  # relative | sinusoidal
+    conv_kernel: int = 5  # kernel of the "conv" encoder
+    decoder_layers: int = 2
+    decoder_hidden: int = 256  # d_s
+    condition_on_music: bool = True  # feed z_i to the decoder LSTM as well as to its output layer
+    bop: str = "learned"  # begin-of-pose y_0: learned | zero
+    baseline: bool = False  # the paper's LSTM baseline (encoder="lstm", teacher forcing)
+    encoder_chunk: int = 1024  # frames per encoder chunk in `generate` (bounds memory on long songs)
+
+    def __post_init__(self) -> None:
+        for name in ("music_dim", "pose_dim", "d_model", "n_layers", "n_heads", "d_ff", "decoder_layers",
+                     "decoder_hidden", "conv_kernel", "encoder_chunk"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ParameterError(f"RevolutionConfig.{name} must be a positive integer, got {value!r}")
+        if not isinstance(self.window, int) or self.window < 0:
+            raise ParameterError(f"RevolutionConfig.window must be a non-negative integer, got {self.window!r}")
+        if self.encoder not in ENCODERS:
+            raise ParameterError(f"RevolutionConfig.encoder must be one of {ENCODERS}, got {self.encoder!r}")
+        if self.pos_encoding not in POS_ENCODINGS:
+            raise ParameterError(
+                f"RevolutionConfig.pos_encoding must be one of {POS_ENCODINGS}, got {self.pos_encoding!r}"
+            )
+        if self.bop not in ("learned", "zero"):
+            raise ParameterError(f"RevolutionConfig.bop must be 'learned' or 'zero', got {self.bop!r}")
+        if self.d_model % self.n_heads:
+            raise ParameterError(
+                f"RevolutionConfig.d_model ({self.d_model}) must be divisible by n_heads ({self.n_heads})"
+            )
+        if self.encoder == "lstm" and self.d_model % 2:
+            raise ParameterError(f"the lstm encoder needs an even d_model, got {self.d_model}")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ParameterError(f"RevolutionConfig.dropout must be in [0, 1), got {self.dropout!r}")
+        if self.baseline and self.encoder != "lstm":
+            raise ParameterError(
+                f"baseline=True is the paper's LSTM baseline and needs encoder='lstm', got {self.encoder!r}"
+            )
+
+    @property
+    def half_window(self) -> int:
+        """``k // 2``: the attention reaches this many frames on each side."""
+        return self.window // 2
+
+    @classmethod
+    def lstm_baseline(cls, **overrides) -> RevolutionConfig:
+        """The paper's LSTM baseline: LSTM encoder + LSTM decoder, trained with teacher forcing."""
+        return cls(**{"encoder": "lstm", "baseline": True, **overrides})
+
+
+# --------------------------------------------------------------------------------------------------
+# curriculum: which decoder inputs are ground truth
+
+
+def auto_condition_mask(length: int, *, p: int, q: int) -> torch.Tensor:
+    """Which decoder inputs are ground truth under the dynamic auto-condition (paper §3.3).
+
+    The decoder input for target frame ``t`` (0-based) is the begin-of-pose ``y_0`` at ``t = 0`` and
+    the previous frame otherwise, ground truth ``y_{t-1}`` or generated ``ŷ_{t-1}``. Inputs
+    alternate ``p`` generated then ``q`` ground-truth frames after the begin-of-pose::
+
+        Y_in = {y_0, ŷ_1, ..., ŷ_p, y_{p+1}, ..., y_{p+q}, ŷ_{p+q+1}, ...}
+
+    Parameters
+    ----------
+    length : number of decoder steps n
+    p : generated frames per period; 0 is teacher forcing
+    q : ground-truth frames per period; 0 (with p > 0) is fully autoregressive
+
+    Returns
+    -------
+    mask : (n,) bool tensor, True where the input is given (begin-of-pose or ground truth)
+
+    Examples
+    --------
+    >>> auto_condition_mask(8, p=2, q=3).int().tolist()
+    [1, 0, 0, 1, 1, 1, 0, 0]
+    """
+    if length < 0 or p < 0 or q < 0:
+        raise ParameterError(f"length, p and q must be non-negative, got length={length}, p={p}, q={q}")
+    t = torch.arange(length)
+    if p == 0:
+        mask = torch.ones(length, dtype=torch.bool)
+    elif q == 0:
+        mask = torch.zeros(length, dtype=torch.bool)
+    else:
+        mask = ((t - 1) % (p + q)) >= p
+    if length:
+        mask[0] = True  # y_0, the begin-of-pose
+    return mask
+
+
+def _runs(mask: torch.Tensor) -> list[tuple[int, int, bool]]:
+    """Maximal runs ``(start, end, value)`` of a 1-D bool mask."""
+    values = mask.tolist()
+    runs, start = [], 0
+    for i in range(1, len(values) + 1):
+        if i == len(values) or values[i] != values[start]:
+            runs.append((start, i, values[start]))
+            start = i
+    return runs
+
+
+# --------------------------------------------------------------------------------------------------
+# attention
+
+
+def _relative_bias(bias: torch.Tensor, offsets: torch.Tensor, half: int) -> torch.Tensor:
+    """Gather ``bias (H, 2h+1)`` at clipped relative ``offsets (...)`` → ``(H, ...)``."""
+    return bias[:, offsets.clamp(-half, half) + half]
+
+
+def local_attention(
+    q: torch.Tensor,
+    k: torch.Tensor,
+    v: torch.Tensor,
+    *,
+    half_window: int,
+    bias: torch.Tensor | None = None,
+    dropout: float = 0.0,
+    training: bool = False,
+) -> torch.Tensor:
+    """Banded scaled dot-product attention: query ``i`` attends to keys ``|i - j| <= half_window``.
+
+    Computed in blocks of ``w = max(half_window, 1)`` frames: each query block scores the keys of its
+    own block and of its two neighbours, so the score tensor is ``(B, H, n/w, w, 3w)`` — O(n·k)
+    memory, never n×n.
+
+    Parameters
+    ----------
+    q, k, v : (B, H, n, d) tensors
+    half_window : h = k // 2
+    bias : optional (H, 2h + 1) learned bias per head and relative offset ``j - i``
+
+    Returns
+    -------
+    (B, H, n, d) tensor, equal to full attention with the band mask applied.
+    """
+    B, H, n, d = q.shape
+    h = int(half_window)
+    w = max(h, 1)
+    nb = -(-n // w)  # number of blocks
+    pad = nb * w - n
+    qb = F.pad(q, (0, 0, 0, pad)).view(B, H, nb, w, d)  # (B, H, nb, w, d)
+    kp = F.pad(k, (0, 0, w, pad + w)).view(B, H, nb + 2, w, d)
+    vp = F.pad(v, (0, 0, w, pad + w)).view(B, H, nb + 2, w, d)
+    kb = torch.cat([kp[:, :, :-2], kp[:, :, 1:-1], kp[:, :, 2:]], dim=3)  # (B, H, nb, 3w, d)
+    vb = torch.cat([vp[:, :, :-2], vp[:, :, 1:-1], vp[:, :, 2:]], dim=3)  # (B, H, nb, 3w, d)
+    scores = torch.einsum("bhnqd,bhnkd->bhnqk", qb, kb) / math.sqrt(d)  # (B, H, nb, w, 3w)
+
+    dev = q.device
+    offsets = torch.arange(3 * w, device=dev)[None, :] - w - torch.arange(w, device=dev)[:, None]  # (w, 3w)
+    key_pos = torch.arange(nb, device=dev)[:, None] * w - w + torch.arange(3 * w, device=dev)[None, :]  # (nb, 3w)
+    query_pos = torch.arange(nb, device=dev)[:, None] * w + torch.arange(w, device=dev)[None, :]  # (nb, w)
+    key_ok = (key_pos >= 0) & (key_pos < n)
+    # padded queries (beyond n) may look at padded keys so that no row is empty (their output is dropped)
+    allowed = (offsets.abs() <= h)[None] & (key_ok[:, None, :] | (query_pos >= n)[:, :, None])  # (nb, w, 3w)
+    if bias is not None:
+        scores = scores + _relative_bias(bias, offsets, h)[:, None]  # (H, 1, w, 3w) broadcast
+    scores = scores.masked_fill(~allowed, float("-inf"))
+    attn = torch.softmax(scores, dim=-1)
+    if dropout and training:
+        attn = F.dropout(attn, p=dropout)
+    out = torch.einsum("bhnqk,bhnkd->bhnqd", attn, vb)  # (B, H, nb, w, d)
+    return out.reshape(B, H, nb * w, d)[:, :, :n]
+
+
+def global_attention(
+    q: torch.Tensor,
+    k: torch.Tensor,
+    v: torch.Tensor,
+    *,
+    half_window: int,
+    bias: torch.Tensor | None = None,
+    mask: torch.Tensor | None = None,
+    dropout: float = 0.0,
+    training: bool = False,
+) -> torch.Tensor:
+    """Full scaled dot-product attention with an (n, n) score matrix (O(n²) memory).
+
+    ``bias (H, 2h+1)`` is indexed at ``clip(j - i, -h, h)``; ``mask (n, n)`` (True = allowed) is optional
+    (a band mask makes it the reference for :func:`local_attention`). Shapes as :func:`local_attention`.
+    """
+    n, d = q.shape[-2], q.shape[-1]
+    scores = q @ k.transpose(-1, -2) / math.sqrt(d)  # (B, H, n, n)
+    if bias is not None:
+        idx = torch.arange(n, device=q.device)
+        scores = scores + _relative_bias(bias, idx[None, :] - idx[:, None], half_window)  # (H, n, n)
+    if mask is not None:
+        scores = scores.masked_fill(~mask, float("-inf"))
+    attn = torch.softmax(scores, dim=-1)
+    if dropout and training:
+        attn = F.dropout(attn, p=dropout)
+    return attn @ v
+
+
+def band_mask(n: int, half_window: int, *, device: torch.device | str | None = None) -> torch.Tensor:
+    """(n, n) bool mask, True where ``|i - j| <= half_window``."""
+    idx = torch.arange(n, device=device)
+    return (idx[None, :] - idx[:, None]).abs() <= half_window
+
+
+def sinusoidal_encoding(n: int, d: int, *, device: torch.device | str | None = None) -> torch.Tensor:
+    """Vaswani et al.'s positional encoding for positions ``0..n-1`` → (n, d) float32."""
+    pos = torch.arange(n, dtype=torch.float32, device=device)[:, None]
+    div = torch.exp(torch.arange(0, d, 2, dtype=torch.float32, device=device) * (-math.log(10000.0) / d))
+    pe = torch.zeros(n, d, device=device)
+    pe[:, 0::2] = torch.sin(pos * div)
+    pe[:, 1::2] = torch.cos(pos * div)[:, : d // 2]
+    return pe
+
+
+class SelfAttention(nn.Module):
+    """Multi-head self-attention, local (banded, O(n·k)) or global (O(n²))."""
+
+    def __init__(self, config: RevolutionConfig, *, local: bool):
+        super().__init__()
+        self.local = local
+        self.n_heads = config.n_heads
+        self.half = config.half_window
+        self.dropout = config.dropout
+        self.qkv = nn.Linear(config.d_model, 3 * config.d_model)
+        self.proj = nn.Linear(config.d_model, config.d_model)
+        self.rel_bias = (
+            nn.Parameter(torch.zeros(config.n_heads, 2 * self.half + 1)) if config.pos_encoding == "relative" else None
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        B, n, d = x.shape
+        q, k, v = self.qkv(x).view(B, n, 3, self.n_heads, d // self.n_heads).permute(2, 0, 3, 1, 4)  # (B, H, n, dh)
+        fn = local_attention if self.local else global_attention
+        y = fn(q, k, v, half_window=self.half, bias=self.rel_bias, dropout=self.dropout, training=self.training)
+        return self.proj(y.transpose(1, 2).reshape(B, n, d))  # (B, n, d)
+
+
+class TransformerLayer(nn.Module):
+    """Pre-norm transformer layer: self-attention sublayer + position-wise feed-forward sublayer."""
+
+    def __init__(self, config: RevolutionConfig, *, local: bool):
+        super().__init__()
+        self.ln1 = nn.LayerNorm(config.d_model)
+        self.attn = SelfAttention(config, local=local)
+        self.ln2 = nn.LayerNorm(config.d_model)
+        self.ff = nn.Sequential(
+            nn.Linear(config.d_model, config.d_ff), nn.GELU(), nn.Linear(config.d_ff, config.d_model)
+        )
+        self.drop = nn.Dropout(config.dropout)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = x + self.drop(self.attn(self.ln1(x)))  # (B, n, d)
+        return x + self.drop(self.ff(self.ln2(x)))
+
+
+class GatedConvLayer(nn.Module):
+    """ConvS2S encoder block: Conv1d to 2d channels → GLU → residual, scaled by sqrt(1/2)."""
+
+    def __init__(self, config: RevolutionConfig):
+        super().__init__()
+        self.conv = nn.Conv1d(config.d_model, 2 * config.d_model, config.conv_kernel, padding=config.conv_kernel // 2)
+        self.drop = nn.Dropout(config.dropout)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        y = F.glu(self.conv(self.drop(x).transpose(1, 2)), dim=1).transpose(1, 2)  # (B, n, d)
+        return (x + y[:, : x.shape[1]]) * math.sqrt(0.5)
+
+
+class MusicEncoder(nn.Module):
+    """Music features (B, n, D) → latent sequence Z (B, n, d_model)."""
+
+    def __init__(self, config: RevolutionConfig):
+        super().__init__()
+        self.config = config
+        self.embed = nn.Linear(config.music_dim, config.d_model)  # W^E
+        self.drop = nn.Dropout(config.dropout)
+        kind = config.encoder
+        if kind in ("local", "global"):
+            self.layers = nn.ModuleList(
+                TransformerLayer(config, local=kind == "local") for _ in range(config.n_layers)
+            )
+            self.norm = nn.LayerNorm(config.d_model)
+        elif kind == "conv":
+            self.layers = nn.ModuleList(GatedConvLayer(config) for _ in range(config.n_layers))
+            self.norm = nn.LayerNorm(config.d_model)
+        else:  # lstm
+            self.lstm = nn.LSTM(
+                config.d_model, config.d_model // 2, num_layers=config.n_layers, batch_first=True,
+                bidirectional=True, dropout=config.dropout if config.n_layers > 1 else 0.0,
+            )
+
+    @property
+    def receptive_field(self) -> int | None:
+        """Frames on each side that influence an output frame (None: the whole sequence)."""
+        c = self.config
+        if c.encoder == "local":
+            return c.n_layers * c.half_window
+        if c.encoder == "conv":
+            return c.n_layers * (c.conv_kernel // 2)
+        return None
+
+    def forward(self, music: torch.Tensor) -> torch.Tensor:
+        x = self.embed(music)  # (B, n, d)
+        if self.config.pos_encoding == "sinusoidal" and self.config.encoder in ("local", "global"):
+            x = x + sinusoidal_encoding(x.shape[1], x.shape[2], device=x.device)
+        x = self.drop(x)
+        if self.config.encoder == "lstm":
+            return self.lstm(x)[0]  # (B, n, d)
+        for layer in self.layers:
+            x = layer(x)
+        return self.norm(x)  # (B, n, d)
+
+
+# --------------------------------------------------------------------------------------------------
+# the model
+
+
+class RevolutionModel(nn.Module):
+    """Dance Revolution: normalised music features (B, n, D) → normalised poses (B, n, P).
+
+    Examples
+    --------
+    >>> model = RevolutionModel(RevolutionConfig(music_dim=8, pose_dim=6, d_model=16, n_heads=2, d_ff=32,
+    ...                                          decoder_hidden=32))
+    >>> music, dance = torch.randn(2, 40, 8), torch.randn(2, 40, 6)
+    >>> pred, loss = model(music, dance, schedule_p=4, schedule_q=4)
+    >>> pred.shape
+    torch.Size([2, 40, 6])
+    >>> model.generate(music[:1], generator=torch.Generator().manual_seed(0)).shape
+    torch.Size([1, 40, 6])
+    """
+
+    family: ClassVar[str] = "revolution"
+
+    def __init__(self, config: RevolutionConfig):
+        super().__init__()
+        self.config = config
+        c = config
+        self.encoder = MusicEncoder(c)
+        dec_in = c.pose_dim + (c.d_model if c.condition_on_music else 0)
+        self.decoder = nn.LSTM(dec_in, c.decoder_hidden, num_layers=c.decoder_layers, batch_first=True)
+        self.head = nn.Linear(c.decoder_hidden + c.d_model, c.pose_dim)  # W^S, b
+        self.bop = nn.Parameter(torch.zeros(c.pose_dim), requires_grad=c.bop == "learned")  # y_0
+
+    # ---- encoder ---------------------------------------------------------------------------------
+
+    def encode(self, music: torch.Tensor, *, chunk: int | None = None) -> torch.Tensor:
+        """Music features (B, n, D) → Z (B, n, d_model), in overlapping chunks of ``chunk`` frames.
+
+        Each chunk is encoded with ``context`` extra frames on both sides (the receptive field of the
+        local / conv encoders, which makes the result identical to encoding the whole sequence at
+        once when ``pos_encoding="relative"``; ``window`` frames for the global / lstm encoders,
+        an approximation). ``chunk=None`` encodes the whole sequence in one call.
+        """
+        self._check_music(music)
+        n = music.shape[1]
+        if chunk is None or n <= chunk:
+            return self.encoder(music)
+        context = self.encoder.receptive_field
+        if context is None:
+            context = self.config.window
+        out = []
+        for start in range(0, n, chunk):
+            a, b = max(0, start - context), min(n, start + chunk + context)
+            z = self.encoder(music[:, a:b])  # (B, b - a, d)
+            out.append(z[:, start - a : start - a + min(chunk, n - start)])
+        return torch.cat(out, dim=1)
+
+    # ---- decoder ---------------------------------------------------------------------------------
+
+    def initial_state(
+        self, batch: int, *, generator: torch.Generator | None = None, device: torch.device | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(h_0, c_0), each (decoder_layers, B, decoder_hidden), drawn from N(0, 1) with ``generator``."""
+        c = self.config
+        shape = (c.decoder_layers, batch, c.decoder_hidden)
+        gen_device = generator.device if generator is not None else torch.device("cpu")
+        h0 = torch.randn(shape, generator=generator, device=gen_device)
+        c0 = torch.randn(shape, generator=generator, device=gen_device)
+        device = device or self.bop.device
+        return h0.to(device), c0.to(device)
+
+    def _decoder_input(self, prev: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        """Previous poses (B, L, P) and latents (B, L, d) → LSTM input (B, L, P [+ d])."""
+        return torch.cat([prev, z], dim=-1) if self.config.condition_on_music else prev
+
+    def _step(self, prev: torch.Tensor, z: torch.Tensor, state):
+        """Run the decoder over L frames with inputs ``prev (B, L, P)`` → (ŷ (B, L, P), state)."""
+        h, state = self.decoder(self._decoder_input(prev, z), state)  # (B, L, H)
+        return self.head(torch.cat([h, z], dim=-1)), state  # (B, L, P)
+
+    def forward(
+        self,
+        music: torch.Tensor,
+        dance: torch.Tensor | None = None,
+        *,
+        schedule_p: int = 0,
+        schedule_q: int = 10,
+        generator: torch.Generator | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Predict poses for ``music``; with targets, under the dynamic auto-condition.
+
+        Parameters
+        ----------
+        music : (B, n, music_dim) normalised features
+        dance : (B, n, pose_dim) normalised target poses, or None (then the decoder runs fully
+            autoregressively, like :meth:`generate` without chunking)
+        schedule_p, schedule_q : generated / ground-truth frames per period of the decoder input
+            (:func:`auto_condition_mask`); ``schedule_p=0`` is teacher forcing
+        generator : draws the initial decoder state (None: torch's global generator)
+
+        Returns
+        -------
+        pred : (B, n, pose_dim)
+        loss : mean absolute error to ``dance`` (Eq. 5), or None without targets
+        """
+        self._check_music(music)
+        B, n, _ = music.shape
+        z = self.encoder(music)  # (B, n, d)
+        state = self.initial_state(B, generator=generator, device=music.device)
+        y0 = self.bop.expand(B, 1, -1)  # (B, 1, P)
+        if dance is None:
+            pred = self._autoregress(z, y0, state)[0]
+            return pred, None
+        if dance.shape[:2] != (B, n) or dance.shape[2] != self.config.pose_dim:
+            raise ParameterError(
+                f"dance must have shape ({B}, {n}, {self.config.pose_dim}) to match music, got {tuple(dance.shape)}"
+            )
+        given = torch.cat([y0, dance[:, :-1]], dim=1)  # (B, n, P): y_0, y_1, ..., y_{n-1}
+        outputs: list[torch.Tensor] = []
+        for a, b, is_given in _runs(auto_condition_mask(n, p=schedule_p, q=schedule_q)):
+            if is_given:  # ground-truth inputs: one nn.LSTM call for the whole run
+                y, state = self._step(given[:, a:b], z[:, a:b], state)  # (B, b - a, P)
+            else:  # generated inputs: step by step from the latest prediction (a >= 1: input 0 is y_0)
+                y, _, state = self._autoregress(z[:, a:b], outputs[-1][:, -1:], state)
+            outputs.append(y)
+        pred = torch.cat(outputs, dim=1)  # (B, n, P)
+        return pred, F.l1_loss(pred, dance)
+
+    def _autoregress(self, z: torch.Tensor, prev: torch.Tensor, state):
+        """Generate ``L = z.shape[1]`` frames from the input pose ``prev (B, 1, P)``, one step at a time.
+
+        Uses ``torch.lstm_cell`` on the weights of ``self.decoder`` (the same maths as ``nn.LSTM``,
+        about 1.5× faster per step on CPU). Returns ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``.
+        """
+        c = self.config
+        weights = [
+            tuple(getattr(self.decoder, f"{kind}_l{layer}") for kind in ("weight_ih", "weight_hh", "bias_ih", "bias_hh"))
+            for layer in range(c.decoder_layers)
+        ]
+        hs, cs = list(state[0].unbind(0)), list(state[1].unbind(0))  # each (B, H)
+        y = prev[:, 0]  # (B, P)
+        outputs = []
+        for t in range(z.shape[1]):
+            zt = z[:, t]  # (B, d)
+            x = torch.cat([y, zt], dim=-1) if c.condition_on_music else y
+            for layer in range(c.decoder_layers):
+                hs[layer], cs[layer] = torch.lstm_cell(x, (hs[layer], cs[layer]), *weights[layer])
+                x = hs[layer]
+            y = self.head(torch.cat([x, zt], dim=-1))  # (B, P)
+            outputs.append(y)
+        if not outputs:
+            return z.new_zeros(z.shape[0], 0, c.pose_dim), prev, state
+        out = torch.stack(outputs, dim=1)  # (B, L, P)
+        return out, out[:, -1:], (torch.stack(hs), torch.stack(cs))
+
+    @torch.no_grad()
+    def generate(
+        self,
+        music: torch.Tensor,
+        *,
+        generator: torch.Generator | None = None,
+        chunk: int | None = None,
+        progress: bool = False,
+    ) -> torch.Tensor:
+        """Dance for a whole song, autoregressively from the begin-of-pose (inference mode).
+
+        The song is processed in chunks of ``chunk`` frames (default ``config.encoder_chunk``): each
+        chunk is encoded (with context on both sides, see :meth:`encode`) and decoded before the
+        next, so memory is bounded whatever the song length (e.g. 10-minute songs).
+
+        Parameters
+        ----------
+        music : (B, n, music_dim) normalised features at the training fps
+        generator : seeds the initial decoder state; the same seed gives the same dance
+
+        Returns
+        -------
+        (B, n, pose_dim) normalised poses
+        """
+        self._check_music(music)
+        was_training = self.training
+        self.eval()
+        try:
+            B, n, _ = music.shape
+            chunk = chunk or self.config.encoder_chunk
+            context = self.encoder.receptive_field
+            if context is None:
+                context = self.config.window
+            state = self.initial_state(B, generator=generator, device=music.device)
+            prev = self.bop.expand(B, 1, -1)
+            outputs = []
+            starts = range(0, n, chunk)
+            if progress:
+                from tqdm import tqdm
+
+                starts = tqdm(starts, desc="generate", unit="chunk")
+            for start in starts:
+                a, b = max(0, start - context), min(n, start + chunk + context)
+                z = self.encoder(music[:, a:b])[:, start - a : start - a + min(chunk, n - start)]
+                y, prev, state = self._autoregress(z, prev, state)
+                outputs.append(y)
+            return torch.cat(outputs, dim=1) if outputs else music.new_zeros(B, 0, self.config.pose_dim)
+        finally:
+            self.train(was_training)
+
+    def _check_music(self, music: torch.Tensor) -> None:
+        if music.ndim != 3 or music.shape[2] != self.config.music_dim:
+            raise ParameterError(
+                f"music must have shape (B, n, {self.config.music_dim}), got {tuple(music.shape)}"
+            )
+
+    def num_parameters(self) -> int:
+        """Number of trainable parameters."""
+        return sum(p.numel() for p in self.parameters() if p.requires_grad)

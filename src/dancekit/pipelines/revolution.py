@@ -1,0 +1,137 @@
+"""Dance Revolution inference: a song → a :class:`~dancekit.motion.Motion` (inference only).
+
+    >>> pipe = RevolutionPipeline.from_pretrained("runs/revolution/model")   # doctest: +SKIP
+    >>> motion = pipe("song.ogg", seed=0)                                     # doctest: +SKIP
+
+The checkpoint folder carries everything: the model configuration and weights, the feature preset,
+fps and hop length the model was trained with, the pose representation, the skeleton and the
+normalisation statistics (``dancekit.training.checkpoint``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from dancekit.data.representation import REPRESENTATIONS, decode_motion
+from dancekit.data.stats import NormStats
+from dancekit.errors import CheckpointError, ParameterError
+from dancekit.models.revolution import RevolutionModel
+from dancekit.motion import Motion, Skeleton
+from dancekit.training.checkpoint import load_pretrained
+
+
+class RevolutionPipeline:
+    """Generate a dance for a whole song with a trained :class:`RevolutionModel`.
+
+    Parameters
+    ----------
+    model : the trained model
+    meta : the checkpoint's ``config.json`` (needs ``fps`` and ``skeleton``; ``preset``,
+        ``representation`` and ``hop_length`` default to ``revolution``, ``positions3d`` and 512)
+    stats : the normalisation statistics (``music_mean``, ``music_std``, ``dance_mean``, ``dance_std``)
+    """
+
+    def __init__(self, model: RevolutionModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?"):
+        if not isinstance(model, RevolutionModel):
+            raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a Dance Revolution model")
+        for key in ("fps", "skeleton"):
+            if key not in meta:
+                raise CheckpointError(f"checkpoint {folder}: config.json has no {key!r} entry")
+        self.model = model.eval()
+        self.meta = meta
+        self.stats = stats
+        self.fps = float(meta["fps"])
+        self.preset = str(meta.get("preset", "revolution"))
+        self.hop_length = int(meta.get("hop_length", 512))
+        self.representation = str(meta.get("representation", "positions3d"))
+        if self.representation not in REPRESENTATIONS:
+            raise CheckpointError(f"checkpoint {folder}: unknown representation {self.representation!r}")
+        self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
+            raise CheckpointError(
+                f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) do not match "
+                f"the model (music_dim {model.config.music_dim}, pose_dim {model.config.pose_dim})"
+            )
+
+    @classmethod
+    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> RevolutionPipeline:
+        """Load a checkpoint folder written by ``dancekit train revolution`` (or ``save_pretrained``).
+
+        Raises
+        ------
+        CheckpointError
+            For a missing or corrupt folder, or one that holds another model family.
+        """
+        model, meta, arrays = load_pretrained(folder, device=device)
+        missing = [k for k in ("music_mean", "music_std", "dance_mean", "dance_std") if k not in arrays]
+        if missing:
+            raise CheckpointError(f"checkpoint {folder}: stats.npz lacks {missing}")
+        stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in
+                             ("music_mean", "music_std", "dance_mean", "dance_std")})
+        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)))
+
+    def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
+                 end: float | None = None) -> np.ndarray:
+        """Normalised music features (T, music_dim) of the song (excerpt) at the checkpoint's fps."""
+        from dancekit.features import extract_file
+
+        fs = extract_file(audio_path, fps=self.fps, preset=self.preset, start=start, end=end,
+                          hop_length=self.hop_length)
+        feats = np.asarray(fs.features, np.float32)
+        if feats.ndim != 2 or feats.shape[1] != self.model.config.music_dim:
+            raise CheckpointError(
+                f"the {self.preset!r} features of {audio_path} have shape {feats.shape}, but the model expects "
+                f"{self.model.config.music_dim} columns"
+            )
+        return self.stats.normalize_music(feats)
+
+    @torch.no_grad()
+    def __call__(
+        self,
+        audio_path: str | os.PathLike,
+        *,
+        seed: int = 0,
+        start: float | None = None,
+        end: float | None = None,
+        genre: str | None = None,
+        progress: bool = False,
+    ) -> Motion:
+        """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
+
+        Parameters
+        ----------
+        audio_path : any audio file :func:`dancekit.audio.load` reads
+        seed : seeds the initial decoder state; the same seed gives the same dance
+        start, end : excerpt in seconds (None: from the beginning / to the end)
+        genre : must be None: this model is not genre-conditioned (its style follows the music)
+        progress : show a progress bar over the generated chunks
+
+        Returns
+        -------
+        Motion at the checkpoint's fps with one frame per feature frame
+        (``T = 1 + n_samples // hop_length`` at ``sr = fps * hop_length``), on the training skeleton
+        (``positions3d``) or BODY_25 (``keypoints2d``), in the skeleton's units.
+
+        Raises
+        ------
+        AudioError
+            For a missing, unreadable or too short song.
+        ParameterError
+            For a genre request.
+        """
+        if genre is not None:
+            raise ParameterError(
+                f"the Dance Revolution model is not genre-conditioned; cannot dance {genre!r} "
+                "(leave the genre to 'auto': the style follows the music)"
+            )
+        x = self.features(audio_path, start=start, end=end)  # (T, D)
+        device = self.model.bop.device
+        generator = torch.Generator(device="cpu").manual_seed(int(seed))
+        y = self.model.generate(torch.from_numpy(x)[None].to(device), generator=generator, progress=progress)
+        poses = self.stats.denormalize_dance(y[0].cpu().numpy())  # (T, P)
+        return decode_motion(poses, self.skeleton, self.fps, self.representation)

@@ -1,0 +1,51 @@
+"""Per-family training objectives: ``step_fn(model, batch, ctx) -> (loss, logs)`` for :func:`train`.
+
+A step function maps a collated batch to the scalar loss, reading what it needs from the
+:class:`~dancekit.training.loop.StepContext` (step, epoch, the training configuration, a generator).
+Register new families in :data:`OBJECTIVES`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import torch
+from torch import nn
+
+from dancekit.training.loop import StepContext, StepFn
+from dancekit.training.schedules import auto_condition_p
+
+
+def revolution_p(model: nn.Module, ctx: StepContext) -> int:
+    """``p`` of the decoder input for a Dance Revolution model.
+
+    Training: the curriculum of ``ctx.config`` at ``ctx.epoch`` (always 0, teacher forcing, for the LSTM
+    baseline). Validation: the fixed ``ctx.config.val_p`` for every model, so that validation losses
+    compare across steps, runs and curricula (with the growing training ``p`` they would not).
+    """
+    if not ctx.training:
+        return ctx.config.val_p
+    if getattr(model.config, "baseline", False):
+        return 0
+    c = ctx.config
+    return auto_condition_p(ctx.epoch, kind=c.curriculum, lam=c.curriculum_lambda, p_const=c.curriculum_p,
+                            p_max=c.curriculum_p_max)
+
+
+def revolution_step(
+    model: nn.Module, batch: Mapping[str, torch.Tensor], ctx: StepContext
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """L1 loss (Eq. 5) of a Dance Revolution model under the dynamic auto-condition.
+
+    ``batch``: ``{"music": (B, L, D), "dance": (B, L, P), ...}`` normalised windows (a collated
+    :class:`~dancekit.data.WindowDataset`). ``p`` from :func:`revolution_p`; ``q = ctx.config.curriculum_q``.
+    """
+    p = revolution_p(model, ctx)
+    _, loss = model(batch["music"], batch["dance"], schedule_p=p, schedule_q=ctx.config.curriculum_q,
+                    generator=ctx.generator)
+    return loss, {"p": p}
+
+
+OBJECTIVES: dict[str, StepFn] = {
+    "revolution": revolution_step,
+}

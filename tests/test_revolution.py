@@ -1,0 +1,243 @@
+"""Dance Revolution model: local attention, curriculum, shapes, seeds, chunked inference (tiny CPU configs)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from dancekit.errors import ParameterError
+from dancekit.models.revolution import (
+    ENCODERS,
+    RevolutionConfig,
+    RevolutionModel,
+    _runs,
+    auto_condition_mask,
+    band_mask,
+    global_attention,
+    local_attention,
+)
+
+D, P = 8, 6
+
+
+def tiny(**kw) -> RevolutionConfig:
+    base = dict(music_dim=D, pose_dim=P, d_model=16, n_heads=2, d_ff=32, window=6, decoder_hidden=24,
+                decoder_layers=2, dropout=0.0)
+    return RevolutionConfig(**{**base, **kw})
+
+
+def gen(seed: int = 0) -> torch.Generator:
+    return torch.Generator().manual_seed(seed)
+
+
+@pytest.fixture
+def batch():
+    g = gen(123)
+    return torch.randn(2, 30, D, generator=g), torch.randn(2, 30, P, generator=g)
+
+
+# ---- local attention ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("half", [0, 1, 3, 5, 50])
+@pytest.mark.parametrize("n", [1, 7, 24, 31])
+def test_local_attention_equals_band_masked_global(half, n):
+    g = gen(n * 100 + half)
+    q, k, v = (torch.randn(2, 3, n, 4, generator=g, dtype=torch.float64) for _ in range(3))
+    bias = torch.randn(3, 2 * half + 1, generator=g, dtype=torch.float64)
+    for b in (None, bias):
+        local = local_attention(q, k, v, half_window=half, bias=b)
+        ref = global_attention(q, k, v, half_window=half, bias=b, mask=band_mask(n, half))
+        assert local.shape == (2, 3, n, 4)
+        torch.testing.assert_close(local, ref, rtol=0, atol=1e-12)
+
+
+def test_local_attention_float32_matches_to_1e5():
+    g = gen(1)
+    q, k, v = (torch.randn(1, 2, 40, 8, generator=g) for _ in range(3))
+    ref = global_attention(q, k, v, half_window=4, mask=band_mask(40, 4))
+    assert (local_attention(q, k, v, half_window=4) - ref).abs().max() < 1e-5
+
+
+def test_local_attention_ignores_keys_outside_the_band():
+    g = gen(2)
+    q, k, v = (torch.randn(1, 1, 20, 4, generator=g) for _ in range(3))
+    out = local_attention(q, k, v, half_window=2)
+    k2, v2 = k.clone(), v.clone()
+    k2[..., 10:, :] += 100.0  # keys/values 10.. are out of reach of queries 0..7
+    v2[..., 10:, :] += 100.0
+    out2 = local_attention(q, k2, v2, half_window=2)
+    torch.testing.assert_close(out[..., :8, :], out2[..., :8, :])
+    assert not torch.allclose(out[..., 8:, :], out2[..., 8:, :])
+
+
+# ---- curriculum mask ------------------------------------------------------------------------------
+
+
+def test_auto_condition_mask_alternates_generated_then_ground_truth():
+    # Y_in = {y0, ŷ1, ŷ2, y3, y4, y5, ŷ6, ŷ7, y8, y9, y10, ŷ11}
+    assert auto_condition_mask(12, p=2, q=3).int().tolist() == [1, 0, 0, 1, 1, 1, 0, 0, 1, 1, 1, 0]
+    assert auto_condition_mask(7, p=1, q=1).int().tolist() == [1, 0, 1, 0, 1, 0, 1]
+    assert auto_condition_mask(5, p=0, q=10).all()  # teacher forcing
+    assert auto_condition_mask(5, p=0, q=0).all()
+    assert auto_condition_mask(5, p=3, q=0).int().tolist() == [1, 0, 0, 0, 0]  # fully autoregressive
+    assert auto_condition_mask(0, p=2, q=2).numel() == 0
+
+
+def test_auto_condition_mask_rejects_negative_values():
+    with pytest.raises(ParameterError, match="p=-1"):
+        auto_condition_mask(5, p=-1, q=2)
+
+
+def test_runs_of_mask():
+    assert _runs(torch.tensor([True, False, False, True])) == [(0, 1, True), (1, 3, False), (3, 4, True)]
+
+
+@pytest.mark.parametrize("p,q", [(0, 10), (2, 3), (3, 1), (4, 0)])
+def test_forward_feeds_ground_truth_exactly_where_the_mask_says(p, q):
+    """Perturbing target frame j changes prediction j+1 iff decoder input j+1 is ground truth."""
+    torch.manual_seed(0)
+    model = RevolutionModel(tiny()).eval()
+    n = 12
+    music, dance = torch.randn(1, n, D), torch.randn(1, n, P)
+    mask = auto_condition_mask(n, p=p, q=q)
+    base, _ = model(music, dance, schedule_p=p, schedule_q=q, generator=gen())
+    for j in range(n - 1):
+        d2 = dance.clone()
+        d2[0, j] += 1.0
+        pred, _ = model(music, d2, schedule_p=p, schedule_q=q, generator=gen())
+        changed = (pred - base).abs().amax(dim=(0, 2)) > 1e-7
+        assert not changed[: j + 1].any()  # the past never sees the future
+        assert bool(changed[j + 1]) == bool(mask[j + 1]), (j, mask.tolist())
+
+
+def test_fully_autoregressive_forward_matches_generate(batch):
+    music, dance = batch
+    model = RevolutionModel(tiny())
+    free, loss = model(music, None, generator=gen(3))
+    assert loss is None
+    curriculum, _ = model(music, dance, schedule_p=5, schedule_q=0, generator=gen(3))
+    generated = model.generate(music, generator=gen(3))
+    torch.testing.assert_close(free, curriculum)
+    torch.testing.assert_close(free, generated)
+
+
+# ---- shapes, settings, seeds -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("pos_encoding", ["relative", "sinusoidal"])
+@pytest.mark.parametrize("encoder", ENCODERS)
+def test_shapes_and_finite_gradients_for_every_encoder(encoder, pos_encoding, batch):
+    music, dance = batch
+    model = RevolutionModel(tiny(encoder=encoder, pos_encoding=pos_encoding, dropout=0.1))
+    pred, loss = model(music, dance, schedule_p=4, schedule_q=3, generator=gen())
+    assert pred.shape == (2, 30, P) and loss.ndim == 0
+    torch.testing.assert_close(loss, (pred - dance).abs().mean())  # Eq. 5, mean L1
+    loss.backward()
+    grads = [p.grad for p in model.parameters() if p.requires_grad]
+    assert all(g is not None and torch.isfinite(g).all() for g in grads)
+    assert model.generate(music, generator=gen(), chunk=7).shape == (2, 30, P)
+    assert model.encode(music).shape == (2, 30, 16)
+
+
+@pytest.mark.parametrize("pose_dim", [72, 50])  # positions3d of tang2018, keypoints2d BODY_25
+def test_pose_settings(pose_dim):
+    model = RevolutionModel(tiny(pose_dim=pose_dim, music_dim=438))
+    music, dance = torch.randn(1, 20, 438), torch.randn(1, 20, pose_dim)
+    pred, loss = model(music, dance, schedule_p=2, schedule_q=2)
+    assert pred.shape == (1, 20, pose_dim) and torch.isfinite(loss)
+
+
+def test_music_enters_only_through_the_output_layer_without_conditioning():
+    model = RevolutionModel(tiny(condition_on_music=False))
+    assert model.decoder.input_size == P
+    assert RevolutionModel(tiny()).decoder.input_size == P + 16
+    pred, _ = model(torch.randn(1, 10, D), torch.randn(1, 10, P), schedule_p=2, schedule_q=2)
+    assert pred.shape == (1, 10, P)
+
+
+def test_zero_begin_of_pose_is_not_trained():
+    model = RevolutionModel(tiny(bop="zero"))
+    assert not model.bop.requires_grad and model.bop.abs().sum() == 0
+    assert model.num_parameters() == RevolutionModel(tiny()).num_parameters() - P
+
+
+def test_same_seed_same_dance_other_seed_other_dance(batch):
+    music, _ = batch
+    model = RevolutionModel(tiny())
+    a = model.generate(music, generator=gen(0))
+    b = model.generate(music, generator=gen(0))
+    c = model.generate(music, generator=gen(1))
+    torch.testing.assert_close(a, b, rtol=0, atol=0)
+    assert (a - c).abs().mean() > 1e-3
+
+
+def test_initial_state_is_standard_normal():
+    model = RevolutionModel(tiny(decoder_hidden=256, decoder_layers=2))
+    h, c = model.initial_state(64, generator=gen(5))
+    assert h.shape == c.shape == (2, 64, 256)
+    assert abs(float(h.mean())) < 0.02 and abs(float(h.std()) - 1.0) < 0.02
+
+
+@pytest.mark.parametrize("encoder", ["local", "conv"])
+def test_chunked_encoding_and_generation_equal_whole_song(encoder):
+    """Translation-equivariant encoders give the same result in overlapping chunks (bounded memory)."""
+    model = RevolutionModel(tiny(encoder=encoder, n_layers=2, window=6, conv_kernel=3)).eval()
+    music = torch.randn(1, 103, D, generator=gen(9))
+    with torch.no_grad():
+        whole = model.encode(music)
+        for chunk in (5, 16, 50):
+            torch.testing.assert_close(model.encode(music, chunk=chunk), whole, atol=1e-5, rtol=1e-5)
+    full = model.generate(music, generator=gen(2), chunk=1000)
+    torch.testing.assert_close(model.generate(music, generator=gen(2), chunk=16), full, atol=1e-5, rtol=1e-5)
+
+
+def test_generate_restores_training_mode():
+    model = RevolutionModel(tiny(dropout=0.5)).train()
+    model.generate(torch.randn(1, 5, D), generator=gen())
+    assert model.training
+
+
+# ---- configuration errors ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "kw,match",
+    [
+        ({"encoder": "rnn"}, "encoder"),
+        ({"pos_encoding": "rope"}, "pos_encoding"),
+        ({"d_model": 15}, "divisible"),
+        ({"decoder_hidden": 0}, "decoder_hidden"),
+        ({"dropout": 1.0}, "dropout"),
+        ({"bop": "mean"}, "bop"),
+        ({"baseline": True}, "baseline"),
+        ({"window": -2}, "window"),
+    ],
+)
+def test_bad_config_names_the_field(kw, match):
+    with pytest.raises(ParameterError, match=match):
+        tiny(**kw)
+
+
+def test_lstm_baseline_configuration():
+    cfg = RevolutionConfig.lstm_baseline(music_dim=D, pose_dim=P, d_model=16, n_heads=2)
+    assert cfg.encoder == "lstm" and cfg.baseline
+    assert RevolutionModel(cfg).encoder.receptive_field is None
+
+
+def test_bad_input_shapes_are_named_errors():
+    model = RevolutionModel(tiny())
+    with pytest.raises(ParameterError, match=r"\(B, n, 8\)"):
+        model(torch.randn(1, 10, D + 1))
+    with pytest.raises(ParameterError, match="dance must have shape"):
+        model(torch.randn(1, 10, D), torch.randn(1, 9, P))
+
+
+def test_default_config_is_the_recommended_size():
+    cfg = RevolutionConfig()
+    model = RevolutionModel(cfg)
+    assert (cfg.music_dim, cfg.pose_dim, cfg.encoder) == (438, 72, "local")
+    assert 1.0e6 < model.num_parameters() < 2.0e6  # sized for ~30 min of training on 2 CPU cores
+    out = model.generate(torch.zeros(1, 3, 438), generator=gen())
+    assert out.shape == (1, 3, 72) and np.isfinite(out.numpy()).all()
