@@ -5,12 +5,14 @@ from __future__ import annotations
 import base64
 import json
 import re
-import shutil
 import subprocess
 
 import numpy as np
 import pytest
 import soundfile as sf
+from _media import chromium as _chromium
+from _media import run_chromium as _run_chromium
+from _media import stream_info
 
 from dancekit.errors import AudioError, DancekitError, ExternalToolError, ParameterError
 from dancekit.render import render_html, render_motion_html, render_motion_mp4, render_mp4
@@ -54,29 +56,6 @@ def write_song(path, segments: list[tuple[float, float]], sr: int = 22050) -> No
     """A wav of consecutive (seconds, amplitude) 440 Hz segments (amplitude 0 is silence)."""
     y = np.concatenate([a * np.sin(2 * np.pi * 440 * np.arange(int(s * sr)) / sr) for s, a in segments])
     sf.write(path, y.astype(np.float32), sr)
-
-
-def stream_info(path) -> dict:
-    """``{"video": codec or None, "audio": codec or None, "size": (w, h), "video_s", "audio_s"}`` by decoding."""
-    exe = ffmpeg_exe()
-    head = subprocess.run([exe, "-hide_banner", "-i", str(path)], capture_output=True, text=True).stderr
-    info = {"video": None, "audio": None, "size": None, "video_s": None, "audio_s": None}
-    if m := re.search(r"Stream #0:\d.*?: Video: (\w+).*?, (\d+)x(\d+)", head):
-        info["video"], info["size"] = m.group(1), (int(m.group(2)), int(m.group(3)))
-    if m := re.search(r"Stream #0:\d.*?: Audio: (\w+)", head):
-        info["audio"] = m.group(1)
-    for kind in ("video", "audio"):
-        if info[kind] is None:
-            continue
-        r = subprocess.run(
-            [exe, "-hide_banner", "-i", str(path), "-map", f"0:{kind[0]}:0", "-f", "null", "-"],
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-        h, mi, s = re.findall(r"time=\s*(\d+):(\d\d):(\d\d\.\d+)", r.stderr)[-1]
-        info[f"{kind}_s"] = int(h) * 3600 + int(mi) * 60 + float(s)
-    return info
 
 
 def decode_audio(path, sr: int = 22050) -> np.ndarray:
@@ -384,32 +363,6 @@ def test_html_failures_leave_no_file(tmp_path):
     with pytest.raises(ParameterError, match="audio_path"):
         render_html(tmp_path / "x.html", figure(0.4), parents=PARENTS, fps=FPS, audio_start=1.0)
     assert [p.name for p in tmp_path.iterdir()] == ["bad.ogg"]
-
-
-def _chromium() -> str:
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        if exe := shutil.which(name):
-            return exe
-    pytest.skip("headless Chromium not installed (apt-get install -y chromium)")
-
-
-def _run_chromium(exe: str, url: str, profile, *extra: str) -> subprocess.CompletedProcess:
-    cmd = [
-        exe,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        "--no-first-run",
-        "--mute-audio",
-        f"--user-data-dir={profile}",
-        "--virtual-time-budget=1500",
-        *extra,
-        url,
-    ]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=120, check=True)
 
 
 @pytest.mark.parametrize("with_audio", [True, False])

@@ -100,6 +100,7 @@ class RevolutionPipeline:
         end: float | None = None,
         genre: str | None = None,
         progress: bool = False,
+        postprocess: bool = True,
     ) -> Motion:
         """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
 
@@ -110,6 +111,9 @@ class RevolutionPipeline:
         start, end : excerpt in seconds (None: from the beginning / to the end)
         genre : must be None: this model is not genre-conditioned (its style follows the music)
         progress : show a progress bar over the generated chunks
+        postprocess : for 3D positions, set every bone to the skeleton's rest length (keeping the
+            generated bone directions, so IK/BVH export reproduces the positions exactly) and put the
+            feet on the floor (the running floor of :func:`dancekit.data.floor_curve` moved to 0)
 
         Returns
         -------
@@ -134,4 +138,16 @@ class RevolutionPipeline:
         generator = torch.Generator(device="cpu").manual_seed(int(seed))
         y = self.model.generate(torch.from_numpy(x)[None].to(device), generator=generator, progress=progress)
         poses = self.stats.denormalize_dance(y[0].cpu().numpy())  # (T, P)
-        return decode_motion(poses, self.skeleton, self.fps, self.representation)
+        motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
+        return clean_motion(motion) if postprocess and self.representation == "positions3d" else motion
+
+
+def clean_motion(motion: Motion) -> Motion:
+    """Rest bone lengths and feet on the floor for a generated 3D :class:`Motion` (positions only)."""
+    from dancekit.data import floor_curve
+    from dancekit.motion.kinematics import normalize_bone_lengths
+
+    skeleton = motion.skeleton
+    positions = np.asarray(normalize_bone_lengths(motion.to_positions(), skeleton), np.float64)  # (T, J, 3)
+    positions[..., skeleton.up_index] -= floor_curve(positions, skeleton, fps=motion.fps)[:, None]
+    return Motion(skeleton=skeleton, fps=motion.fps, positions=positions.astype(np.float32))

@@ -1,0 +1,40 @@
+"""``dancekit models``: list the embedded models with their training data and metrics."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("models", help="list the embedded models (training data, size, metrics)")
+    p.add_argument("--json", action="store_true", help="print the model cards as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from dancekit.pipelines.hub import DEFAULT_MODEL, embedded_models, model_card
+
+    models = embedded_models()
+    cards = {}
+    for name, folder in models.items():
+        card = model_card(folder)
+        size = sum(f.stat().st_size for f in folder.iterdir() if f.is_file())
+        card = {"name": name, "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2), **card}
+        cards[name] = card
+    if args.json:
+        print(json.dumps(cards, indent=1))
+        return 0
+    if not cards:
+        print("no embedded models")
+        return 0
+    for name, card in cards.items():
+        flag = " (default)" if card["default"] else ""
+        print(f"{name}{flag}: {card.get('description', '')}")
+        print(f"  size: {card['size_mb']} MB")
+        for key in ("training_data", "training_time", "parameters"):
+            if key in card:
+                print(f"  {key.replace('_', ' ')}: {card[key]}")
+        for key, value in card.get("metrics", {}).items():
+            print(f"  {key}: {value}")
+    return 0

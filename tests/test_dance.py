@@ -1,0 +1,209 @@
+"""The main job, `dancekit dance`: every export, its consistency, and clean failures."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+
+import numpy as np
+import pytest
+import torch
+from _media import chromium, run_chromium, stream_info
+
+from dancekit.audio import save_wav
+from dancekit.audio.synth import ode_to_joy
+from dancekit.cli.main import main
+from dancekit.models.revolution import RevolutionConfig, RevolutionModel
+from dancekit.motion import get_skeleton
+from dancekit.motion.formats import read_motion
+from dancekit.training.checkpoint import save_pretrained
+
+SR = 22050
+SONG_SECONDS = 4.0
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    """A tiny, untrained Dance Revolution checkpoint on the tang2018 skeleton (shapes are what matter)."""
+    torch.manual_seed(0)
+    model = RevolutionModel(RevolutionConfig(d_model=16, n_heads=2, d_ff=32, decoder_hidden=16))
+    skel = get_skeleton("tang2018")
+    rest = np.zeros((skel.num_joints, 3))
+    for j in skel.topological_order:
+        if skel.parents[j] >= 0:
+            rest[j] = rest[skel.parents[j]] + skel.offsets[j]
+    dance_mean = np.concatenate([(rest - rest[skel.root]).ravel(), [0.0, 0.0, 95.0]]).astype(np.float32)
+    stats = {"music_mean": np.zeros(438, np.float32), "music_std": np.ones(438, np.float32),
+             "dance_mean": dance_mean, "dance_std": np.full(72, 5.0, np.float32)}
+    meta = {"fps": 25.0, "preset": "revolution", "representation": "positions3d", "hop_length": 512,
+            "skeleton": skel.to_dict()}
+    out = tmp_path_factory.mktemp("ckpt") / "tiny"
+    return save_pretrained(out, model, model.config, stats=stats, extra=meta)
+
+
+@pytest.fixture(scope="module")
+def song(tmp_path_factory):
+    path = tmp_path_factory.mktemp("song") / "ode.wav"
+    y = ode_to_joy(sr=SR, bpm=120)[: int(SONG_SECONDS * SR)]
+    save_wav(path, y, sr=SR)
+    return path
+
+
+@pytest.fixture(scope="module")
+def danced(tmp_path_factory, checkpoint, song):
+    out = tmp_path_factory.mktemp("dance") / "out"
+    code = main(["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint), "--quiet",
+                 "--format", "mp4,html,npz,bvh,openpose", "--width", "320", "--height", "240"])
+    assert code == 0
+    return out
+
+
+def test_every_export_is_written_and_nothing_else(danced):
+    names = sorted(p.name for p in danced.iterdir())
+    assert names == ["ode.bvh", "ode.html", "ode.mp4", "ode.npz", "ode_openpose"]
+
+
+def test_mp4_has_video_and_song_of_the_same_duration(danced):
+    info = stream_info(danced / "ode.mp4")
+    assert info["video"] == "h264" and info["audio"] == "aac"
+    assert abs(info["video_s"] - SONG_SECONDS) < 0.1
+    assert abs(info["audio_s"] - SONG_SECONDS) < 0.1
+
+
+def test_npz_round_trips_and_covers_the_song(danced, checkpoint, song):
+    from dancekit.pipelines.revolution import RevolutionPipeline
+
+    m = read_motion(danced / "ode.npz")
+    assert m.fps == 25.0 and m.skeleton.name == "tang2018"
+    assert m.num_frames == 1 + int(SONG_SECONDS * 25 * 512) // 512
+    again = RevolutionPipeline.from_pretrained(checkpoint)(song, seed=0)  # same seed, same dance
+    np.testing.assert_allclose(m.positions, again.positions, atol=1e-4)
+    # post-processing: rest bone lengths and feet on the floor
+    parents = [p if p >= 0 else j for j, p in enumerate(m.skeleton.parents)]  # the root: a zero bone
+    bones = np.linalg.norm(m.positions - m.positions[:, parents], axis=-1)
+    rest = np.linalg.norm(m.skeleton.offsets, axis=-1)
+    np.testing.assert_allclose(bones, np.broadcast_to(rest, bones.shape), atol=1e-3)
+
+
+def test_bvh_rereads_with_the_same_joint_positions(danced):
+    npz = read_motion(danced / "ode.npz")
+    bvh = read_motion(danced / "ode.bvh")
+    assert bvh.num_frames == npz.num_frames
+    got = bvh.to_positions()
+    for j, name in enumerate(npz.skeleton.joint_names):
+        k = bvh.skeleton.joint_names.index(name)
+        assert np.abs(got[:, k] - npz.positions[:, j]).max() < 1e-3, name  # cm
+
+
+def test_openpose_has_one_json_per_frame(danced):
+    npz = read_motion(danced / "ode.npz")
+    files = sorted((danced / "ode_openpose").glob("*.json"))
+    assert len(files) == npz.num_frames
+    people = json.loads(files[0].read_text())["people"]
+    assert len(people[0]["pose_keypoints_2d"]) == 75
+
+
+def test_html_is_self_contained_and_draws_in_chromium(danced, tmp_path):
+    text = (danced / "ode.html").read_text()
+    assert not re.search(r"(src|href)\s*=\s*[\"']https?://", text)
+    exe = chromium()
+    dom = run_chromium(exe, (danced / "ode.html").as_uri(), tmp_path / "profile", "--dump-dom").stdout
+    tag = re.search(r"<html[^>]*>", dom).group(0)
+    assert "data-dk-error" not in tag, tag
+    assert 'data-dk-status="drawn"' in tag
+
+
+def test_a_two_second_clip_works(tmp_path, checkpoint, song):
+    out = tmp_path / "clip"
+    code = main(["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint), "--quiet",
+                 "--start", "1", "--end", "3", "--format", "npz"])
+    assert code == 0
+    assert read_motion(out / "ode.npz").num_frames == 51
+
+
+def _fails(capsys, argv, out):
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code != 0
+    assert err.strip().count("\n") == 0 and err.startswith("dancekit dance: error:"), err
+    assert not out.exists() or list(out.iterdir()) == [], list(out.iterdir())
+    return err
+
+
+def test_missing_song(tmp_path, capsys, checkpoint):
+    out = tmp_path / "out"
+    err = _fails(capsys, ["dance", str(tmp_path / "nope.mp3"), "-o", str(out), "--checkpoint", str(checkpoint)], out)
+    assert "nope.mp3" in err
+
+
+def test_corrupt_song(tmp_path, capsys, checkpoint):
+    bad = tmp_path / "bad.mp3"
+    bad.write_bytes(np.random.default_rng(0).bytes(50_000))
+    out = tmp_path / "out"
+    err = _fails(capsys, ["dance", str(bad), "-o", str(out), "--checkpoint", str(checkpoint)], out)
+    assert "bad.mp3" in err
+
+
+def test_unknown_genre_model_and_format(tmp_path, capsys, song, checkpoint):
+    out = tmp_path / "out"
+    assert "salsa" in _fails(capsys, ["dance", str(song), "-o", str(out), "--genre", "salsa"], out)
+    assert "nomodel" in _fails(capsys, ["dance", str(song), "-o", str(out), "--model", "nomodel"], out)
+    assert "gif" in _fails(capsys, ["dance", str(song), "-o", str(out), "--format", "mp4,gif"], out)
+    assert "tiny" in _fails(capsys, ["dance", str(song), "-o", str(out), "--checkpoint", str(tmp_path / "tiny")], out)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere")
+def test_unwritable_output_folder_as_user(tmp_path, capsys, song, checkpoint):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        _fails(capsys, ["dance", str(song), "-o", str(ro), "--checkpoint", str(checkpoint)], ro)
+    finally:
+        ro.chmod(0o700)
+
+
+def test_output_path_that_is_a_file(tmp_path, capsys, song, checkpoint):
+    f = tmp_path / "file.txt"
+    f.write_text("x")
+    code = main(["dance", str(song), "-o", str(f), "--checkpoint", str(checkpoint)])
+    assert code != 0 and "file.txt" in capsys.readouterr().err
+    assert f.read_text() == "x"
+
+
+def test_failure_after_generation_leaves_no_partial_files(tmp_path, capsys, song, checkpoint, monkeypatch):
+    """A render that dies half-way (after the npz was written) must leave OUTDIR as it was."""
+    import dancekit.render
+
+    def boom(*args, **kwargs):
+        from dancekit.errors import ExternalToolError
+
+        raise ExternalToolError("ffmpeg died")
+
+    monkeypatch.setattr(dancekit.render, "render_motion_mp4", boom)
+    out = tmp_path / "existing"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    code = main(["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint), "--quiet",
+                 "--format", "npz,bvh,mp4"])
+    assert code != 0 and "ffmpeg died" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["keep.txt"]
+
+
+def test_models_lists_the_embedded_models(capsys):
+    from dancekit.pipelines.hub import MODELS_DIR, embedded_models
+
+    assert main(["models", "--json"]) == 0
+    cards = json.loads(capsys.readouterr().out)
+    assert set(cards) == set(embedded_models())
+    total = sum(f.stat().st_size for f in MODELS_DIR.rglob("*") if f.is_file())
+    assert total <= 50e6  # all embedded models together
+    for card in cards.values():
+        assert card["size_mb"] <= 20
+
+
+def test_output_folder_that_cannot_be_created(capsys, song, checkpoint):
+    code = main(["dance", str(song), "-o", "/proc/dancekit/out", "--checkpoint", str(checkpoint)])
+    err = capsys.readouterr().err
+    assert code != 0 and "/proc/dancekit/out" in err and err.strip().count("\n") == 0
