@@ -173,3 +173,20 @@ def test_prepare_cli_bad_source_exits_nonzero(tmp_path, capsys):
 def test_meta_json_is_plain_json(prepared_tang2018):
     meta = json.loads((prepared_tang2018.root / "meta.json").read_text())
     assert meta["source"] == "tang2018" and meta["fps"] == 25.0
+
+
+def test_window_dataset_balances_genres(prepared_tang2018):
+    data = prepared_tang2018
+    plain = WindowDataset(data, "train", preset="music2dance", window=100, stride=100)
+    bal = WindowDataset(data, "train", preset="music2dance", window=100, stride=100, stats=plain.stats,
+                        balance_genres=True, max_repeat=8)
+
+    def share(ds):
+        g = np.array([ds.genres[i] for i, _ in ds.index])
+        return np.bincount(g, minlength=4) / len(g)
+
+    waltz = data.genres.index("waltz")
+    assert share(plain)[waltz] > 0.6  # tang2018 is mostly waltz
+    assert share(bal)[waltz] < 0.45 and share(bal).min() > 0.1
+    assert bal.repeats[waltz] == 1 and max(bal.repeats.values()) <= 8
+    assert set(bal.index) == set(plain.index)  # the same windows, repeated

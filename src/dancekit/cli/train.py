@@ -39,6 +39,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="override a model or training setting (repeatable)")
     p.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
+    p.add_argument("--init", default=None, metavar="CHECKPOINT",
+                   help="start from the weights (and model configuration) of a checkpoint folder: fine-tuning")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -129,6 +131,15 @@ def run(args: argparse.Namespace) -> int:
         unknown = sorted(set(train_base) - {f.name for f in dataclasses.fields(TrainConfig)})
         if unknown:
             raise CheckpointError(f"{found[-1]}: training settings {unknown} are unknown to this version")
+    init_state = None
+    if args.init and not found:
+        from dancekit.training.checkpoint import load_pretrained
+
+        init_model, init_meta, _ = load_pretrained(args.init)
+        if init_meta["model"] != args.family:
+            raise ParameterError(f"--init {args.init} holds a {init_meta['model']!r} model, not {args.family!r}")
+        model_base = dict(init_meta["config"])
+        init_state = init_model.state_dict()
     tc = TrainConfig(**{**train_base, **train_sets})
 
     data = PreparedData(args.data)
@@ -136,7 +147,8 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     stats = compute_stats(data, preset=preset, representation=tc.representation)
     train_set = WindowDataset(data, "train", preset=preset, window=tc.seq_len, stride=tc.stride, stats=stats,
-                              representation=tc.representation, random_offset=tc.random_offset, seed=tc.seed)
+                              representation=tc.representation, random_offset=tc.random_offset, seed=tc.seed,
+                              balance_genres=tc.balance_genres)
     val_set = WindowDataset(data, "val", preset=preset, window=tc.seq_len, stride=tc.stride, stats=stats,
                             representation=tc.representation)
     if len(train_set) == 0:
@@ -149,6 +161,8 @@ def run(args: argparse.Namespace) -> int:
     model_config = config_cls(**{**model_base, **model_sets, **dims})
     seed_everything(tc.seed)  # the initial weights depend on the seed only
     model = model_cls(model_config)
+    if init_state is not None:
+        model.load_state_dict(init_state)
     meta = {
         "representation": tc.representation,
         "preset": preset,
@@ -157,6 +171,7 @@ def run(args: argparse.Namespace) -> int:
         "skeleton": data.meta["skeleton"],
         "genres": list(data.genres),
         "data": {"root": str(Path(args.data).resolve()), "train": data.names("train"), "val": data.names("val")},
+        "init": str(Path(args.init).resolve()) if init_state is not None else None,
     }
     n_params = sum(p.numel() for p in model.parameters() if p.requires_grad)
     if not args.quiet:

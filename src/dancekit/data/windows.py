@@ -41,6 +41,11 @@ class WindowDataset(Dataset):
     Windows start every ``stride`` frames (default ``window // 4``); with ``random_offset=True``
     each item is shifted by a random amount in ``[0, stride)`` (data augmentation). Dances shorter
     than ``window`` are skipped and listed in ``skipped``.
+
+    ``balance_genres=True`` repeats the windows of each genre ``min(max_repeat, round(n_max / n_g))``
+    times, where ``n_g`` is the genre's window count and ``n_max`` the largest one, so a minority
+    genre (tango: one dance in tang2018) is seen about as often as the majority (waltz: 19 training
+    dances). With ``random_offset`` the repeats are different crops.
     """
 
     def __init__(
@@ -55,6 +60,8 @@ class WindowDataset(Dataset):
         representation: str = "positions3d",
         random_offset: bool = False,
         seed: int = 0,
+        balance_genres: bool = False,
+        max_repeat: int = 8,
     ):
         if window < 2:
             raise ParameterError(f"window must be at least 2 frames, got {window}")
@@ -78,6 +85,14 @@ class WindowDataset(Dataset):
                 continue
             for s in range(0, T - self.window + 1, self.stride):
                 self.index.append((i, s))
+        self.repeats: dict[int, int] = {}
+        if balance_genres and self.index:
+            counts: dict[int, int] = {}
+            for i, _ in self.index:
+                counts[self.genres[i]] = counts.get(self.genres[i], 0) + 1
+            n_max = max(counts.values())
+            self.repeats = {g: max(1, min(int(max_repeat), round(n_max / n))) for g, n in counts.items()}
+            self.index = [w for w in self.index for _ in range(self.repeats[self.genres[w[0]]])]
 
     @property
     def music_dim(self) -> int:

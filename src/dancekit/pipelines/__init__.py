@@ -9,9 +9,13 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-_LAZY = {"RevolutionPipeline": "dancekit.pipelines.revolution"}
+_LAZY = {
+    "RevolutionPipeline": "dancekit.pipelines.revolution",
+    "load_pipeline": "dancekit.pipelines.hub",
+    "embedded_models": "dancekit.pipelines.hub",
+}
 
-__all__ = ["RevolutionPipeline"]
+__all__ = ["RevolutionPipeline", "embedded_models", "load_pipeline"]
 
 
 def __getattr__(name: str) -> Any:

@@ -77,6 +77,7 @@ class TrainConfig:
     seq_len: int = 240  # frames per training window
     stride: int | None = None  # between window starts (None: seq_len // 4)
     random_offset: bool = True  # jitter window starts by up to one stride
+    balance_genres: bool = False  # oversample the windows of minority genres (WindowDataset)
     representation: str = "positions3d"  # positions3d | keypoints2d
     # curriculum of autoregressive decoders (dynamic auto-condition)
     curriculum: str = "linear"  # teacher_forcing | const | linear | quadratic | exponential

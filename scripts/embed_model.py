@@ -1,0 +1,92 @@
+"""Embed a trained checkpoint as a default model of the package (``dancekit/assets/models/NAME``).
+
+    python scripts/embed_model.py runs/revolution/best --name revolution \
+        --report runs/revolution/eval/report.json --training-time "34 min on 2 CPU cores" \
+        --description "Dance Revolution, 3D tang2018 skeleton, linear curriculum"
+
+Copies ``config.json``, ``model.safetensors`` and ``stats.npz`` (nothing else) and writes
+``card.json``: description, training data (from the checkpoint), parameter count, training time
+(given), and the test-split metrics from a ``dancekit evaluate`` report. Refuses files over 20 MB.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = ROOT / "src" / "dancekit" / "assets" / "models"
+KEEP = ("config.json", "model.safetensors", "stats.npz")
+CARD_METRICS = (  # keys of a report's "metrics"
+    "fid_k", "fid_g", "style_acc", "bas_bailando", "beat_coverage", "beat_hit_rate",
+    "stillness_share", "smoothed_energy_ratio", "jitter_speed_ratio", "foot_skating_ratio",
+)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("checkpoint")
+    parser.add_argument("--name", required=True)
+    parser.add_argument("--description", required=True)
+    parser.add_argument("--report", default=None, help="dancekit evaluate report.json (test split)")
+    parser.add_argument("--training-time", default=None, help="e.g. '34 min on 2 CPU cores'")
+    args = parser.parse_args(argv)
+
+    src = Path(args.checkpoint)
+    config = json.loads((src / "config.json").read_text())
+    for name in KEEP:
+        if (src / name).stat().st_size > 20e6:
+            print(f"embed_model: {src / name} is over 20 MB", file=sys.stderr)
+            return 2
+    dst = MODELS / args.name
+    if dst.exists():
+        shutil.rmtree(dst)
+    dst.mkdir(parents=True)
+    for name in KEEP:
+        shutil.copy2(src / name, dst / name)
+    from safetensors.numpy import load_file
+
+    n_params = sum(v.size for v in load_file(str(dst / "model.safetensors")).values())
+    train = config.get("train", {})
+    card = {
+        "description": args.description,
+        "family": config.get("model"),
+        "training_data": _describe_data(config.get("data") or {}),
+        "parameters": int(n_params),
+        "training_time": args.training_time,
+        "steps": train.get("steps"),
+        "curriculum": train.get("curriculum"),
+    }
+    if args.report:
+        report = json.loads(Path(args.report).read_text())
+        card["metrics_source"] = "dancekit evaluate on the tang2018 test split (6 dances), see docs/BENCHMARKS.md"
+        card["metrics"] = _pick(report)
+    (dst / "card.json").write_text(json.dumps(card, indent=1) + "\n")
+    size = sum(f.stat().st_size for f in dst.iterdir())
+    print(f"embedded {src} as {dst} ({size / 1e6:.2f} MB)")
+    return 0
+
+
+def _describe_data(data: dict) -> str:
+    """'tang2018 training split: 26 dances (19 waltz, ...)' from a checkpoint's data entry."""
+    codes = {"W": "waltz", "R": "rumba", "C": "cha-cha", "T": "tango"}
+    names = data.get("train", [])
+    counts: dict[str, int] = {}
+    for n in names:
+        g = codes.get(n.split("_")[1], "?") if n.count("_") >= 2 else "?"
+        counts[g] = counts.get(g, 0) + 1
+    parts = ", ".join(f"{v} {k}" for k, v in sorted(counts.items(), key=lambda kv: -kv[1]))
+    return f"tang2018 training split (whole dances, genre-stratified, seed 0): {len(names)} dances ({parts})"
+
+
+def _pick(report: dict) -> dict:
+    """The headline test-split metrics of a ``dancekit evaluate`` report."""
+    metrics = report["metrics"]
+    return {k: round(float(metrics[k]), 4) for k in CARD_METRICS if metrics.get(k) is not None}
+
+
+if __name__ == "__main__":
+    sys.exit(main())
