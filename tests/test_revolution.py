@@ -241,3 +241,21 @@ def test_default_config_is_the_recommended_size():
     assert 1.0e6 < model.num_parameters() < 2.0e6  # sized for ~30 min of training on 2 CPU cores
     out = model.generate(torch.zeros(1, 3, 438), generator=gen())
     assert out.shape == (1, 3, 72) and np.isfinite(out.numpy()).all()
+
+
+def test_genre_condition_starts_neutral_and_then_steers():
+    torch.manual_seed(0)
+    model = RevolutionModel(tiny(n_genres=4))
+    music = torch.randn(1, 20, D, generator=gen(5))
+    auto = model.generate(music, generator=gen(0))
+    waltz = model.generate(music, generator=gen(0), genre=torch.tensor([0]))
+    torch.testing.assert_close(auto, waltz)  # zero-initialised: no effect before training
+    with torch.no_grad():
+        model.genre_embedding.weight.normal_()
+    auto = model.generate(music, generator=gen(0))
+    torch.testing.assert_close(model.generate(music, generator=gen(0), genre=torch.tensor([-1])), auto)  # -1 = auto
+    assert (model.generate(music, generator=gen(0), genre=torch.tensor([0])) - auto).abs().max() > 1e-3
+    with pytest.raises(ParameterError, match="genre"):
+        model.generate(music, genre=torch.tensor([7]))
+    with pytest.raises(ParameterError, match="not genre-conditioned"):
+        RevolutionModel(tiny()).generate(music, genre=torch.tensor([0]))

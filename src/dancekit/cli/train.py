@@ -162,7 +162,11 @@ def run(args: argparse.Namespace) -> int:
     seed_everything(tc.seed)  # the initial weights depend on the seed only
     model = model_cls(model_config)
     if init_state is not None:
-        model.load_state_dict(init_state)
+        missing, unexpected = model.load_state_dict(init_state, strict=False)
+        new = [k for k in missing if not k.startswith("genre_embedding.")]
+        if new or unexpected:
+            raise CheckpointError(f"--init {args.init} does not fit this configuration: missing {new}, "
+                                  f"unexpected {list(unexpected)}")
     meta = {
         "representation": tc.representation,
         "preset": preset,

@@ -80,8 +80,11 @@ class RevolutionConfig:
     bop: str = "learned"  # begin-of-pose y_0: learned | zero
     baseline: bool = False  # the paper's LSTM baseline (encoder="lstm", teacher forcing)
     encoder_chunk: int = 1024  # frames per encoder chunk in `generate` (bounds memory on long songs)
+    n_genres: int = 0  # > 0: a learned dance-genre embedding added to the music latents (index n_genres = "auto")
 
     def __post_init__(self) -> None:
+        if not isinstance(self.n_genres, int) or self.n_genres < 0:
+            raise ParameterError(f"RevolutionConfig.n_genres must be a non-negative integer, got {self.n_genres!r}")
         for name in ("music_dim", "pose_dim", "d_model", "n_layers", "n_heads", "d_ff", "decoder_layers",
                      "decoder_hidden", "conv_kernel", "encoder_chunk"):
             value = getattr(self, name)
@@ -412,6 +415,28 @@ class RevolutionModel(nn.Module):
         self.decoder = nn.LSTM(dec_in, c.decoder_hidden, num_layers=c.decoder_layers, batch_first=True)
         self.head = nn.Linear(c.decoder_hidden + c.d_model, c.pose_dim)  # W^S, b
         self.bop = nn.Parameter(torch.zeros(c.pose_dim), requires_grad=c.bop == "learned")  # y_0
+        if c.n_genres:
+            # dance-genre condition (an extension, not in the paper): one vector per genre plus "auto"
+            # (index n_genres, the music decides), added to every latent z_i. Zero-initialised, so a
+            # model fine-tuned with it starts out as the unconditioned model.
+            self.genre_embedding = nn.Embedding(c.n_genres + 1, c.d_model)
+            nn.init.zeros_(self.genre_embedding.weight)
+
+    def _condition(self, z: torch.Tensor, genre: torch.Tensor | None) -> torch.Tensor:
+        """Latents (B, n, d) plus the genre embedding; ``genre`` (B,) int64 indices, None or -1 = auto."""
+        c = self.config
+        if not c.n_genres:
+            if genre is not None:
+                raise ParameterError("this model is not genre-conditioned (n_genres = 0); pass genre=None")
+            return z
+        B = z.shape[0]
+        if genre is None:
+            genre = torch.full((B,), c.n_genres, dtype=torch.long, device=z.device)
+        genre = torch.as_tensor(genre, dtype=torch.long, device=z.device).reshape(-1).expand(B)
+        if bool(((genre < -1) | (genre > c.n_genres)).any()):
+            raise ParameterError(f"genre indices must be in [0, {c.n_genres}) or -1 (auto), got {genre.tolist()}")
+        genre = torch.where(genre < 0, torch.full_like(genre, c.n_genres), genre)
+        return z + self.genre_embedding(genre)[:, None, :]  # (B, n, d)
 
     # ---- encoder ---------------------------------------------------------------------------------
 
@@ -468,6 +493,7 @@ class RevolutionModel(nn.Module):
         schedule_p: int = 0,
         schedule_q: int = 10,
         generator: torch.Generator | None = None,
+        genre: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor | None]:
         """Predict poses for ``music``; with targets, under the dynamic auto-condition.
 
@@ -479,6 +505,7 @@ class RevolutionModel(nn.Module):
         schedule_p, schedule_q : generated / ground-truth frames per period of the decoder input
             (:func:`auto_condition_mask`); ``schedule_p=0`` is teacher forcing
         generator : draws the initial decoder state (None: torch's global generator)
+        genre : (B,) genre indices for a genre-conditioned model (``n_genres > 0``); None or -1: auto
 
         Returns
         -------
@@ -487,7 +514,7 @@ class RevolutionModel(nn.Module):
         """
         self._check_music(music)
         B, n, _ = music.shape
-        z = self.encoder(music)  # (B, n, d)
+        z = self._condition(self.encoder(music), genre)  # (B, n, d)
         state = self.initial_state(B, generator=generator, device=music.device)
         y0 = self.bop.expand(B, 1, -1)  # (B, 1, P)
         if dance is None:
@@ -543,6 +570,7 @@ class RevolutionModel(nn.Module):
         generator: torch.Generator | None = None,
         chunk: int | None = None,
         progress: bool = False,
+        genre: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Dance for a whole song, autoregressively from the begin-of-pose (inference mode).
 
@@ -554,6 +582,7 @@ class RevolutionModel(nn.Module):
         ----------
         music : (B, n, music_dim) normalised features at the training fps
         generator : seeds the initial decoder state; the same seed gives the same dance
+        genre : (B,) genre indices for a genre-conditioned model; None or -1: auto (the music decides)
 
         Returns
         -------
@@ -579,6 +608,7 @@ class RevolutionModel(nn.Module):
             for start in starts:
                 a, b = max(0, start - context), min(n, start + chunk + context)
                 z = self.encoder(music[:, a:b])[:, start - a : start - a + min(chunk, n - start)]
+                z = self._condition(z, genre)
                 y, prev, state = self._autoregress(z, prev, state)
                 outputs.append(y)
             return torch.cat(outputs, dim=1) if outputs else music.new_zeros(B, 0, self.config.pose_dim)

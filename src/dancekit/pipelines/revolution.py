@@ -109,7 +109,8 @@ class RevolutionPipeline:
         audio_path : any audio file :func:`dancekit.audio.load` reads
         seed : seeds the initial decoder state; the same seed gives the same dance
         start, end : excerpt in seconds (None: from the beginning / to the end)
-        genre : must be None: this model is not genre-conditioned (its style follows the music)
+        genre : a dance genre of the checkpoint's ``genres`` (e.g. "waltz") for a genre-conditioned
+            model; None ("auto"): the style follows the music
         progress : show a progress bar over the generated chunks
         postprocess : for 3D positions, set every bone to the skeleton's rest length (keeping the
             generated bone directions, so IK/BVH export reproduces the positions exactly) and put the
@@ -126,20 +127,35 @@ class RevolutionPipeline:
         AudioError
             For a missing, unreadable or too short song.
         ParameterError
-            For a genre request.
+            For a genre the model does not know, or any genre for a model without genre conditioning.
         """
-        if genre is not None:
-            raise ParameterError(
-                f"the Dance Revolution model is not genre-conditioned; cannot dance {genre!r} "
-                "(leave the genre to 'auto': the style follows the music)"
-            )
+        genre_index = self._genre_index(genre)
         x = self.features(audio_path, start=start, end=end)  # (T, D)
         device = self.model.bop.device
         generator = torch.Generator(device="cpu").manual_seed(int(seed))
-        y = self.model.generate(torch.from_numpy(x)[None].to(device), generator=generator, progress=progress)
+        y = self.model.generate(torch.from_numpy(x)[None].to(device), generator=generator, progress=progress,
+                                genre=None if genre_index is None else torch.tensor([genre_index]))
         poses = self.stats.denormalize_dance(y[0].cpu().numpy())  # (T, P)
         motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
         return clean_motion(motion) if postprocess and self.representation == "positions3d" else motion
+
+
+    @property
+    def genres(self) -> tuple[str, ...]:
+        """The genres this model can be asked for (empty: not genre-conditioned)."""
+        return tuple(self.meta.get("genres", ())) if self.model.config.n_genres else ()
+
+    def _genre_index(self, genre: str | None) -> int | None:
+        if genre is None or genre == "auto":
+            return None
+        if not self.genres:
+            raise ParameterError(
+                f"this Dance Revolution model is not genre-conditioned; cannot dance {genre!r} "
+                "(leave the genre to 'auto': the style follows the music)"
+            )
+        if genre not in self.genres:
+            raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}")
+        return self.genres.index(genre)
 
 
 def clean_motion(motion: Motion) -> Motion:

@@ -78,6 +78,7 @@ class TrainConfig:
     stride: int | None = None  # between window starts (None: seq_len // 4)
     random_offset: bool = True  # jitter window starts by up to one stride
     balance_genres: bool = False  # oversample the windows of minority genres (WindowDataset)
+    genre_dropout: float = 0.3  # genre-conditioned models: share of windows trained as "auto"
     representation: str = "positions3d"  # positions3d | keypoints2d
     # curriculum of autoregressive decoders (dynamic auto-condition)
     curriculum: str = "linear"  # teacher_forcing | const | linear | quadratic | exponential

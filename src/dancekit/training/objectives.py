@@ -41,8 +41,19 @@ def revolution_step(
     :class:`~dancekit.data.WindowDataset`). ``p`` from :func:`revolution_p`; ``q = ctx.config.curriculum_q``.
     """
     p = revolution_p(model, ctx)
+    genre = None
+    n_genres = getattr(model.config, "n_genres", 0)
+    if n_genres and "genre" in batch:
+        # genre dropout: a share of the windows is trained as "auto" so the model also dances
+        # without a genre, from the music alone (validation: always auto, i.e. music only)
+        genre = batch["genre"].clone()
+        if ctx.training:
+            drop = torch.rand(genre.shape, generator=ctx.generator) < ctx.config.genre_dropout
+            genre[drop.to(genre.device)] = -1
+        else:
+            genre[:] = -1
     _, loss = model(batch["music"], batch["dance"], schedule_p=p, schedule_q=ctx.config.curriculum_q,
-                    generator=ctx.generator)
+                    generator=ctx.generator, genre=genre)
     return loss, {"p": p}
 
 
