@@ -24,6 +24,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", required=True, help="output folder (pred/ and report.json)")
     parser.add_argument("--split", default="test")
     parser.add_argument("--seeds", type=int, default=5, help="dances per song (default 5)")
+    parser.add_argument("--genre", default="auto",
+                        help="auto (the music decides), true (each song's own genre, for genre-conditioned "
+                             "models), or a genre name for every song")
     args = parser.parse_args(argv)
 
     from tqdm import tqdm
@@ -45,7 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in tqdm(data.names(args.split), desc="generate", unit="song"):
         ref = data.audio(name)
         for k in range(args.seeds):
-            motion = pipe(ref.path, seed=k, start=ref.start, end=ref.end)
+            genre = {"auto": None, "true": data.genre(name)}.get(args.genre, args.genre)
+            motion = pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=genre)
             stem = name if args.seeds == 1 else f"{name}__{k}"
             write_motion(pred / f"{stem}.npz", motion)
             seconds += motion.duration
