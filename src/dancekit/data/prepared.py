@@ -92,7 +92,7 @@ def floor_curve(
     """
     from scipy.ndimage import percentile_filter, uniform_filter1d
 
-    up = {"x": 0, "y": 1, "z": 2}[skeleton.up_axis]
+    up = skeleton.up_index
     feet = [skeleton.index(f) for f in skeleton.feet] or list(range(skeleton.num_joints))
     lowest = np.asarray(positions, np.float64)[:, feet, up].min(axis=1)
     size = max(1, int(round(window_s * fps)))
@@ -154,7 +154,7 @@ def prepare_tang2018(
             skel = motion.skeleton
             positions = motion.to_positions().astype(np.float64)
             floor = floor_curve(positions, skel, fps=fps)
-            up = {"x": 0, "y": 1, "z": 2}[skel.up_axis]
+            up = skel.up_index
             positions[..., up] -= floor[:, None]
             T = len(positions)
             start = float(audio.start)

@@ -27,7 +27,7 @@ REPRESENTATIONS = ("positions3d", "keypoints2d")
 
 
 def _axes(skeleton: Skeleton) -> tuple[int, tuple[int, int]]:
-    up = {"x": 0, "y": 1, "z": 2}[skeleton.up_axis]
+    up = skeleton.up_index
     horizontal = tuple(a for a in range(3) if a != up)
     return up, horizontal  # type: ignore[return-value]
 
