@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dancekit._checks import check_fps
 from dancekit._io import atomic_dir, atomic_path
 from dancekit.errors import DatasetError, ParameterError
 from dancekit.motion import Motion, Skeleton
@@ -137,8 +138,7 @@ def prepare_tang2018(
     for p in presets:
         if p not in PRESET_DIMS:
             raise ParameterError(f"unknown feature preset {p!r}; choose from {sorted(PRESET_DIMS)}")
-    if not fps > 0:
-        raise ParameterError(f"fps must be positive, got {fps}")
+    fps = check_fps(fps)
 
     dances: dict[str, dict] = {}
     names_by_genre: dict[str, list[str]] = {}

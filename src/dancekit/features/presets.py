@@ -24,6 +24,7 @@ import numbers
 
 import numpy as np
 
+from dancekit._checks import check_fps
 from dancekit.audio.io import resample, validate_audio
 from dancekit.errors import ParameterError
 from dancekit.features import rhythm, spectral
@@ -65,9 +66,7 @@ def feature_sr(*, fps: float, hop_length: int = 512) -> int:
     """
     if isinstance(hop_length, bool) or not isinstance(hop_length, numbers.Integral) or hop_length < 16:
         raise ParameterError(f"hop_length must be an integer >= 16 samples, got {hop_length!r}")
-    if isinstance(fps, bool) or not isinstance(fps, numbers.Real) or not np.isfinite(fps) or fps <= 0:
-        raise ParameterError(f"fps must be a positive number of frames per second, got {fps!r}")
-    sr = float(fps) * int(hop_length)
+    sr = check_fps(fps) * int(hop_length)
     if abs(sr - round(sr)) > 1e-6:
         raise ParameterError(
             f"fps * hop_length must be a whole number of Hz, got fps={fps!r} * {hop_length} = {sr}"

@@ -12,23 +12,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from dancekit._checks import check_fps as check_fps  # re-exported for the metrics modules
 from dancekit.errors import ParameterError
 
 if TYPE_CHECKING:  # pragma: no cover
     from dancekit.motion import Skeleton
 
 AXES = {"x": 0, "y": 1, "z": 2}
-
-
-def check_fps(fps: float) -> float:
-    """``fps`` as a positive finite float, else :class:`ParameterError`."""
-    try:
-        value = float(fps)
-    except (TypeError, ValueError):
-        raise ParameterError(f"fps must be a number, got {fps!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise ParameterError(f"fps must be positive and finite, got {fps!r}")
-    return value
 
 
 def check_positions(

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
 
 __all__ = [
@@ -123,8 +124,7 @@ def transpose_to_c(notes: Any) -> tuple[np.ndarray, int]:
 
 def melody_track(notes: Any, *, fps: float, num_frames: int | None = None) -> np.ndarray:
     """Highest sounding MIDI pitch per frame ``(num_frames,)``, -1 where silent."""
-    if not fps > 0:
-        raise ParameterError(f"fps must be positive, got {fps}")
+    fps = check_fps(fps)
     arr = note_array(notes)
     if num_frames is None:
         num_frames = int(np.ceil(arr[:, 1].max() * fps)) if len(arr) else 0

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
 from dancekit.motion.skeleton import Skeleton, get_skeleton
 
@@ -72,13 +73,7 @@ class Motion:
     def __post_init__(self) -> None:
         if not isinstance(self.skeleton, Skeleton):
             raise ParameterError(f"skeleton must be a Skeleton, got {type(self.skeleton).__name__}")
-        try:
-            fps = float(self.fps)
-        except (TypeError, ValueError) as exc:
-            raise ParameterError(f"fps must be a number, got {self.fps!r}") from exc
-        if not math.isfinite(fps) or fps <= 0:
-            raise ParameterError(f"fps must be a positive number, got {self.fps!r}")
-        self.fps = fps
+        self.fps = check_fps(self.fps)
         sk = self.skeleton
         J, D = sk.num_joints, sk.dims
         if self.positions is None and self.rotations is None:
@@ -210,12 +205,7 @@ class Motion:
         ParameterError
             If ``fps`` is not a positive number.
         """
-        try:
-            new_fps = float(fps)
-        except (TypeError, ValueError) as exc:
-            raise ParameterError(f"fps must be a number, got {fps!r}") from exc
-        if not math.isfinite(new_fps) or new_fps <= 0:
-            raise ParameterError(f"fps must be a positive number, got {fps!r}")
+        new_fps = check_fps(fps)
         T = self.num_frames
         n = int(math.floor((T - 1) * new_fps / self.fps + 1e-9)) + 1
         src = np.arange(n) * (self.fps / new_fps)  # fractional source frame

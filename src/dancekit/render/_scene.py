@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, percentile_filter
 
+from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
 
 #: rotation taking each supported up axis onto +y (right-handed, det = +1)
@@ -65,16 +66,6 @@ class Scene:
         return int(self.positions.shape[0])
 
 
-def _check_fps(fps: float) -> float:
-    try:
-        f = float(fps)
-    except (TypeError, ValueError):
-        raise ParameterError(f"fps must be a positive number, got {fps!r}") from None
-    if not math.isfinite(f) or f <= 0:
-        raise ParameterError(f"fps must be a positive number, got {fps!r}")
-    return f
-
-
 def prepare_scene(
     positions: np.ndarray,
     *,
@@ -116,7 +107,7 @@ def prepare_scene(
     ParameterError
         On a bad shape, a non-finite value or an out-of-range index.
     """
-    fps = _check_fps(fps)
+    fps = check_fps(fps)
     pos = np.asarray(positions)
     if pos.ndim != 3 or pos.shape[-1] != 3:
         raise ParameterError(f"positions must have shape (T, J, 3), got {pos.shape}")
