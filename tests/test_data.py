@@ -190,3 +190,15 @@ def test_window_dataset_balances_genres(prepared_tang2018):
     assert share(bal)[waltz] < 0.45 and share(bal).min() > 0.1
     assert bal.repeats[waltz] == 1 and max(bal.repeats.values()) <= 8
     assert set(bal.index) == set(plain.index)  # the same windows, repeated
+
+
+def test_window_dataset_keeps_only_the_asked_genres(prepared_tang2018):
+    data = prepared_tang2018
+    plain = WindowDataset(data, "train", preset="music2dance", window=100, stride=100)
+    latin = WindowDataset(data, "train", preset="music2dance", window=100, stride=100, stats=plain.stats,
+                          genres=["rumba", "chacha"])
+    assert sorted(latin.names) == sorted(n for n in data.names("train") if data.genre(n) in ("rumba", "chacha"))
+    assert len(latin.names) == 6 and 0 < len(latin) < len(plain)  # 4 rumba + 2 cha-cha training dances
+    assert {data.genres[latin.genres[i]] for i, _ in latin.index} == {"rumba", "chacha"}
+    with pytest.raises(ParameterError, match="salsa"):
+        WindowDataset(data, "train", preset="music2dance", window=100, stats=plain.stats, genres=["salsa"])

@@ -254,6 +254,30 @@ def test_baseline_objective_uses_teacher_forcing():
     assert logs["p"] == 0 and math.isfinite(float(loss.detach()))
 
 
+def test_music_dropout_zeroes_whole_windows_in_training_only():
+    seen = []
+
+    class Spy(RevolutionModel):
+        def forward(self, music, dance, **kw):
+            seen.append(music.clone())
+            return super().forward(music, dance, **kw)
+
+    music = torch.randn(64, 6, D, generator=torch.Generator().manual_seed(0)) + 3.0  # no window is all zeros
+    batch = {"music": music, "dance": torch.randn(64, 6, P)}
+    model = Spy(tiny())
+    for training, share in [(True, 0.5), (True, 0.0), (False, 1.0)]:
+        cfg = quick_config(music_dropout=share)
+        revolution_step(model, batch, StepContext(step=0, epoch=0, training=training,
+                                                  generator=torch.Generator().manual_seed(1), config=cfg))
+    dropped = (seen[0] == 0).all(dim=(1, 2))
+    kept = (seen[0] == music).all(dim=(1, 2))
+    assert bool((dropped | kept).all()) and 16 < int(dropped.sum()) < 48  # whole windows, about half
+    torch.testing.assert_close(seen[1], music)  # no dropout asked
+    torch.testing.assert_close(seen[2], music)  # validation never drops
+    with pytest.raises(ParameterError, match="music_dropout"):
+        TrainConfig(music_dropout=1.5)
+
+
 # ---- `dancekit train` ----------------------------------------------------------------------------------
 
 
@@ -273,6 +297,10 @@ def test_parse_sets_types_and_errors():
         parse_sets(["steps"], RevolutionConfig, TrainConfig)
     with pytest.raises(ParameterError, match="model.seq_len"):
         parse_sets(["model.seq_len=3"], RevolutionConfig, TrainConfig)
+    assert parse_sets(["genres=rumba, chacha"], RevolutionConfig, TrainConfig)[1] == {"genres": ["rumba", "chacha"]}
+    assert parse_sets(["genres=none"], RevolutionConfig, TrainConfig)[1] == {"genres": None}
+    with pytest.raises(ParameterError, match="genres"):
+        TrainConfig(genres=[])
 
 
 @pytest.fixture

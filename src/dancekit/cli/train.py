@@ -46,8 +46,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _parse_value(text: str, annotation: Any, key: str) -> Any:
-    """Convert ``text`` to the type ``annotation`` of field ``key`` (int, float, bool, str, X | None)."""
+    """Convert ``text`` to the type ``annotation`` of field ``key`` (int, float, bool, str, list[str] as
+    comma-separated items, X | None)."""
     origin = typing.get_origin(annotation)
+    if origin is list:
+        items = [t.strip() for t in text.split(",") if t.strip()]
+        if not items:
+            raise ParameterError(f"--set {key}={text}: expected one or more comma-separated values")
+        return [_parse_value(t, typing.get_args(annotation)[0], key) for t in items]
     if origin in (typing.Union, types.UnionType):
         args = typing.get_args(annotation)
         if type(None) in args and text.strip().lower() in ("none", "null"):
@@ -148,9 +154,9 @@ def run(args: argparse.Namespace) -> int:
     stats = compute_stats(data, preset=preset, representation=tc.representation)
     train_set = WindowDataset(data, "train", preset=preset, window=tc.seq_len, stride=tc.stride, stats=stats,
                               representation=tc.representation, random_offset=tc.random_offset, seed=tc.seed,
-                              balance_genres=tc.balance_genres)
+                              balance_genres=tc.balance_genres, genres=tc.genres)
     val_set = WindowDataset(data, "val", preset=preset, window=tc.seq_len, stride=tc.stride, stats=stats,
-                            representation=tc.representation)
+                            representation=tc.representation, genres=tc.genres)
     if len(train_set) == 0:
         raise ParameterError(f"no training window of {tc.seq_len} frames fits in the dances of {args.data}")
 

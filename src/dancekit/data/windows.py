@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import torch
 from torch.utils.data import Dataset
@@ -46,6 +48,9 @@ class WindowDataset(Dataset):
     times, where ``n_g`` is the genre's window count and ``n_max`` the largest one, so a minority
     genre (tango: one dance in tang2018) is seen about as often as the majority (waltz: 19 training
     dances). With ``random_offset`` the repeats are different crops.
+
+    ``genres`` keeps only the dances of these genres (names as in ``data.genres``), e.g. to
+    fine-tune a genre-specific model; the normalisation statistics stay those of the whole split.
     """
 
     def __init__(
@@ -62,6 +67,7 @@ class WindowDataset(Dataset):
         seed: int = 0,
         balance_genres: bool = False,
         max_repeat: int = 8,
+        genres: Sequence[str] | None = None,
     ):
         if window < 2:
             raise ParameterError(f"window must be at least 2 frames, got {window}")
@@ -72,6 +78,11 @@ class WindowDataset(Dataset):
         self._rng = np.random.default_rng(seed)
         self.stats = stats if stats is not None else compute_stats(data, preset=preset, representation=representation)
         self.names = data.names(split)
+        if genres is not None:
+            unknown = sorted(set(genres) - set(data.genres))
+            if unknown:
+                raise ParameterError(f"unknown genre(s) {unknown} for {data.root}; choose from {list(data.genres)}")
+            self.names = [n for n in self.names if data.genre(n) in set(genres)]
         pairs = load_pairs(data, self.names, preset=preset, representation=representation)
         self.music = [self.stats.normalize_music(m) for m, _ in pairs]
         self.dance = [self.stats.normalize_dance(d) for _, d in pairs]

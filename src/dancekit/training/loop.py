@@ -79,6 +79,8 @@ class TrainConfig:
     random_offset: bool = True  # jitter window starts by up to one stride
     balance_genres: bool = False  # oversample the windows of minority genres (WindowDataset)
     genre_dropout: float = 0.3  # genre-conditioned models: share of windows trained as "auto"
+    genres: list[str] | None = None  # train and validate on these genres' dances only (None: all)
+    music_dropout: float = 0.0  # share of training windows whose music is replaced by the mean (zeros)
     representation: str = "positions3d"  # positions3d | keypoints2d
     # curriculum of autoregressive decoders (dynamic auto-condition)
     curriculum: str = "linear"  # teacher_forcing | const | linear | quadratic | exponential
@@ -108,6 +110,11 @@ class TrainConfig:
             raise ParameterError("TrainConfig.warmup_steps, min_lr, weight_decay and num_workers must be >= 0")
         if self.grad_clip is not None and not self.grad_clip > 0:
             raise ParameterError(f"TrainConfig.grad_clip must be positive or None, got {self.grad_clip!r}")
+        if not 0.0 <= self.music_dropout <= 1.0 or not 0.0 <= self.genre_dropout <= 1.0:
+            raise ParameterError("TrainConfig.music_dropout and genre_dropout must be in [0, 1]")
+        if self.genres is not None and (not isinstance(self.genres, (list, tuple)) or not self.genres
+                                        or not all(isinstance(g, str) for g in self.genres)):
+            raise ParameterError(f"TrainConfig.genres must be a non-empty list of genre names or None, got {self.genres!r}")
         if self.curriculum_q < 0 or self.curriculum_p < 0 or self.curriculum_lambda < 0 or self.val_p < 0:
             raise ParameterError("TrainConfig.curriculum_q, curriculum_p, curriculum_lambda and val_p must be >= 0")
 

@@ -52,7 +52,13 @@ def revolution_step(
             genre[drop.to(genre.device)] = -1
         else:
             genre[:] = -1
-    _, loss = model(batch["music"], batch["dance"], schedule_p=p, schedule_q=ctx.config.curriculum_q,
+    music = batch["music"]
+    if ctx.training and ctx.config.music_dropout > 0:
+        # music dropout: some windows see the mean music (zeros after normalisation), so the decoder
+        # must also dance from its own motion prior (e.g. a genre model keeps its genre on new songs)
+        keep = torch.rand(music.shape[0], generator=ctx.generator) >= ctx.config.music_dropout
+        music = music * keep.to(music.device, music.dtype)[:, None, None]
+    _, loss = model(music, batch["dance"], schedule_p=p, schedule_q=ctx.config.curriculum_q,
                     generator=ctx.generator, genre=genre)
     return loss, {"p": p}
 
