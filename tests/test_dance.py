@@ -14,6 +14,7 @@ from _media import chromium, run_chromium, stream_info
 from dancekit.audio import save_wav
 from dancekit.audio.synth import ode_to_joy
 from dancekit.cli.main import main
+from dancekit.errors import ParameterError
 from dancekit.models.revolution import RevolutionConfig, RevolutionModel
 from dancekit.motion import get_skeleton
 from dancekit.motion.formats import read_motion
@@ -207,3 +208,71 @@ def test_output_folder_that_cannot_be_created(capsys, song, checkpoint):
     code = main(["dance", str(song), "-o", "/proc/dancekit/out", "--checkpoint", str(checkpoint)])
     err = capsys.readouterr().err
     assert code != 0 and "/proc/dancekit/out" in err and err.strip().count("\n") == 0
+
+
+@pytest.fixture(scope="module")
+def with_genre_model(tmp_path_factory, checkpoint):
+    """The tiny checkpoint plus a genre model ``genres/rumba`` (another tiny model) in its folder."""
+    import shutil
+
+    from dancekit.training.checkpoint import read_config
+
+    root = tmp_path_factory.mktemp("genres") / "parent"
+    shutil.copytree(checkpoint, root)
+    meta = read_config(root)
+    meta["genres"] = ["waltz", "rumba", "chacha", "tango"]
+    (root / "config.json").write_text(json.dumps(meta))
+    torch.manual_seed(1)
+    other = RevolutionModel(RevolutionConfig(d_model=16, n_heads=2, d_ff=32, decoder_hidden=16))
+    with np.load(checkpoint / "stats.npz") as z:
+        stats = {k: z[k] for k in z.files}
+    extra = {k: v for k, v in meta.items() if k not in ("model", "config")}
+    save_pretrained(root / "genres" / "rumba", other, other.config, stats=stats, extra=extra)
+    return root
+
+
+def test_genre_model_dances_the_requested_genre(with_genre_model, song):
+    from dancekit.pipelines.revolution import RevolutionPipeline
+
+    pipe = RevolutionPipeline.from_pretrained(with_genre_model)
+    assert pipe.genres == ("rumba",)
+    rumba = pipe(song, seed=0, genre="rumba").to_positions()
+    direct = RevolutionPipeline.from_pretrained(with_genre_model / "genres" / "rumba")(song, seed=0).to_positions()
+    np.testing.assert_array_equal(rumba, direct)  # the genre model itself, nothing mixed in
+    assert np.abs(rumba - pipe(song, seed=0).to_positions()).max() > 1e-3  # "auto" is the parent model
+    with pytest.raises(ParameterError, match="tango.*rumba"):
+        pipe(song, genre="tango")
+
+
+def test_dance_cli_with_a_genre_model(tmp_path, capsys, with_genre_model, song):
+    out = tmp_path / "out"
+    code = main(["dance", str(song), "-o", str(out), "--checkpoint", str(with_genre_model), "--genre", "rumba",
+                 "--format", "npz", "--quiet"])
+    assert code == 0 and (out / "ode.npz").is_file()
+    err = _fails(capsys, ["dance", str(song), "-o", str(tmp_path / "o2"), "--checkpoint", str(with_genre_model),
+                          "--genre", "tango"], tmp_path / "o2")
+    assert "tango" in err and "rumba" in err
+
+
+def test_genre_model_outside_the_data_genres_is_refused(tmp_path, with_genre_model):
+    import shutil
+
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines.revolution import RevolutionPipeline
+
+    bad = tmp_path / "bad"
+    shutil.copytree(with_genre_model, bad)
+    (bad / "genres" / "rumba").rename(bad / "genres" / "salsa")
+    with pytest.raises(CheckpointError, match="salsa"):
+        RevolutionPipeline.from_pretrained(bad)
+
+
+def test_the_embedded_default_model_dances_every_tang2018_genre(song):
+    from dancekit.pipelines import load_pipeline
+
+    pipe = load_pipeline()
+    assert pipe.genres == ("waltz", "rumba", "chacha", "tango")
+    auto = pipe(song, seed=0, end=2.0).to_positions()
+    tango = pipe(song, seed=0, end=2.0, genre="tango").to_positions()
+    assert auto.shape == tango.shape and np.isfinite(tango).all()
+    assert np.abs(tango - auto).max() > 1.0  # another model (cm): the genre model, not the default one

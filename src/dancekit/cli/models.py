@@ -19,8 +19,10 @@ def run(args: argparse.Namespace) -> int:
     cards = {}
     for name, folder in models.items():
         card = model_card(folder)
-        size = sum(f.stat().st_size for f in folder.iterdir() if f.is_file())
-        card = {"name": name, "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2), **card}
+        size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
+        genres = sorted(p.name for p in (folder / "genres").glob("*") if (p / "config.json").is_file())
+        card = {"name": name, "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
+                "genre_models": genres, **card}
         cards[name] = card
     if args.json:
         print(json.dumps(cards, indent=1))
@@ -32,6 +34,8 @@ def run(args: argparse.Namespace) -> int:
         flag = " (default)" if card["default"] else ""
         print(f"{name}{flag}: {card.get('description', '')}")
         print(f"  size: {card['size_mb']} MB")
+        if card["genre_models"]:
+            print(f"  --genre: auto, {', '.join(card['genre_models'])} (genre models)")
         for key in ("training_data", "training_time", "parameters"):
             if key in card:
                 print(f"  {key.replace('_', ' ')}: {card[key]}")

@@ -6,6 +6,11 @@
 The checkpoint folder carries everything: the model configuration and weights, the feature preset,
 fps and hop length the model was trained with, the pose representation, the skeleton and the
 normalisation statistics (``dancekit.training.checkpoint``).
+
+A dance genre can be asked for in two ways: a genre-conditioned model (``RevolutionConfig.n_genres``)
+takes the genre as an input; any model folder may also carry *genre models* — complete checkpoint
+folders ``FOLDER/genres/<genre>/``, e.g. the model fine-tuned on one genre's dances
+(``dancekit train revolution --init FOLDER --set genres=rumba``) — which then dance that genre.
 """
 
 from __future__ import annotations
@@ -36,7 +41,8 @@ class RevolutionPipeline:
     stats : the normalisation statistics (``music_mean``, ``music_std``, ``dance_mean``, ``dance_std``)
     """
 
-    def __init__(self, model: RevolutionModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?"):
+    def __init__(self, model: RevolutionModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
+                 genre_models: dict[str, Path] | None = None):
         if not isinstance(model, RevolutionModel):
             raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a Dance Revolution model")
         for key in ("fps", "skeleton"):
@@ -52,6 +58,10 @@ class RevolutionPipeline:
         if self.representation not in REPRESENTATIONS:
             raise CheckpointError(f"checkpoint {folder}: unknown representation {self.representation!r}")
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        self.genre_models = dict(genre_models or {})  # genre → checkpoint folder, loaded on first use
+        self._genre_pipelines: dict[str, RevolutionPipeline] = {}
+        if self.genre_models and model.config.n_genres:
+            raise CheckpointError(f"checkpoint {folder}: a genre-conditioned model cannot also carry genre models")
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(
                 f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) do not match "
@@ -61,6 +71,8 @@ class RevolutionPipeline:
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> RevolutionPipeline:
         """Load a checkpoint folder written by ``dancekit train revolution`` (or ``save_pretrained``).
+
+        Genre models in ``folder/genres/<genre>/`` are found here and loaded when first asked for.
 
         Raises
         ------
@@ -73,7 +85,12 @@ class RevolutionPipeline:
             raise CheckpointError(f"checkpoint {folder}: stats.npz lacks {missing}")
         stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in
                              ("music_mean", "music_std", "dance_mean", "dance_std")})
-        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)))
+        genre_models = {p.name: p for p in sorted((Path(folder) / "genres").glob("*")) if (p / "config.json").is_file()}
+        known = set(meta.get("genres", ()))
+        unknown = sorted(set(genre_models) - known) if known else []
+        if unknown:
+            raise CheckpointError(f"checkpoint {folder}: genre models {unknown} are not genres of its data {sorted(known)}")
+        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models)
 
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:
@@ -127,8 +144,14 @@ class RevolutionPipeline:
         AudioError
             For a missing, unreadable or too short song.
         ParameterError
-            For a genre the model does not know, or any genre for a model without genre conditioning.
+            For a genre the model does not know, or any genre for a model with neither a genre condition
+            nor genre models.
         """
+        if genre not in (None, "auto") and self.genre_models:
+            if genre not in self.genre_models:
+                raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}")
+            return self.genre_pipeline(genre)(audio_path, seed=seed, start=start, end=end, progress=progress,
+                                              postprocess=postprocess)
         genre_index = self._genre_index(genre)
         x = self.features(audio_path, start=start, end=end)  # (T, D)
         device = self.model.bop.device
@@ -142,16 +165,34 @@ class RevolutionPipeline:
 
     @property
     def genres(self) -> tuple[str, ...]:
-        """The genres this model can be asked for (empty: not genre-conditioned)."""
-        return tuple(self.meta.get("genres", ())) if self.model.config.n_genres else ()
+        """The genres this model can be asked for (empty: neither genre-conditioned nor with genre models)."""
+        if self.model.config.n_genres:
+            return tuple(self.meta.get("genres", ()))
+        order = list(self.meta.get("genres", ()))
+        return tuple(sorted(self.genre_models, key=lambda g: (order.index(g) if g in order else len(order), g)))
+
+    def genre_pipeline(self, genre: str) -> RevolutionPipeline:
+        """The pipeline of the genre model ``genre`` (loaded once, then cached)."""
+        if genre not in self.genre_models:
+            raise ParameterError(f"this model has no genre model {genre!r}; it has: {', '.join(self.genres) or 'none'}")
+        if genre not in self._genre_pipelines:
+            pipe = RevolutionPipeline.from_pretrained(self.genre_models[genre], device=str(self.model.bop.device))
+            if pipe.genre_models or pipe.model.config.n_genres:
+                raise CheckpointError(f"genre model {self.genre_models[genre]} must be a plain (unconditioned) model")
+            if pipe.fps != self.fps or pipe.skeleton.joint_names != self.skeleton.joint_names \
+                    or pipe.representation != self.representation:
+                raise CheckpointError(f"genre model {self.genre_models[genre]} does not match its parent model "
+                                      "(fps, skeleton or representation differ)")
+            self._genre_pipelines[genre] = pipe
+        return self._genre_pipelines[genre]
 
     def _genre_index(self, genre: str | None) -> int | None:
         if genre is None or genre == "auto":
             return None
         if not self.genres:
             raise ParameterError(
-                f"this Dance Revolution model is not genre-conditioned; cannot dance {genre!r} "
-                "(leave the genre to 'auto': the style follows the music)"
+                f"this Dance Revolution model is neither genre-conditioned nor has genre models; cannot dance "
+                f"{genre!r} (leave the genre to 'auto': the style follows the music)"
             )
         if genre not in self.genres:
             raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}")
