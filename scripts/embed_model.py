@@ -7,6 +7,10 @@
 Copies ``config.json``, ``model.safetensors`` and ``stats.npz`` (nothing else) and writes
 ``card.json``: description, training data (from the checkpoint), parameter count, training time
 (given), and the test-split metrics from a ``dancekit evaluate`` report. Refuses files over 20 MB.
+
+``--genre-model GENRE=DIR`` (repeatable) adds a genre model (e.g. the model fine-tuned on one genre's
+dances) as ``genres/GENRE/``, its weights stored as float16 (half the size; the pipeline computes in
+float32); ``--genre-report JSON`` records the genre-steering scores of ``scripts/genre_steering.py``.
 """
 
 from __future__ import annotations
@@ -33,6 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--description", required=True)
     parser.add_argument("--report", default=None, help="dancekit evaluate report.json (test split)")
     parser.add_argument("--training-time", default=None, help="e.g. '34 min on 2 CPU cores'")
+    parser.add_argument("--genre-model", action="append", default=[], metavar="GENRE=DIR",
+                        help="add a genre model (float16 weights) as genres/GENRE")
+    parser.add_argument("--genre-training", default=None, help="how the genre models were trained (card)")
+    parser.add_argument("--genre-report", default=None, help="genre steering report (scripts/genre_steering.py)")
     args = parser.parse_args(argv)
 
     src = Path(args.checkpoint)
@@ -64,10 +72,38 @@ def main(argv: list[str] | None = None) -> int:
         report = json.loads(Path(args.report).read_text())
         card["metrics_source"] = "dancekit evaluate on the tang2018 test split (6 dances), see docs/BENCHMARKS.md"
         card["metrics"] = _pick(report)
+    if args.genre_model:
+        card["genre_models"] = _embed_genre_models(dst, args.genre_model)
+        card["genre_training"] = args.genre_training
+    if args.genre_report:
+        steer = json.loads(Path(args.genre_report).read_text())
+        card["genre_steering"] = {k: steer[k] for k in ("split", "read_back", "n") if k in steer}
     (dst / "card.json").write_text(json.dumps(card, indent=1) + "\n")
-    size = sum(f.stat().st_size for f in dst.iterdir())
+    size = sum(f.stat().st_size for f in dst.rglob("*") if f.is_file())
     print(f"embedded {src} as {dst} ({size / 1e6:.2f} MB)")
     return 0
+
+
+def _embed_genre_models(dst: Path, items: list[str]) -> list[str]:
+    """Copy each ``GENRE=DIR`` checkpoint to ``dst/genres/GENRE`` with float16 weights."""
+    import torch
+    from safetensors.torch import load_file, save_file
+
+    genres = []
+    for item in items:
+        genre, sep, folder = item.partition("=")
+        if not sep or not genre or not folder:
+            raise SystemExit(f"embed_model: --genre-model expects GENRE=DIR, got {item!r}")
+        src, out = Path(folder), dst / "genres" / genre
+        out.mkdir(parents=True)
+        shutil.copy2(src / "config.json", out / "config.json")
+        shutil.copy2(src / "stats.npz", out / "stats.npz")
+        state = load_file(str(src / "model.safetensors"))
+        save_file({k: v.half() if v.is_floating_point() else v for k, v in state.items()},
+                  str(out / "model.safetensors"))
+        assert all(torch.isfinite(v.float()).all() for v in load_file(str(out / "model.safetensors")).values())
+        genres.append(genre)
+    return genres
 
 
 def _describe_data(data: dict) -> str:
