@@ -77,7 +77,10 @@ class TrainConfig:
     seq_len: int = 240  # frames per training window
     stride: int | None = None  # between window starts (None: seq_len // 4)
     random_offset: bool = True  # jitter window starts by up to one stride
-    balance_genres: bool = False  # oversample the windows of minority genres (WindowDataset)
+    # oversample the windows of minority genres (WindowDataset). An epoch then holds more windows (about
+    # 2.7x on tang2018), so an epoch-based curriculum grows p that much more slowly per step: scale
+    # curriculum_lambda up accordingly (3000 balanced steps at the default λ reach only p = 9).
+    balance_genres: bool = False
     genre_dropout: float = 0.3  # genre-conditioned models: share of windows trained as "auto"
     genres: list[str] | None = None  # train and validate on these genres' dances only (None: all)
     music_dropout: float = 0.0  # share of training windows whose music is replaced by the mean (zeros)
