@@ -43,7 +43,7 @@ def chromium() -> str:
     pytest.skip("headless Chromium not installed (apt-get install -y chromium)")
 
 
-def run_chromium(exe: str, url: str, profile, *extra: str) -> subprocess.CompletedProcess:
+def run_chromium(exe: str, url: str, profile, *extra: str, budget_ms: int = 1500) -> subprocess.CompletedProcess:
     cmd = [
         exe,
         "--headless",
@@ -55,7 +55,7 @@ def run_chromium(exe: str, url: str, profile, *extra: str) -> subprocess.Complet
         "--no-first-run",
         "--mute-audio",
         f"--user-data-dir={profile}",
-        "--virtual-time-budget=1500",
+        f"--virtual-time-budget={int(budget_ms)}",
         *extra,
         url,
     ]

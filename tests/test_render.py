@@ -409,9 +409,9 @@ def test_html_orbit_camera_and_clock_playback(tmp_path):
     page = tmp_path / "interact.html"
     page.write_text(out.read_text().replace("</body>", _INTERACT))
     # the clock runs on animation frames, which a loaded machine may not deliver within the
-    # virtual-time budget: allow three runs for the clock to advance (the camera checks are exact)
-    for attempt in range(3):
-        dom = _run_chromium(exe, page.as_uri(), tmp_path / f"p{attempt}", "--dump-dom").stdout
+    # virtual-time budget: allow more runs with longer budgets (the camera checks are exact)
+    for attempt, budget in enumerate((1500, 4000, 8000, 15000)):
+        dom = _run_chromium(exe, page.as_uri(), tmp_path / f"p{attempt}", "--dump-dom", budget_ms=budget).stdout
         tag = re.search(r"<html[^>]*>", dom).group(0)
         if int(re.search(r'data-dk-frame="(\d+)"', tag).group(1)) > 0:
             break
