@@ -14,13 +14,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dancekit.pipelines.hub import DEFAULT_MODEL, embedded_models, model_card
+    from dancekit.pipelines.revolution import genre_model_folders
 
     models = embedded_models()
     cards = {}
     for name, folder in models.items():
         card = model_card(folder)
         size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
-        genres = sorted(p.name for p in (folder / "genres").glob("*") if (p / "config.json").is_file())
+        genres = list(genre_model_folders(folder))
         card = {"name": name, "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
                 "genre_models": genres, **card}
         cards[name] = card

@@ -82,7 +82,8 @@ class WindowDataset(Dataset):
             unknown = sorted(set(genres) - set(data.genres))
             if unknown:
                 raise ParameterError(f"unknown genre(s) {unknown} for {data.root}; choose from {list(data.genres)}")
-            self.names = [n for n in self.names if data.genre(n) in set(genres)]
+            keep = set(genres)
+            self.names = [n for n in self.names if data.genre(n) in keep]
         pairs = load_pairs(data, self.names, preset=preset, representation=representation)
         self.music = [self.stats.normalize_music(m) for m, _ in pairs]
         self.dance = [self.stats.normalize_dance(d) for _, d in pairs]

@@ -85,7 +85,7 @@ class RevolutionPipeline:
             raise CheckpointError(f"checkpoint {folder}: stats.npz lacks {missing}")
         stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in
                              ("music_mean", "music_std", "dance_mean", "dance_std")})
-        genre_models = {p.name: p for p in sorted((Path(folder) / "genres").glob("*")) if (p / "config.json").is_file()}
+        genre_models = genre_model_folders(folder)
         known = set(meta.get("genres", ()))
         unknown = sorted(set(genre_models) - known) if known else []
         if unknown:
@@ -197,6 +197,11 @@ class RevolutionPipeline:
         if genre not in self.genres:
             raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}")
         return self.genres.index(genre)
+
+
+def genre_model_folders(folder: str | os.PathLike) -> dict[str, Path]:
+    """Genre → checkpoint folder of the genre models in ``folder/genres/<genre>/`` (sorted by name)."""
+    return {p.name: p for p in sorted((Path(folder) / "genres").glob("*")) if (p / "config.json").is_file()}
 
 
 def clean_motion(motion: Motion) -> Motion:
