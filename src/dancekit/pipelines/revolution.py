@@ -147,12 +147,10 @@ class RevolutionPipeline:
             For a genre the model does not know, or any genre for a model with neither a genre condition
             nor genre models.
         """
-        if genre not in (None, "auto") and self.genre_models:
-            if genre not in self.genre_models:
-                raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}")
+        genre_index = self._genre_index(genre)
+        if genre_index is not None and self.genre_models:
             return self.genre_pipeline(genre)(audio_path, seed=seed, start=start, end=end, progress=progress,
                                               postprocess=postprocess)
-        genre_index = self._genre_index(genre)
         x = self.features(audio_path, start=start, end=end)  # (T, D)
         device = self.model.bop.device
         generator = torch.Generator(device="cpu").manual_seed(int(seed))
@@ -187,6 +185,7 @@ class RevolutionPipeline:
         return self._genre_pipelines[genre]
 
     def _genre_index(self, genre: str | None) -> int | None:
+        """Index of ``genre`` in :attr:`genres` (None for auto); ParameterError for any other genre."""
         if genre is None or genre == "auto":
             return None
         if not self.genres:
