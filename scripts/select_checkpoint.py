@@ -65,28 +65,23 @@ def step_of(ckpt: Path, losses: dict[int, float]) -> int | None:
 
 def score(ckpt: Path, data, style, *, split: str, seeds: int, steer: bool) -> dict:
     from dancekit.metrics.stability import stillness_share
-    from dancekit.metrics.style import balanced_accuracy
+    from dancekit.metrics.style import evaluate_classifier
     from dancekit.pipelines import load_pipeline
 
     pipe = load_pipeline(checkpoint=ckpt)
-    win_true: list[int] = []
-    win_pred: list[int] = []
-    dance_hits: list[bool] = []
+    dances: list[tuple[np.ndarray, int]] = []
     still: list[float] = []
     for name in data.names(split):
         ref = data.audio(name)
-        label = style.genres.index(data.genre(name))
         for k in range(seeds):
             m = pipe(ref.path, seed=k, start=ref.start, end=ref.end)
             p = m.to_positions()
-            _, logp = style.embed(p, fps=m.fps, skeleton=m.skeleton)
-            win_true += [label] * len(logp)
-            win_pred += logp.argmax(axis=1).tolist()
-            dance_hits.append(int(np.argmax(logp.mean(axis=0))) == label)
+            dances.append((p, style.genres.index(data.genre(name))))
             still.append(stillness_share(p, fps=m.fps, skeleton=m.skeleton))
+    scores = evaluate_classifier(style, dances, fps=pipe.fps)
     result = {
-        "style": balanced_accuracy(win_true, win_pred),
-        "dance_accuracy": float(np.mean(dance_hits)),
+        "style": scores["window_balanced_accuracy"],
+        "dance_accuracy": scores["dance_accuracy"],
         "stillness_max": float(max(still)),
     }
     if steer:
