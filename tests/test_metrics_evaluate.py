@@ -158,6 +158,14 @@ def test_evaluate_with_a_prepared_dataset(tmp_path):
     m, real = report["metrics"], report["real"]
     assert m["bas_bailando"] == pytest.approx(real["bas_bailando"])  # the generated dances are the real ones
     assert m["fid_k"] == pytest.approx(real["fid_k"]) and m["fid_k"] > 0  # test dances vs the training split
+    # the validation split as the reference: the same dances named as validation dances
+    (data / "splits.json").write_text(json.dumps({"train": ["D0", "D1", "D2"], "val": ["D3", "D4"], "test": [],
+                                                  "seed": 0}))
+    val = evaluate_dirs(pred, data, data=data, classifier=None, settings=EvalSettings(segment_seconds=4.0),
+                        split="val")
+    assert val["counts"]["reference_dances"] == 2 and val["metrics"]["fid_k"] == pytest.approx(m["fid_k"])
+    with pytest.raises(DatasetError):  # nothing in the (now empty) test split to compare with
+        evaluate_dirs(pred, data, data=data, classifier=None, settings=EvalSettings(segment_seconds=4.0))
 
 
 def test_evaluate_real_dances_with_the_shipped_classifier(tang2018_dir):

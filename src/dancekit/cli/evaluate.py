@@ -26,7 +26,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("--pred", required=True, metavar="DIR", help="folder of generated .npz dances")
     p.add_argument("--ref", required=True, metavar="DIR",
-                   help="folder of real NAME.npz dances, or a prepared dataset folder (its test split)")
+                   help="folder of real NAME.npz dances, or a prepared dataset folder (its --split)")
+    p.add_argument("--split", default="test", help="split of a prepared --ref folder (default test)")
     music = p.add_mutually_exclusive_group()
     music.add_argument("--data", metavar="PREPARED_DIR",
                        help="prepared dataset: music beats (features_*.npz beat_times), genres, FID reference")
@@ -68,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     )
     classifier = None if args.no_style else (args.classifier or "default")
     report = evaluate_dirs(args.pred, args.ref, data=args.data, audio_dir=args.audio, classifier=classifier,
-                           settings=settings, preset=args.preset)
+                           settings=settings, preset=args.preset, split=args.split)
     print(format_markdown(report), end="")
     with atomic_path(out) as tmp:
         tmp.write_text(json.dumps(report, indent=1))

@@ -338,6 +338,7 @@ def evaluate_dirs(
     classifier: Any = "default",
     settings: EvalSettings | None = None,
     preset: str | None = None,
+    split: str = "test",
 ) -> dict[str, Any]:
     """Evaluate a folder of generated ``.npz`` dances (see the module docstring for the layout).
 
@@ -351,6 +352,7 @@ def evaluate_dirs(
         with a note if it is missing) or None (skip the style metrics)
     settings : :class:`EvalSettings`
     preset : feature preset whose ``beat_times`` are used (default ``revolution`` if prepared)
+    split : the split of a prepared ``ref_dir`` that holds the reference dances (default ``test``)
 
     Raises
     ------
@@ -372,8 +374,8 @@ def evaluate_dirs(
 
         ref_data = PreparedData(ref_dir)
         prepared = prepared or ref_data
-        ref = {n: ref_data.motion(n) for n in ref_data.names("test")}
-        ref_source = f"{ref_dir} (test split)"
+        ref = {n: ref_data.motion(n) for n in ref_data.names(split)}
+        ref_source = f"{ref_dir} ({split} split)"
     else:
         ref = {p.stem: read_motion(p) for p in _read_dir(ref_dir, "reference")}
         ref_source = str(ref_dir)
