@@ -20,9 +20,16 @@ from typing import Any
 
 from dancekit.errors import ParameterError
 
-# family → what training it needs (the lead / other helpers add their families here)
-FAMILIES: dict[str, dict[str, str]] = {
+# family → what training it needs: feature preset, objective, TrainConfig defaults of the family (under
+# --set and --resume), and the model field that must equal the training window length (if any)
+FAMILIES: dict[str, dict[str, Any]] = {
     "revolution": {"preset": "revolution", "objective": "revolution"},
+    # Music2Dance's classifier: 30-s windows; 100 genre-balanced steps (chosen on the validation songs,
+    # docs/BENCHMARKS.md "Music attribute classifier")
+    "music_attributes": {"preset": "music2dance", "objective": "music_attributes", "window_field": "window",
+                         "train_defaults": {"seq_len": 750, "steps": 100, "balance_genres": True,
+                                            "warmup_steps": 20, "val_every": 25, "ckpt_every": 100,
+                                            "log_every": 10}},
 }
 
 
@@ -46,14 +53,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _parse_value(text: str, annotation: Any, key: str) -> Any:
-    """Convert ``text`` to the type ``annotation`` of field ``key`` (int, float, bool, str, list[str] as
+    """Convert ``text`` to the type ``annotation`` of field ``key`` (int, float, bool, str, list[str] and tuple[int, ...] as
     comma-separated items, X | None)."""
     origin = typing.get_origin(annotation)
-    if origin is list:
+    if origin in (list, tuple):
         items = [t.strip() for t in text.split(",") if t.strip()]
         if not items:
             raise ParameterError(f"--set {key}={text}: expected one or more comma-separated values")
-        return [_parse_value(t, typing.get_args(annotation)[0], key) for t in items]
+        values = [_parse_value(t, typing.get_args(annotation)[0], key) for t in items]
+        return tuple(values) if origin is tuple else values
     if origin in (typing.Union, types.UnionType):
         args = typing.get_args(annotation)
         if type(None) in args and text.strip().lower() in ("none", "null"):
@@ -146,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError(f"--init {args.init} holds a {init_meta['model']!r} model, not {args.family!r}")
         model_base = dict(init_meta["config"])
         init_state = init_model.state_dict()
-    tc = TrainConfig(**{**train_base, **train_sets})
+    tc = TrainConfig(**{**spec.get("train_defaults", {}), **train_base, **train_sets})
 
     data = PreparedData(args.data)
     preset = spec["preset"]
@@ -160,10 +168,16 @@ def run(args: argparse.Namespace) -> int:
     if len(train_set) == 0:
         raise ParameterError(f"no training window of {tc.seq_len} frames fits in the dances of {args.data}")
 
-    dims = {"music_dim": train_set.music_dim, "pose_dim": train_set.pose_dim}
+    dims = {"music_dim": train_set.music_dim, "pose_dim": train_set.pose_dim, "n_classes": len(data.genres)}
+    dims = {k: v for k, v in dims.items() if k in {f.name for f in dataclasses.fields(config_cls)}}
     for key, value in dims.items():
         if key in model_sets and model_sets[key] != value:
             raise ParameterError(f"--set {key}={model_sets[key]} does not match the data ({key} = {value})")
+    window_field = spec.get("window_field")
+    if window_field:  # a classifier of fixed windows classifies windows as long as it was trained on
+        if window_field in model_sets and model_sets[window_field] != tc.seq_len:
+            raise ParameterError(f"--set {window_field}={model_sets[window_field]} must equal seq_len ({tc.seq_len})")
+        dims[window_field] = tc.seq_len
     model_config = config_cls(**{**model_base, **model_sets, **dims})
     seed_everything(tc.seed)  # the initial weights depend on the seed only
     model = model_cls(model_config)

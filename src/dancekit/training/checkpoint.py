@@ -41,6 +41,7 @@ STATS_FILE = "stats.npz"
 # family name → (module, config class, model class), imported on first use
 _BUILTIN: dict[str, tuple[str, str, str]] = {
     "revolution": ("dancekit.models.revolution", "RevolutionConfig", "RevolutionModel"),
+    "music_attributes": ("dancekit.models.music_attributes", "MusicAttributeConfig", "MusicAttributeClassifier"),
 }
 _REGISTERED: dict[str, tuple[type, type]] = {}
 

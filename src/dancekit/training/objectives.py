@@ -63,6 +63,20 @@ def revolution_step(
     return loss, {"p": p}
 
 
+def music_attributes_step(
+    model: nn.Module, batch: Mapping[str, torch.Tensor], ctx: StepContext
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """Cross-entropy of a music attribute classifier: ``batch["music"]`` (B, L, D) → ``batch["genre"]`` (B,).
+
+    Logs the batch accuracy as ``acc``. Class balance comes from the data (``balance_genres``).
+    """
+    logits = model(batch["music"])  # (B, n_classes)
+    loss = torch.nn.functional.cross_entropy(logits, batch["genre"])
+    acc = (logits.argmax(-1) == batch["genre"]).float().mean().item()
+    return loss, {"acc": acc}
+
+
 OBJECTIVES: dict[str, StepFn] = {
     "revolution": revolution_step,
+    "music_attributes": music_attributes_step,
 }
