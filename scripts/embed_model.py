@@ -11,6 +11,10 @@ Copies ``config.json``, ``model.safetensors`` and ``stats.npz`` (nothing else) a
 ``--genre-model GENRE=DIR`` (repeatable) adds a genre model (e.g. the model fine-tuned on one genre's
 dances) as ``genres/GENRE/``, its weights stored as float16 (half the size; the pipeline computes in
 float32); ``--genre-report JSON`` records the genre-steering scores of ``scripts/genre_steering.py``.
+``--music-attributes DIR`` adds a music attribute classifier (``dancekit train music_attributes``) as
+``music_attributes/``: ``--genre auto`` then reads the genre from the music and dances it with the genre
+model. ``--report`` is then the report of that default behaviour; ``--report-none JSON`` adds the report
+of the model alone (``--genre none``) to the card.
 """
 
 from __future__ import annotations
@@ -41,6 +45,12 @@ def main(argv: list[str] | None = None) -> int:
                         help="add a genre model (float16 weights) as genres/GENRE")
     parser.add_argument("--genre-training", default=None, help="how the genre models were trained (card)")
     parser.add_argument("--genre-report", default=None, help="genre steering report (scripts/genre_steering.py)")
+    parser.add_argument("--music-attributes", default=None, metavar="DIR",
+                        help="add a music attribute classifier checkpoint as music_attributes/")
+    parser.add_argument("--music-attributes-training", default=None,
+                        help="how the music attribute classifier was trained and how it scores (card)")
+    parser.add_argument("--report-none", default=None, metavar="JSON",
+                        help="dancekit evaluate report of the model alone (--genre none, test split)")
     args = parser.parse_args(argv)
 
     src = Path(args.checkpoint)
@@ -78,6 +88,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.genre_report:
         steer = json.loads(Path(args.genre_report).read_text())
         card["genre_steering"] = {k: steer[k] for k in ("split", "read_back", "n") if k in steer}
+    if args.music_attributes:
+        (dst / "music_attributes").mkdir()
+        for name in KEEP:
+            shutil.copy2(Path(args.music_attributes) / name, dst / "music_attributes" / name)
+        card["music_attributes"] = args.music_attributes_training
+    if args.report_none:
+        card["metrics_genre_none"] = _pick(json.loads(Path(args.report_none).read_text()))
     (dst / "card.json").write_text(json.dumps(card, indent=1) + "\n")
     size = sum(f.stat().st_size for f in dst.rglob("*") if f.is_file())
     print(f"embedded {src} as {dst} ({size / 1e6:.2f} MB)")

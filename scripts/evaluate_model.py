@@ -1,4 +1,4 @@
-"""Generate a dance for every test song with a checkpoint, and score it with ``dancekit evaluate``.
+"""Generate a dance for every test song (or ``--split``) with a checkpoint, and score it with ``dancekit evaluate``.
 
     python scripts/evaluate_model.py --checkpoint runs/revolution/model --data data/tang2018 \
         --out runs/revolution/eval [--seeds 5]
@@ -25,8 +25,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--split", default="test")
     parser.add_argument("--seeds", type=int, default=5, help="dances per song (default 5)")
     parser.add_argument("--genre", default="auto",
-                        help="auto (the music decides), true (each song's own genre, for genre-conditioned "
-                             "models), or a genre name for every song")
+                        help="auto (the genre read from the music when the model has a music attribute "
+                             "classifier, else the model alone), none (the model alone), true (each song's own "
+                             "genre), or a genre name for every song")
     args = parser.parse_args(argv)
 
     from tqdm import tqdm
@@ -55,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
             seconds += motion.duration
     elapsed = time.perf_counter() - t0
     print(f"generated {seconds:.0f} s of dance in {elapsed:.1f} s ({elapsed / seconds * 60:.2f} s per minute)")
-    return dancekit(["evaluate", "--pred", str(pred), "--ref", args.data, "--data", args.data,
+    return dancekit(["evaluate", "--pred", str(pred), "--ref", args.data, "--split", args.split, "--data", args.data,
                      "-o", str(Path(args.out) / "report.json")])
 
 

@@ -267,12 +267,18 @@ def test_genre_model_outside_the_data_genres_is_refused(tmp_path, with_genre_mod
         RevolutionPipeline.from_pretrained(bad)
 
 
-def test_the_embedded_default_model_dances_every_tang2018_genre(song):
+def test_the_embedded_default_model_dances_every_tang2018_genre_and_reads_it_from_the_music(song):
     from dancekit.pipelines import load_pipeline
 
     pipe = load_pipeline()
     assert pipe.genres == ("waltz", "rumba", "chacha", "tango")
-    auto = pipe(song, seed=0, end=2.0).to_positions()
+    alone = pipe(song, seed=0, end=2.0, genre="none").to_positions()
     tango = pipe(song, seed=0, end=2.0, genre="tango").to_positions()
-    assert auto.shape == tango.shape and np.isfinite(tango).all()
-    assert np.abs(tango - auto).max() > 1.0  # another model (cm): the genre model, not the default one
+    assert alone.shape == tango.shape and np.isfinite(tango).all()
+    assert np.abs(tango - alone).max() > 1.0  # another model (cm): the genre model, not the default one
+    # "auto" reads the genre from the music and dances it with that genre model
+    probs = pipe.read_genre(song, end=2.0)
+    assert set(probs) == set(pipe.genres) and sum(probs.values()) == pytest.approx(1.0)
+    read = max(probs, key=probs.get)
+    np.testing.assert_array_equal(pipe(song, seed=0, end=2.0).to_positions(),
+                                  pipe(song, seed=0, end=2.0, genre=read).to_positions())

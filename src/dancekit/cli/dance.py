@@ -12,7 +12,7 @@ from dancekit.errors import DancekitError, ParameterError
 
 FORMATS = ("mp4", "html", "npz", "bvh", "openpose")
 DEFAULT_FORMATS = "mp4,html,npz,bvh"
-GENRE_CHOICES = ("auto", "waltz", "rumba", "chacha", "tango")
+GENRE_CHOICES = ("auto", "none", "waltz", "rumba", "chacha", "tango")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -27,7 +27,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--model", default=None, help="embedded model name (see `dancekit models`)")
     g.add_argument("--checkpoint", default=None, help="a checkpoint folder (from `dancekit train`)")
-    p.add_argument("--genre", default="auto", help=f"dance genre: {', '.join(GENRE_CHOICES)} (default auto)")
+    p.add_argument("--genre", default="auto",
+                   help=f"dance genre: {', '.join(GENRE_CHOICES)}; auto (default): read from the music when the "
+                        "model has a music attribute classifier, else as none; none: the model alone")
     p.add_argument("--seed", type=int, default=0, help="random seed: another seed, another dance (default 0)")
     p.add_argument("--start", type=float, default=None, help="start of the song excerpt, seconds")
     p.add_argument("--end", type=float, default=None, help="end of the song excerpt, seconds")
@@ -71,7 +73,14 @@ def run(args: argparse.Namespace) -> int:
     stage = Path(stage)
     try:
         pipe = load_pipeline(args.model, args.checkpoint)
-        genre = None if args.genre == "auto" else args.genre
+        genre, how = args.genre, ""
+        if genre == "auto" and hasattr(pipe, "read_genre"):
+            probs = pipe.read_genre(str(audio), start=args.start, end=args.end)
+            if probs:
+                genre = max(probs, key=probs.get)
+                how = f" as {genre} (read from the music, p = {probs[genre]:.2f})"
+        elif genre != "none":
+            how = f" as {genre}"
         motion = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=genre, progress=not args.quiet)
         written = export_all(
             motion,
@@ -100,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     shutil.rmtree(stage, ignore_errors=True)
     elapsed = time.perf_counter() - t0
     print(
-        f"danced {audio.name}: {motion.duration:.1f} s, {motion.num_frames} frames at {motion.fps:g} fps "
+        f"danced {audio.name}{how}: {motion.duration:.1f} s, {motion.num_frames} frames at {motion.fps:g} fps "
         f"in {elapsed:.1f} s → " + ", ".join(str(p) for p in final)
     )
     return 0

@@ -22,8 +22,9 @@ def run(args: argparse.Namespace) -> int:
         card = model_card(folder)
         size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
         genres = list(genre_model_folders(folder))
+        reads_genre = (folder / "music_attributes" / "config.json").is_file()
         card = {"name": name, "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
-                "genre_models": genres, **card}
+                "genre_models": genres, "reads_genre_from_music": reads_genre, **card}
         cards[name] = card
     if args.json:
         print(json.dumps(cards, indent=1))
@@ -36,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{name}{flag}: {card.get('description', '')}")
         print(f"  size: {card['size_mb']} MB")
         if card["genre_models"]:
-            print(f"  --genre: auto, {', '.join(card['genre_models'])} (genre models)")
+            auto = "auto (read from the music), none" if card["reads_genre_from_music"] else "auto"
+            print(f"  --genre: {auto}, {', '.join(card['genre_models'])} (genre models)")
         for key in ("training_data", "training_time", "parameters"):
             if key in card:
                 print(f"  {key.replace('_', ' ')}: {card[key]}")

@@ -11,11 +11,12 @@ from typing import Any
 
 _LAZY = {
     "RevolutionPipeline": "dancekit.pipelines.revolution",
+    "MusicAttributePipeline": "dancekit.pipelines.music_attributes",
     "load_pipeline": "dancekit.pipelines.hub",
     "embedded_models": "dancekit.pipelines.hub",
 }
 
-__all__ = ["RevolutionPipeline", "embedded_models", "load_pipeline"]
+__all__ = ["MusicAttributePipeline", "RevolutionPipeline", "embedded_models", "load_pipeline"]
 
 
 def __getattr__(name: str) -> Any:

@@ -11,6 +11,11 @@ A dance genre can be asked for in two ways: a genre-conditioned model (``Revolut
 takes the genre as an input; any model folder may also carry *genre models* — complete checkpoint
 folders ``FOLDER/genres/<genre>/``, e.g. the model fine-tuned on one genre's dances
 (``dancekit train revolution --init FOLDER --set genres=rumba``) — which then dance that genre.
+
+With ``genre="auto"`` (the default) the genre is read from the music when the folder also carries a
+music attribute classifier ``FOLDER/music_attributes/`` (``dancekit train music_attributes``, the
+classifier of Music2Dance): the song is danced by the genre model of the genre the classifier finds.
+Without one, or with ``genre="none"``, the model itself dances from the music alone.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from dancekit.data.stats import NormStats
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.revolution import RevolutionModel
 from dancekit.motion import Motion, Skeleton
+from dancekit.pipelines.music_attributes import MusicAttributePipeline
 from dancekit.training.checkpoint import load_pretrained
 
 
@@ -42,7 +48,7 @@ class RevolutionPipeline:
     """
 
     def __init__(self, model: RevolutionModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
-                 genre_models: dict[str, Path] | None = None):
+                 genre_models: dict[str, Path] | None = None, genre_reader: MusicAttributePipeline | None = None):
         if not isinstance(model, RevolutionModel):
             raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a Dance Revolution model")
         for key in ("fps", "skeleton"):
@@ -60,6 +66,10 @@ class RevolutionPipeline:
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         self.genre_models = dict(genre_models or {})  # genre → checkpoint folder, loaded on first use
         self._genre_pipelines: dict[str, RevolutionPipeline] = {}
+        self.genre_reader = genre_reader  # reads the genre from the music for genre="auto" (or None)
+        if genre_reader is not None and genre_reader.fps != self.fps:
+            raise CheckpointError(f"checkpoint {folder}: its music attribute classifier runs at {genre_reader.fps:g} "
+                                  f"fps, the model at {self.fps:g} fps")
         if self.genre_models and model.config.n_genres:
             raise CheckpointError(f"checkpoint {folder}: a genre-conditioned model cannot also carry genre models")
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
@@ -72,7 +82,8 @@ class RevolutionPipeline:
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> RevolutionPipeline:
         """Load a checkpoint folder written by ``dancekit train revolution`` (or ``save_pretrained``).
 
-        Genre models in ``folder/genres/<genre>/`` are found here and loaded when first asked for.
+        Genre models in ``folder/genres/<genre>/`` are found here and loaded when first asked for; a music
+        attribute classifier in ``folder/music_attributes/`` is loaded here.
 
         Raises
         ------
@@ -90,7 +101,12 @@ class RevolutionPipeline:
         unknown = sorted(set(genre_models) - known) if known else []
         if unknown:
             raise CheckpointError(f"checkpoint {folder}: genre models {unknown} are not genres of its data {sorted(known)}")
-        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models)
+        reader_folder = Path(folder) / "music_attributes"
+        reader = None
+        if (reader_folder / "config.json").is_file():
+            reader = MusicAttributePipeline.from_pretrained(reader_folder, device=device)
+        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
+                   genre_reader=reader)
 
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:
@@ -126,8 +142,9 @@ class RevolutionPipeline:
         audio_path : any audio file :func:`dancekit.audio.load` reads
         seed : seeds the initial decoder state; the same seed gives the same dance
         start, end : excerpt in seconds (None: from the beginning / to the end)
-        genre : a dance genre of the checkpoint's ``genres`` (e.g. "waltz") for a genre-conditioned
-            model; None ("auto"): the style follows the music
+        genre : one of :attr:`genres` (e.g. "waltz"); "auto" or None: the genre read from the music by the
+            folder's music attribute classifier (:meth:`read_genre`) when it has one and genres to
+            dance, else the model alone; "none": the model alone (the style follows the music)
         progress : show a progress bar over the generated chunks
         postprocess : for 3D positions, set every bone to the skeleton's rest length (keeping the
             generated bone directions, so IK/BVH export reproduces the positions exactly) and put the
@@ -147,6 +164,9 @@ class RevolutionPipeline:
             For a genre the model does not know, or any genre for a model with neither a genre condition
             nor genre models.
         """
+        if genre is None or genre == "auto":
+            probs = self.read_genre(audio_path, start=start, end=end)
+            genre = max(probs, key=probs.get) if probs else None
         genre_index = self._genre_index(genre)
         if genre_index is not None and self.genre_models:
             return self.genre_pipeline(genre)(audio_path, seed=seed, start=start, end=end, progress=progress,
@@ -160,6 +180,18 @@ class RevolutionPipeline:
         motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
         return clean_motion(motion) if postprocess and self.representation == "positions3d" else motion
 
+
+    def read_genre(self, audio_path: str | os.PathLike, *, start: float | None = None,
+                   end: float | None = None) -> dict[str, float]:
+        """What ``genre="auto"`` would dance: the probability of each of :attr:`genres` for the song (excerpt),
+        from the music attribute classifier (renormalised over :attr:`genres`); empty when this model has no
+        classifier or no genres to dance."""
+        if self.genre_reader is None or not self.genres:
+            return {}
+        probs = self.genre_reader(audio_path, start=start, end=end)
+        probs = {g: probs[g] for g in self.genres if g in probs}
+        total = sum(probs.values())
+        return {g: p / total for g, p in probs.items()} if total > 0 else {}
 
     @property
     def genres(self) -> tuple[str, ...]:
@@ -185,8 +217,8 @@ class RevolutionPipeline:
         return self._genre_pipelines[genre]
 
     def _genre_index(self, genre: str | None) -> int | None:
-        """Index of ``genre`` in :attr:`genres` (None for auto); ParameterError for any other genre."""
-        if genre is None or genre == "auto":
+        """Index of ``genre`` in :attr:`genres` (None for auto / none); ParameterError for any other genre."""
+        if genre is None or genre in ("auto", "none"):
             return None
         if not self.genres:
             raise ParameterError(

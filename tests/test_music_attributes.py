@@ -1,0 +1,224 @@
+"""The music attribute classifier of Music2Dance, its training family and its use by `--genre auto`."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+import torch.nn.functional as F
+
+from dancekit.cli.main import main
+from dancekit.errors import CheckpointError, ParameterError
+from dancekit.models.music_attributes import MusicAttributeClassifier, MusicAttributeConfig
+from dancekit.training import OBJECTIVES, TrainConfig, train
+from dancekit.training.checkpoint import load_pretrained, save_pretrained
+
+
+def tiny(**kw) -> MusicAttributeClassifier:
+    torch.manual_seed(0)
+    return MusicAttributeClassifier(MusicAttributeConfig(**{"music_dim": 5, "n_classes": 3, "window": 40, **kw}))
+
+
+def test_shapes_and_shortest_input():
+    model = tiny()
+    assert model(torch.randn(2, 40, 5)).shape == (2, 3)
+    assert model.min_frames() == 4  # kernel 2, 2, then 2 with stride 2
+    assert model(torch.randn(1, 4, 5)).shape == (1, 3)
+    with pytest.raises(ParameterError, match="at least 4 frames"):
+        model(torch.randn(1, 3, 5))
+    with pytest.raises(ParameterError, match=r"\(B, n, 5\)"):
+        model(torch.randn(1, 40, 6))
+
+
+def test_config_errors_and_json_round_trip():
+    with pytest.raises(ParameterError, match="n_classes"):
+        MusicAttributeConfig(n_classes=1)
+    with pytest.raises(ParameterError, match="channels"):
+        MusicAttributeConfig(channels=())
+    with pytest.raises(ParameterError, match="dropout"):
+        MusicAttributeConfig(dropout=1.0)
+    c = MusicAttributeConfig(channels=[8, 8])
+    assert c.channels == (8, 8) and MusicAttributeConfig(**json.loads(json.dumps(c.__dict__))) == c
+
+
+def test_predict_song_is_the_mean_log_probability_of_half_overlapping_windows():
+    model = tiny().eval()
+    x = torch.randn(100, 5)
+    # windows of 40 frames, hop 20: starts 0, 20, 40, 60 (the last one flush with the end)
+    with torch.no_grad():
+        logp = torch.stack([F.log_softmax(model(x[s : s + 40][None])[0], -1) for s in (0, 20, 40, 60)]).mean(0)
+    want = torch.softmax(logp, 0).numpy()
+    got = model.predict_song(x.numpy())
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-7)
+    assert got.sum() == pytest.approx(1.0)
+    # a song shorter than a window is classified in one piece; a song of 3 frames is refused
+    with torch.no_grad():
+        short = torch.softmax(model(x[:25][None])[0], -1).numpy()
+    np.testing.assert_allclose(model.predict_song(x[:25].numpy()), short, rtol=1e-5, atol=1e-7)
+    with pytest.raises(ParameterError, match="at least"):
+        model.predict_song(x[:3].numpy())
+
+
+class _Toy(torch.utils.data.Dataset):
+    """Class c raises feature column c by 1.5 (noise std 1): separable from a window's mean."""
+
+    def __init__(self, n: int, seed: int):
+        g = torch.Generator().manual_seed(seed)
+        self.y = torch.arange(n) % 3
+        self.x = torch.randn(n, 40, 5, generator=g)
+        self.x[torch.arange(n), :, self.y] += 1.5
+
+    def __len__(self) -> int:
+        return len(self.y)
+
+    def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
+        return {"music": self.x[i], "genre": self.y[i]}
+
+
+def test_the_generic_loop_trains_it_to_separate_a_toy_problem(tmp_path):
+    model = tiny()
+    config = TrainConfig(steps=150, batch_size=16, lr=3e-3, warmup_steps=5, val_every=150, ckpt_every=150,
+                         log_every=50, threads=1)
+    train(model, _Toy(96, seed=0), None, config, step_fn=OBJECTIVES["music_attributes"], out_dir=tmp_path / "run",
+          progress=False)
+    held_out = _Toy(60, seed=1)
+    with torch.no_grad():
+        acc = (model.eval()(held_out.x).argmax(-1) == held_out.y).float().mean().item()
+    assert acc >= 0.95
+    again, meta, _ = load_pretrained(tmp_path / "run" / "model")
+    with torch.no_grad():
+        torch.testing.assert_close(again(held_out.x), model(held_out.x))  # save → load: identical outputs
+    assert meta["model"] == "music_attributes"
+
+
+@pytest.fixture
+def prepared_music2dance(tmp_path, rng):
+    """A tiny prepared dataset with `music2dance` features (15 columns) for two genres."""
+    from dancekit.motion import Motion, get_skeleton
+    from dancekit.motion.formats import write_motion
+
+    skel = get_skeleton("tang2018")
+    root = tmp_path / "prepared"
+    dances, splits = {}, {"train": [], "val": [], "test": [], "seed": 0}
+    for name, split, T in [("DANCE_W_1", "train", 90), ("DANCE_R_1", "train", 70), ("DANCE_W_2", "val", 60)]:
+        folder = root / "dances" / name
+        folder.mkdir(parents=True)
+        pos = rng.normal(0, 10, (T, skel.num_joints, 3)).astype(np.float32)
+        write_motion(folder / "motion.npz", Motion(skeleton=skel, fps=25.0, positions=pos))
+        np.savez(folder / "features_music2dance.npz", features=rng.normal(size=(T, 15)).astype(np.float32),
+                 names=np.asarray(["x:15"]), beat_times=np.zeros(0), fps=np.float64(25),
+                 preset=np.asarray("music2dance"))
+        dances[name] = {"genre": "waltz" if "_W_" in name else "rumba", "frames": T, "audio": ["none.wav", 0.0, T / 25]}
+        splits[split].append(name)
+    meta = {"source": "test", "fps": 25.0, "hop_length": 512, "skeleton": skel.to_dict(), "presets": ["music2dance"],
+            "genres": ["waltz", "rumba", "chacha", "tango"], "dances": dances}
+    (root / "meta.json").write_text(json.dumps(meta))
+    (root / "splits.json").write_text(json.dumps(splits))
+    return root
+
+
+def test_train_cli_music_attributes(prepared_music2dance, tmp_path, capsys):
+    out = tmp_path / "run"
+    base = ["train", "music_attributes", "--data", str(prepared_music2dance), "--out", str(out), "--quiet",
+            "--set", "seq_len=40", "--set", "batch_size=2", "--set", "threads=1"]
+    assert main(base + ["--set", "steps=3", "--set", "channels=8,8,8"]) == 0
+    assert "trained music_attributes to step 3" in capsys.readouterr().out
+    model, meta, stats = load_pretrained(out / "model")
+    c = model.config
+    assert (c.music_dim, c.n_classes, c.window, c.channels) == (15, 4, 40, (8, 8, 8))  # window = seq_len
+    assert meta["preset"] == "music2dance" and meta["genres"] == ["waltz", "rumba", "chacha", "tango"]
+    assert meta["train"]["balance_genres"] is True and stats["music_mean"].shape == (15,)  # family defaults
+    assert main(base + ["--set", "window=50"]) == 2
+    assert "window=50" in capsys.readouterr().err
+
+
+# ---- --genre auto: the genre read from the music -------------------------------------------------------
+
+
+def _save_classifier(folder, *, favour: str, genres: list[str], fps: float = 25.0):
+    """A classifier whose output is (almost) always ``favour``: zero weights in the head, a large bias."""
+    model = MusicAttributeClassifier(MusicAttributeConfig(n_classes=len(genres), window=100))
+    with torch.no_grad():
+        model.head.weight.zero_()
+        model.head.bias.zero_()
+        model.head.bias[genres.index(favour)] = 5.0
+    stats = {"music_mean": np.zeros(15, np.float32), "music_std": np.ones(15, np.float32)}
+    save_pretrained(folder, model, model.config, stats=stats,
+                    extra={"fps": fps, "preset": "music2dance", "hop_length": 512, "genres": genres})
+
+
+@pytest.fixture
+def reads_genre(tmp_path, song_wav):
+    """A tiny Dance Revolution folder with genre models for rumba and waltz and a classifier that says rumba."""
+    from dancekit.models.revolution import RevolutionConfig, RevolutionModel
+    from dancekit.motion import get_skeleton
+
+    genres = ["waltz", "rumba", "chacha", "tango"]
+    skel = get_skeleton("tang2018")
+    stats = {"music_mean": np.zeros(438, np.float32), "music_std": np.ones(438, np.float32),
+             "dance_mean": np.zeros(72, np.float32), "dance_std": np.ones(72, np.float32)}
+    meta = {"fps": 25.0, "preset": "revolution", "representation": "positions3d", "hop_length": 512,
+            "skeleton": skel.to_dict(), "genres": genres}
+    root = tmp_path / "parent"
+    for k, sub in enumerate(["", "genres/rumba", "genres/waltz"]):
+        torch.manual_seed(k)
+        model = RevolutionModel(RevolutionConfig(d_model=16, n_heads=2, d_ff=32, decoder_hidden=16))
+        save_pretrained(root / sub if sub else root, model, model.config, stats=stats, extra=meta)
+    _save_classifier(root / "music_attributes", favour="rumba", genres=genres)
+    return root
+
+
+@pytest.fixture
+def song_wav(tmp_path):
+    from dancekit.audio import save_wav
+    from dancekit.audio.synth import click_track
+
+    path = tmp_path / "click.wav"
+    save_wav(path, click_track(bpm=120, duration=3.0, sr=22050), sr=22050)
+    return path
+
+
+def test_auto_dances_the_genre_read_from_the_music(reads_genre, song_wav):
+    from dancekit.pipelines import MusicAttributePipeline, RevolutionPipeline
+
+    pipe = RevolutionPipeline.from_pretrained(reads_genre)
+    probs = pipe.read_genre(song_wav)
+    assert list(probs) == ["waltz", "rumba"] and sum(probs.values()) == pytest.approx(1.0)
+    assert max(probs, key=probs.get) == "rumba"
+    raw = MusicAttributePipeline.from_pretrained(reads_genre / "music_attributes")(song_wav)
+    assert list(raw) == ["waltz", "rumba", "chacha", "tango"] and raw["rumba"] > 0.9
+    auto = pipe(song_wav, seed=0).to_positions()
+    np.testing.assert_array_equal(auto, pipe(song_wav, seed=0, genre="rumba").to_positions())
+    alone = pipe(song_wav, seed=0, genre="none").to_positions()
+    plain = RevolutionPipeline.from_pretrained(reads_genre)
+    plain.genre_reader = None  # the same folder without its classifier: "auto" is the model alone
+    np.testing.assert_array_equal(alone, plain(song_wav, seed=0).to_positions())
+    assert np.abs(auto - alone).max() > 1e-3
+
+
+def test_dance_cli_reports_the_genre_it_read(reads_genre, song_wav, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["dance", str(song_wav), "-o", str(out), "--checkpoint", str(reads_genre), "--format", "npz",
+                 "--quiet"]) == 0
+    assert "as rumba (read from the music, p = " in capsys.readouterr().out
+    assert main(["dance", str(song_wav), "-o", str(out), "--checkpoint", str(reads_genre), "--format", "npz",
+                 "--quiet", "--genre", "none"]) == 0
+    assert "read from the music" not in capsys.readouterr().out
+    assert main(["models"]) == 0  # the embedded default reads the genre from the music
+    assert "auto (read from the music), none" in capsys.readouterr().out
+
+
+def test_a_classifier_that_does_not_fit_is_refused(reads_genre, tmp_path):
+    from dancekit.pipelines import MusicAttributePipeline, RevolutionPipeline
+
+    bad = tmp_path / "bad"
+    shutil.copytree(reads_genre, bad)
+    shutil.rmtree(bad / "music_attributes")
+    _save_classifier(bad / "music_attributes", favour="rumba", genres=["waltz", "rumba", "chacha", "tango"], fps=30.0)
+    with pytest.raises(CheckpointError, match="30 fps"):
+        RevolutionPipeline.from_pretrained(bad)
+    with pytest.raises(CheckpointError, match="not a music attribute classifier"):
+        MusicAttributePipeline.from_pretrained(reads_genre)
