@@ -62,9 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     dst = MODELS / args.name
     if dst.exists():
         shutil.rmtree(dst)
-    dst.mkdir(parents=True)
-    for name in KEEP:
-        shutil.copy2(src / name, dst / name)
+    _copy_checkpoint(src, dst)
     from safetensors.numpy import load_file
 
     n_params = sum(v.size for v in load_file(str(dst / "model.safetensors")).values())
@@ -75,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
         "training_data": _describe_data(config.get("data") or {}),
         "parameters": int(n_params),
         "training_time": args.training_time,
-        "steps": train.get("steps"),
+        "steps": config.get("step", train.get("steps")),  # the embedded checkpoint's step
+        "training_steps": train.get("steps"),
         "curriculum": train.get("curriculum"),
     }
     if args.report:
@@ -89,9 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         steer = json.loads(Path(args.genre_report).read_text())
         card["genre_steering"] = {k: steer[k] for k in ("split", "read_back", "n") if k in steer}
     if args.music_attributes:
-        (dst / "music_attributes").mkdir()
-        for name in KEEP:
-            shutil.copy2(Path(args.music_attributes) / name, dst / "music_attributes" / name)
+        _copy_checkpoint(Path(args.music_attributes), dst / "music_attributes")
         card["music_attributes"] = args.music_attributes_training
     if args.report_none:
         card["metrics_genre_none"] = _pick(json.loads(Path(args.report_none).read_text()))
@@ -112,15 +109,35 @@ def _embed_genre_models(dst: Path, items: list[str]) -> list[str]:
         if not sep or not genre or not folder:
             raise SystemExit(f"embed_model: --genre-model expects GENRE=DIR, got {item!r}")
         src, out = Path(folder), dst / "genres" / genre
-        out.mkdir(parents=True)
-        shutil.copy2(src / "config.json", out / "config.json")
-        shutil.copy2(src / "stats.npz", out / "stats.npz")
+        _copy_checkpoint(src, out, weights=False)
         state = load_file(str(src / "model.safetensors"))
         save_file({k: v.half() if v.is_floating_point() else v for k, v in state.items()},
                   str(out / "model.safetensors"))
         assert all(torch.isfinite(v.float()).all() for v in load_file(str(out / "model.safetensors")).values())
         genres.append(genre)
     return genres
+
+
+def _copy_checkpoint(src: Path, out: Path, *, weights: bool = True) -> None:
+    """Copy a checkpoint folder's files (``KEEP``; without the weights if not ``weights``) to ``out``, with the
+    paths in its ``config.json`` (the data root, ``--init``) made relative to the repository when they lie in
+    it, so that a shipped model does not record the machine it was trained on."""
+    out.mkdir(parents=True)
+    for name in KEEP:
+        if name == "config.json" or (name == "model.safetensors" and not weights):
+            continue
+        shutil.copy2(src / name, out / name)
+    config = json.loads((src / "config.json").read_text())
+    if isinstance(config.get("data"), dict) and config["data"].get("root"):
+        config["data"]["root"] = _portable(config["data"]["root"])
+    if config.get("init"):
+        config["init"] = _portable(config["init"])
+    (out / "config.json").write_text(json.dumps(config, indent=1) + "\n")
+
+
+def _portable(path: str) -> str:
+    p = Path(path)
+    return p.relative_to(ROOT).as_posix() if p.is_absolute() and p.is_relative_to(ROOT) else path
 
 
 def _describe_data(data: dict) -> str:
