@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 import torch.nn.functional as F
+from _prepared import write_fake_prepared
 
 from dancekit.cli.main import main
 from dancekit.errors import CheckpointError, ParameterError
@@ -97,27 +98,7 @@ def test_the_generic_loop_trains_it_to_separate_a_toy_problem(tmp_path):
 @pytest.fixture
 def prepared_music2dance(tmp_path, rng):
     """A tiny prepared dataset with `music2dance` features (15 columns) for two genres."""
-    from dancekit.motion import Motion, get_skeleton
-    from dancekit.motion.formats import write_motion
-
-    skel = get_skeleton("tang2018")
-    root = tmp_path / "prepared"
-    dances, splits = {}, {"train": [], "val": [], "test": [], "seed": 0}
-    for name, split, T in [("DANCE_W_1", "train", 90), ("DANCE_R_1", "train", 70), ("DANCE_W_2", "val", 60)]:
-        folder = root / "dances" / name
-        folder.mkdir(parents=True)
-        pos = rng.normal(0, 10, (T, skel.num_joints, 3)).astype(np.float32)
-        write_motion(folder / "motion.npz", Motion(skeleton=skel, fps=25.0, positions=pos))
-        np.savez(folder / "features_music2dance.npz", features=rng.normal(size=(T, 15)).astype(np.float32),
-                 names=np.asarray(["x:15"]), beat_times=np.zeros(0), fps=np.float64(25),
-                 preset=np.asarray("music2dance"))
-        dances[name] = {"genre": "waltz" if "_W_" in name else "rumba", "frames": T, "audio": ["none.wav", 0.0, T / 25]}
-        splits[split].append(name)
-    meta = {"source": "test", "fps": 25.0, "hop_length": 512, "skeleton": skel.to_dict(), "presets": ["music2dance"],
-            "genres": ["waltz", "rumba", "chacha", "tango"], "dances": dances}
-    (root / "meta.json").write_text(json.dumps(meta))
-    (root / "splits.json").write_text(json.dumps(splits))
-    return root
+    return write_fake_prepared(tmp_path / "prepared", rng, preset="music2dance", dim=15)
 
 
 def test_train_cli_music_attributes(prepared_music2dance, tmp_path, capsys):
