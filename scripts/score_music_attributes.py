@@ -3,7 +3,7 @@
     python scripts/score_music_attributes.py runs/music_attributes/model [more checkpoints] --data data/tang2018
 
 For every checkpoint and split, each song's music (the dance's excerpt, the prepared features of the
-classifier's preset) is classified by :meth:`MusicAttributeClassifier.predict_song` (the mean
+classifier's preset) is classified by :meth:`MusicAttributePipeline.classify_features` (the mean
 log-probability of its 30-s windows); prints the accuracy and every validation / test prediction.
 """
 
@@ -31,9 +31,8 @@ def main(argv: list[str] | None = None) -> int:
         for split in ("train", "val", "test"):
             pred = {}
             for name in data.names(split):
-                x = data.features(name, pipe.preset)["features"]
-                probs = pipe.model.predict_song((x - pipe.music_mean) / pipe.music_std)
-                pred[name] = pipe.genres[int(np.argmax(probs))]
+                probs = pipe.classify_features(data.features(name, pipe.preset)["features"], source=name)
+                pred[name] = max(probs, key=probs.get)
             acc = np.mean([data.genre(n) == g for n, g in pred.items()])
             shown = "" if split == "train" else " [" + ", ".join(f"{n}→{g}" for n, g in pred.items()) + "]"
             parts.append(f"{split} {acc:.3f}{shown}")

@@ -85,9 +85,14 @@ class MusicAttributePipeline:
 
         fs = extract_file(audio_path, fps=self.fps, preset=self.preset, start=start, end=end,
                           hop_length=self.hop_length)
-        feats = np.asarray(fs.features, np.float32)
+        return self.classify_features(fs.features, source=str(audio_path))
+
+    def classify_features(self, features: np.ndarray, *, source: str = "the music") -> dict[str, float]:
+        """Probability of each genre for a song's ``features`` (T, D): the checkpoint's preset at its fps,
+        not normalised (e.g. ``PreparedData.features(name, pipe.preset)["features"]``)."""
+        feats = np.asarray(features, np.float32)
         if feats.ndim != 2 or feats.shape[1] != self.model.config.music_dim:
-            raise CheckpointError(f"the {self.preset!r} features of {audio_path} have shape {feats.shape}, but "
+            raise CheckpointError(f"the {self.preset!r} features of {source} have shape {feats.shape}, but "
                                   f"the classifier expects {self.model.config.music_dim} columns")
         probs = self.model.predict_song((feats - self.music_mean) / self.music_std)  # (n_classes,)
         return {g: float(p) for g, p in zip(self.genres, probs)}
