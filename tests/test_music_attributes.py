@@ -32,6 +32,10 @@ def test_shapes_and_shortest_input():
         model(torch.randn(1, 3, 5))
     with pytest.raises(ParameterError, match=r"\(B, n, 5\)"):
         model(torch.randn(1, 40, 6))
+    fc = tiny(frontend="fc")  # the paper's FC+Bi-LSTM baseline: per-frame layers, any length from 1 frame
+    assert fc.min_frames() == 1 and fc(torch.randn(2, 1, 5)).shape == (2, 3)
+    with pytest.raises(ParameterError, match="frontend"):
+        tiny(frontend="rnn")
 
 
 def test_config_errors_and_json_round_trip():

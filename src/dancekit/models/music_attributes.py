@@ -12,6 +12,9 @@ Architecture (paper §4.3, Fig. 5)
     classes are two music attributes; here the classes are the dataset's dance genres (tang2018: waltz,
     rumba, cha-cha, tango).
 
+The paper's baseline (Table 1, "FC+Bi-LSTM") is ``frontend="fc"``: the temporal convolutions replaced by
+per-frame fully connected layers of the same widths (no temporal context before the BiLSTM, no stride).
+
 A whole song is classified by :meth:`MusicAttributeClassifier.predict_song`: the mean log-probability of
 its windows (hop half a window); a song shorter than a window is classified in one piece.
 """
@@ -28,6 +31,8 @@ from torch import nn
 
 from dancekit.errors import ParameterError
 
+FRONTENDS = ("conv", "fc")
+
 
 @dataclass
 class MusicAttributeConfig:
@@ -40,6 +45,7 @@ class MusicAttributeConfig:
     lstm_hidden: int = 32  # per direction
     dropout: float = 0.1
     window: int = 750  # frames per classified window (30 s at 25 fps)
+    frontend: str = "conv"  # conv (the paper's model) | fc (its FC+Bi-LSTM baseline)
 
     def __post_init__(self) -> None:
         self.channels = tuple(int(c) for c in self.channels)
@@ -51,6 +57,8 @@ class MusicAttributeConfig:
             raise ParameterError(f"MusicAttributeConfig.n_classes must be at least 2, got {self.n_classes}")
         if not self.channels or min(self.channels) < 1:
             raise ParameterError(f"MusicAttributeConfig.channels must be positive integers, got {self.channels}")
+        if self.frontend not in FRONTENDS:
+            raise ParameterError(f"MusicAttributeConfig.frontend must be one of {FRONTENDS}, got {self.frontend!r}")
         if not 0.0 <= self.dropout < 1.0:
             raise ParameterError(f"MusicAttributeConfig.dropout must be in [0, 1), got {self.dropout}")
 
@@ -72,8 +80,11 @@ class MusicAttributeClassifier(nn.Module):
         self.config = c = config
         convs, width = [], c.music_dim
         for i, out in enumerate(c.channels):
-            stride = 2 if i == len(c.channels) - 1 else 1
-            convs.append(nn.Conv1d(width, out, c.kernel, stride=stride))
+            if c.frontend == "fc":  # a per-frame linear layer, as a kernel-1 convolution
+                convs.append(nn.Conv1d(width, out, 1))
+            else:
+                stride = 2 if i == len(c.channels) - 1 else 1
+                convs.append(nn.Conv1d(width, out, c.kernel, stride=stride))
             width = out
         self.convs = nn.ModuleList(convs)
         self.lstm = nn.LSTM(width, c.lstm_hidden, batch_first=True, bidirectional=True)
@@ -82,9 +93,8 @@ class MusicAttributeClassifier(nn.Module):
     def min_frames(self) -> int:
         """Shortest input (frames) that leaves at least one step after the convolutions."""
         n = 1
-        for i in reversed(range(len(self.convs))):
-            stride = self.convs[i].stride[0]
-            n = (n - 1) * stride + self.config.kernel
+        for conv in reversed(self.convs):
+            n = (n - 1) * conv.stride[0] + conv.kernel_size[0]
         return n
 
     def forward(self, music: torch.Tensor) -> torch.Tensor:
