@@ -14,7 +14,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dancekit.pipelines.hub import DEFAULT_MODEL, embedded_models, model_card
-    from dancekit.pipelines.revolution import genre_model_folders
+    from dancekit.pipelines.revolution import genre_model_folders, music_attributes_folder
 
     models = embedded_models()
     cards = {}
@@ -22,7 +22,7 @@ def run(args: argparse.Namespace) -> int:
         card = model_card(folder)
         size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
         genres = list(genre_model_folders(folder))
-        reads_genre = (folder / "music_attributes" / "config.json").is_file()
+        reads_genre = music_attributes_folder(folder) is not None
         card = {"name": name, "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
                 "genre_models": genres, "reads_genre_from_music": reads_genre, **card}
         cards[name] = card

@@ -101,10 +101,8 @@ class RevolutionPipeline:
         unknown = sorted(set(genre_models) - known) if known else []
         if unknown:
             raise CheckpointError(f"checkpoint {folder}: genre models {unknown} are not genres of its data {sorted(known)}")
-        reader_folder = Path(folder) / "music_attributes"
-        reader = None
-        if (reader_folder / "config.json").is_file():
-            reader = MusicAttributePipeline.from_pretrained(reader_folder, device=device)
+        reader_folder = music_attributes_folder(folder)
+        reader = None if reader_folder is None else MusicAttributePipeline.from_pretrained(reader_folder, device=device)
         return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
                    genre_reader=reader)
 
@@ -233,6 +231,12 @@ class RevolutionPipeline:
 def genre_model_folders(folder: str | os.PathLike) -> dict[str, Path]:
     """Genre → checkpoint folder of the genre models in ``folder/genres/<genre>/`` (sorted by name)."""
     return {p.name: p for p in sorted((Path(folder) / "genres").glob("*")) if (p / "config.json").is_file()}
+
+
+def music_attributes_folder(folder: str | os.PathLike) -> Path | None:
+    """The music attribute classifier checkpoint ``folder/music_attributes/`` (None when there is none)."""
+    path = Path(folder) / "music_attributes"
+    return path if (path / "config.json").is_file() else None
 
 
 def clean_motion(motion: Motion) -> Motion:
