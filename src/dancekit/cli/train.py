@@ -25,7 +25,7 @@ from dancekit.errors import ParameterError
 FAMILIES: dict[str, dict[str, Any]] = {
     "revolution": {"preset": "revolution", "objective": "revolution"},
     # Music2Dance's classifier: 30-s windows; 100 genre-balanced steps (chosen on the validation songs,
-    # docs/BENCHMARKS.md "Music attribute classifier")
+    # docs/BENCHMARKS.md "`--genre auto`: the genre read from the music")
     "music_attributes": {"preset": "music2dance", "objective": "music_attributes", "window_field": "window",
                          "train_defaults": {"seq_len": 750, "steps": 100, "balance_genres": True,
                                             "warmup_steps": 20, "val_every": 25, "ckpt_every": 100,
