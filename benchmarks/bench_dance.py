@@ -46,7 +46,7 @@ def main() -> int:
     if args._long_child:
         pipe = load_pipeline(args.model, args.checkpoint)
         t0 = time.perf_counter()
-        motion = pipe(args._long_child, seed=0)
+        motion = pipe(args._long_child, seed=0).motion
         el = time.perf_counter() - t0
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         print(f"10-minute song: {motion.num_frames} frames generated in {el:.1f} s, peak RSS {peak:.0f} MiB")
@@ -61,7 +61,7 @@ def main() -> int:
         for song in SONGS:
             path = MUSIC / song
             t0 = time.perf_counter()
-            motion = pipe(str(path), seed=0)
+            motion = pipe(str(path), seed=0).motion
             gen = time.perf_counter() - t0
             t0 = time.perf_counter()
             render_motion_mp4(Path(tmp) / "out.mp4", motion, audio_path=str(path), progress=False)

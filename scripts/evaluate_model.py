@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
         ref = data.audio(name)
         for k in range(args.seeds):
             genre = {"auto": None, "true": data.genre(name)}.get(args.genre, args.genre)
-            motion = pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=genre)
+            motion = pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=genre).motion
             stem = name if args.seeds == 1 else f"{name}__{k}"
             write_motion(pred / f"{stem}.npz", motion)
             seconds += motion.duration

@@ -38,7 +38,7 @@ def steering(pipe, data, style, *, split: str, seeds: int = 1, progress: bool = 
     jobs = [(n, g, k) for n in data.names(split) for g in pipe.genres for k in range(seeds)]
     for name, genre, k in tqdm(jobs, desc="steering", unit="dance", disable=not progress):
         ref = data.audio(name)
-        m = pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=genre)
+        m = pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=genre).motion
         pos = m.to_positions()
         still[genre].append(stillness_share(pos, fps=m.fps, skeleton=m.skeleton))
         energy[genre].append(smoothed_energy(pos, fps=m.fps, skeleton=m.skeleton))

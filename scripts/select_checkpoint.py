@@ -74,7 +74,7 @@ def score(ckpt: Path, data, style, *, split: str, seeds: int, steer: bool) -> di
     for name in data.names(split):
         ref = data.audio(name)
         for k in range(seeds):
-            m = pipe(ref.path, seed=k, start=ref.start, end=ref.end)
+            m = pipe(ref.path, seed=k, start=ref.start, end=ref.end).motion
             p = m.to_positions()
             dances.append((p, style.genres.index(data.genre(name))))
             still.append(stillness_share(p, fps=m.fps, skeleton=m.skeleton))

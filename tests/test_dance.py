@@ -13,12 +13,12 @@ from _media import chromium, run_chromium, stream_info
 
 from dancekit.audio import save_wav
 from dancekit.audio.synth import ode_to_joy
+from dancekit.checkpoints import save_pretrained
 from dancekit.cli.main import main
 from dancekit.errors import ParameterError
 from dancekit.models.revolution import RevolutionConfig, RevolutionModel
 from dancekit.motion import get_skeleton
 from dancekit.motion.formats import read_motion
-from dancekit.training.checkpoint import save_pretrained
 
 SR = 22050
 SONG_SECONDS = 4.0
@@ -78,7 +78,7 @@ def test_npz_round_trips_and_covers_the_song(danced, checkpoint, song):
     m = read_motion(danced / "ode.npz")
     assert m.fps == 25.0 and m.skeleton.name == "tang2018"
     assert m.num_frames == 1 + int(SONG_SECONDS * 25 * 512) // 512
-    again = RevolutionPipeline.from_pretrained(checkpoint)(song, seed=0)  # same seed, same dance
+    again = RevolutionPipeline.from_pretrained(checkpoint)(song, seed=0).motion  # same seed, same dance
     np.testing.assert_allclose(m.positions, again.positions, atol=1e-4)
     # post-processing: rest bone lengths and feet on the floor
     parents = [p if p >= 0 else j for j, p in enumerate(m.skeleton.parents)]  # the root: a zero bone
@@ -193,7 +193,7 @@ def test_failure_after_generation_leaves_no_partial_files(tmp_path, capsys, song
 
 
 def test_models_lists_the_embedded_models(capsys):
-    from dancekit.pipelines.hub import MODELS_DIR, embedded_models
+    from dancekit.checkpoints import MODELS_DIR, embedded_models
 
     assert main(["models", "--json"]) == 0
     cards = json.loads(capsys.readouterr().out)
@@ -215,7 +215,7 @@ def with_genre_model(tmp_path_factory, checkpoint):
     """The tiny checkpoint plus a genre model ``genres/rumba`` (another tiny model) in its folder."""
     import shutil
 
-    from dancekit.training.checkpoint import read_config
+    from dancekit.checkpoints import declare_components, read_config
 
     root = tmp_path_factory.mktemp("genres") / "parent"
     shutil.copytree(checkpoint, root)
@@ -228,6 +228,7 @@ def with_genre_model(tmp_path_factory, checkpoint):
         stats = {k: z[k] for k in z.files}
     extra = {k: v for k, v in meta.items() if k not in ("model", "config")}
     save_pretrained(root / "genres" / "rumba", other, other.config, stats=stats, extra=extra)
+    declare_components(root, {"genres": {"rumba": "genres/rumba"}})
     return root
 
 
@@ -236,10 +237,10 @@ def test_genre_model_dances_the_requested_genre(with_genre_model, song):
 
     pipe = RevolutionPipeline.from_pretrained(with_genre_model)
     assert pipe.genres == ("rumba",)
-    rumba = pipe(song, seed=0, genre="rumba").to_positions()
-    direct = RevolutionPipeline.from_pretrained(with_genre_model / "genres" / "rumba")(song, seed=0).to_positions()
+    rumba = pipe(song, seed=0, genre="rumba").motion.to_positions()
+    direct = RevolutionPipeline.from_pretrained(with_genre_model / "genres" / "rumba")(song, seed=0).motion.to_positions()
     np.testing.assert_array_equal(rumba, direct)  # the genre model itself, nothing mixed in
-    assert np.abs(rumba - pipe(song, seed=0).to_positions()).max() > 1e-3  # "auto" is the parent model
+    assert np.abs(rumba - pipe(song, seed=0).motion.to_positions()).max() > 1e-3  # "auto" is the parent model
     with pytest.raises(ParameterError, match="tango.*rumba"):
         pipe(song, genre="tango")
 
@@ -257,13 +258,17 @@ def test_dance_cli_with_a_genre_model(tmp_path, capsys, with_genre_model, song):
 def test_genre_model_outside_the_data_genres_is_refused(tmp_path, with_genre_model):
     import shutil
 
+    from dancekit.checkpoints import declare_components
     from dancekit.errors import CheckpointError
     from dancekit.pipelines.revolution import RevolutionPipeline
 
     bad = tmp_path / "bad"
     shutil.copytree(with_genre_model, bad)
     (bad / "genres" / "rumba").rename(bad / "genres" / "salsa")
-    with pytest.raises(CheckpointError, match="salsa"):
+    with pytest.raises(CheckpointError, match="genres.rumba"):  # the index names a folder that is gone
+        RevolutionPipeline.from_pretrained(bad)
+    declare_components(bad, {"genres": {"rumba": "genres/salsa", "salsa": "genres/salsa"}})
+    with pytest.raises(CheckpointError, match="salsa"):  # a genre its data does not have
         RevolutionPipeline.from_pretrained(bad)
 
 
@@ -272,13 +277,13 @@ def test_the_embedded_default_model_dances_every_tang2018_genre_and_reads_it_fro
 
     pipe = load_pipeline()
     assert pipe.genres == ("waltz", "rumba", "chacha", "tango")
-    alone = pipe(song, seed=0, end=2.0, genre="none").to_positions()
-    tango = pipe(song, seed=0, end=2.0, genre="tango").to_positions()
+    alone = pipe(song, seed=0, end=2.0, genre="none").motion.to_positions()
+    tango = pipe(song, seed=0, end=2.0, genre="tango").motion.to_positions()
     assert alone.shape == tango.shape and np.isfinite(tango).all()
     assert np.abs(tango - alone).max() > 1.0  # another model (cm): the genre model, not the default one
     # "auto" reads the genre from the music and dances it with that genre model
     probs = pipe.read_genre(song, end=2.0)
     assert set(probs) == set(pipe.genres) and sum(probs.values()) == pytest.approx(1.0)
     read = max(probs, key=probs.get)
-    np.testing.assert_array_equal(pipe(song, seed=0, end=2.0).to_positions(),
-                                  pipe(song, seed=0, end=2.0, genre=read).to_positions())
+    np.testing.assert_array_equal(pipe(song, seed=0, end=2.0).motion.to_positions(),
+                                  pipe(song, seed=0, end=2.0, genre=read).motion.to_positions())

@@ -8,19 +8,17 @@ import numpy as np
 import pytest
 import torch
 
+from dancekit.checkpoints import NormStats
 from dancekit.data import (
     GENRES,
-    NormStats,
     PreparedData,
     WindowDataset,
-    decode_motion,
-    encode_motion,
-    pose_dim,
     split_by_genre,
     tang2018_genre,
 )
 from dancekit.errors import DatasetError, ParameterError
 from dancekit.motion import Motion, get_skeleton
+from dancekit.motion.representations import decode_motion, encode_motion, pose_dim
 
 
 def _names(code, n):

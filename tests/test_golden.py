@@ -39,7 +39,7 @@ def _dances(song: Path) -> dict[str, np.ndarray]:
     pipe = load_pipeline()
     out = {}
     for key, (genre, seed) in CASES.items():
-        motion = pipe(str(song), seed=seed, genre=genre)
+        motion = pipe(str(song), seed=seed, genre=genre).motion
         out[key] = np.asarray(motion.to_positions(), np.float32)
     return out
 

@@ -11,11 +11,12 @@ import torch
 import torch.nn.functional as F
 from _prepared import write_fake_prepared
 
+from dancekit import registry
+from dancekit.checkpoints import declare_components, load_pretrained, save_pretrained
 from dancekit.cli.main import main
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.music_attributes import MusicAttributeClassifier, MusicAttributeConfig
-from dancekit.training import OBJECTIVES, TrainConfig, train
-from dancekit.training.checkpoint import load_pretrained, save_pretrained
+from dancekit.training import TrainConfig, train
 
 
 def tiny(**kw) -> MusicAttributeClassifier:
@@ -87,7 +88,7 @@ def test_the_generic_loop_trains_it_to_separate_a_toy_problem(tmp_path):
     model = tiny()
     config = TrainConfig(steps=150, batch_size=16, lr=3e-3, warmup_steps=5, val_every=150, ckpt_every=150,
                          log_every=50, threads=1)
-    train(model, _Toy(96, seed=0), None, config, step_fn=OBJECTIVES["music_attributes"], out_dir=tmp_path / "run",
+    train(model, _Toy(96, seed=0), None, config, step_fn=registry.get("music_attributes").load("objective"), out_dir=tmp_path / "run",
           progress=False)
     held_out = _Toy(60, seed=1)
     with torch.no_grad():
@@ -153,6 +154,8 @@ def reads_genre(tmp_path, song_wav):
         model = RevolutionModel(RevolutionConfig(d_model=16, n_heads=2, d_ff=32, decoder_hidden=16))
         save_pretrained(root / sub if sub else root, model, model.config, stats=stats, extra=meta)
     _save_classifier(root / "music_attributes", favour="rumba", genres=genres)
+    declare_components(root, {"genre_reader": "music_attributes",
+                              "genres": {"rumba": "genres/rumba", "waltz": "genres/waltz"}})
     return root
 
 
@@ -175,12 +178,12 @@ def test_auto_dances_the_genre_read_from_the_music(reads_genre, song_wav):
     assert max(probs, key=probs.get) == "rumba"
     raw = MusicAttributePipeline.from_pretrained(reads_genre / "music_attributes")(song_wav)
     assert list(raw) == ["waltz", "rumba", "chacha", "tango"] and raw["rumba"] > 0.9
-    auto = pipe(song_wav, seed=0).to_positions()
-    np.testing.assert_array_equal(auto, pipe(song_wav, seed=0, genre="rumba").to_positions())
-    alone = pipe(song_wav, seed=0, genre="none").to_positions()
+    auto = pipe(song_wav, seed=0).motion.to_positions()
+    np.testing.assert_array_equal(auto, pipe(song_wav, seed=0, genre="rumba").motion.to_positions())
+    alone = pipe(song_wav, seed=0, genre="none").motion.to_positions()
     plain = RevolutionPipeline.from_pretrained(reads_genre)
     plain.genre_reader = None  # the same folder without its classifier: "auto" is the model alone
-    np.testing.assert_array_equal(alone, plain(song_wav, seed=0).to_positions())
+    np.testing.assert_array_equal(alone, plain(song_wav, seed=0).motion.to_positions())
     assert np.abs(auto - alone).max() > 1e-3
 
 

@@ -12,7 +12,6 @@ from dancekit.errors import DancekitError, ParameterError
 
 FORMATS = ("mp4", "html", "npz", "bvh", "openpose")
 DEFAULT_FORMATS = "mp4,html,npz,bvh"
-GENRE_CHOICES = ("auto", "none", "waltz", "rumba", "chacha", "tango")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -25,10 +24,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("audio", help="the song (wav, flac, ogg, mp3, m4a, ...)")
     p.add_argument("-o", "--out", required=True, help="output folder (created if missing)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--model", default=None, help="embedded model name (see `dancekit models`)")
+    g.add_argument("--model", default=None,
+                   help="model name (see `dancekit models`; also the user's models folder $DANCEKIT_MODELS) or folder")
     g.add_argument("--checkpoint", default=None, help="a checkpoint folder (from `dancekit train`)")
     p.add_argument("--genre", default="auto",
-                   help=f"dance genre: {', '.join(GENRE_CHOICES)}; auto (default): read from the music when the "
+                   help="dance genre: auto, none or one of the model's genres (`dancekit models` lists them; the "
+                        "default model: waltz, rumba, chacha, tango); auto (default): read from the music when the "
                         "model has a music attribute classifier, else as none; none: the model alone")
     p.add_argument("--seed", type=int, default=0, help="random seed: another seed, another dance (default 0)")
     p.add_argument("--start", type=float, default=None, help="start of the song excerpt, seconds")
@@ -49,12 +50,10 @@ def parse_formats(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dancekit.pipelines.hub import load_pipeline
+    from dancekit.pipelines import load_pipeline
 
     t0 = time.perf_counter()
     formats = parse_formats(args.format)
-    if args.genre not in GENRE_CHOICES:
-        raise ParameterError(f"unknown genre {args.genre!r}; choose from {', '.join(GENRE_CHOICES)}")
     audio = Path(args.audio)
     if not audio.exists():
         raise DancekitError(f"audio file not found: {audio}")
@@ -73,15 +72,9 @@ def run(args: argparse.Namespace) -> int:
     stage = Path(stage)
     try:
         pipe = load_pipeline(args.model, args.checkpoint)
-        genre, how = args.genre, ""
-        if genre == "auto" and hasattr(pipe, "read_genre"):
-            probs = pipe.read_genre(str(audio), start=args.start, end=args.end)
-            if probs:
-                genre = max(probs, key=probs.get)
-                how = f" as {genre} (read from the music, p = {probs[genre]:.2f})"
-        elif genre != "none":
-            how = f" as {genre}"
-        motion = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=genre, progress=not args.quiet)
+        result = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=args.genre,
+                      progress=not args.quiet)
+        motion = result.motion
         written = export_all(
             motion,
             stage,
@@ -108,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
         raise
     shutil.rmtree(stage, ignore_errors=True)
     elapsed = time.perf_counter() - t0
+    how = f" {result.summary()}" if result.summary() else ""
     print(
         f"danced {audio.name}{how}: {motion.duration:.1f} s, {motion.num_frames} frames at {motion.fps:g} fps "
         f"in {elapsed:.1f} s → " + ", ".join(str(p) for p in final)

@@ -7,24 +7,27 @@ import json
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("models", help="list the embedded models (training data, size, metrics)")
+    p = sub.add_parser("models", help="list the models found by name: the user's models folder and the embedded "
+                       "models (family, training data, size, metrics)")
     p.add_argument("--json", action="store_true", help="print the model cards as JSON")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from dancekit.pipelines.hub import DEFAULT_MODEL, embedded_models, model_card
-    from dancekit.pipelines.revolution import genre_model_folders, music_attributes_folder
+    from dancekit import registry
+    from dancekit.checkpoints import DEFAULT_MODEL, available_models, components, model_card
+    from dancekit.checkpoints.hub import read_meta
 
-    models = embedded_models()
     cards = {}
-    for name, folder in models.items():
-        card = model_card(folder)
+    for name, folder in available_models().items():
+        meta = read_meta(folder)
+        family = meta["model"]
+        kind = registry.get(family).kind if family in registry.families() else "unknown"
+        parts = components(folder, meta)
         size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
-        genres = list(genre_model_folders(folder))
-        reads_genre = music_attributes_folder(folder) is not None
-        card = {"name": name, "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
-                "genre_models": genres, "reads_genre_from_music": reads_genre, **card}
+        card = {"name": name, "family": family, "kind": kind, "folder": str(folder), "default": name == DEFAULT_MODEL,
+                "size_mb": round(size / 1e6, 2), "genre_models": list(parts.get("genres", {})),
+                "reads_genre_from_music": "genre_reader" in parts, **model_card(folder)}
         cards[name] = card
     if args.json:
         print(json.dumps(cards, indent=1))
@@ -35,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     for name, card in cards.items():
         flag = " (default)" if card["default"] else ""
         print(f"{name}{flag}: {card.get('description', '')}")
+        print(f"  family: {card['family']} ({card['kind']}); folder: {card['folder']}")
         print(f"  size: {card['size_mb']} MB")
         if card["genre_models"]:
             auto = "auto (read from the music), none" if card["reads_genre_from_music"] else "auto"

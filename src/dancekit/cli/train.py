@@ -20,18 +20,6 @@ from typing import Any
 
 from dancekit.errors import ParameterError
 
-# family → what training it needs: feature preset, objective, TrainConfig defaults of the family (under
-# --set and --resume), and the model field that must equal the training window length (if any)
-FAMILIES: dict[str, dict[str, Any]] = {
-    "revolution": {"preset": "revolution", "objective": "revolution"},
-    # Music2Dance's classifier: 30-s windows; 100 genre-balanced steps (chosen on the validation songs,
-    # docs/BENCHMARKS.md "`--genre auto`: the genre read from the music")
-    "music_attributes": {"preset": "music2dance", "objective": "music_attributes", "window_field": "window",
-                         "train_defaults": {"seq_len": 750, "steps": 100, "balance_genres": True,
-                                            "warmup_steps": 20, "val_every": 25, "ckpt_every": 100,
-                                            "log_every": 10}},
-}
-
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -40,7 +28,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Train a model on a dataset written by `dancekit prepare`, with checkpoints in OUT "
         "(OUT/model is the latest model, OUT/best the best on the validation split).",
     )
-    p.add_argument("family", choices=sorted(FAMILIES), help="model family")
+    from dancekit import registry
+
+    p.add_argument("family", choices=registry.families(), help="model family (dancekit.registry)")
     p.add_argument("--data", required=True, help="prepared dataset folder (from `dancekit prepare`)")
     p.add_argument("--out", required=True, help="run folder: checkpoints, log.jsonl, model/, best/")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
@@ -124,13 +114,15 @@ def parse_sets(sets: list[str], model_cls: type, train_cls: type) -> tuple[dict[
 
 
 def run(args: argparse.Namespace) -> int:
-    from dancekit.data import PreparedData, WindowDataset, compute_stats
+    from dancekit import registry
+    from dancekit.checkpoints import load_pretrained, read_config
+    from dancekit.data import PreparedData, compute_stats
     from dancekit.errors import CheckpointError
-    from dancekit.training import OBJECTIVES, TrainConfig, checkpoints, get_family, read_config, train
+    from dancekit.training import TrainConfig, checkpoints, train
     from dancekit.training.loop import seed_everything
 
-    spec = FAMILIES[args.family]
-    config_cls, model_cls = get_family(args.family)
+    family = registry.get(args.family)
+    config_cls, model_cls = family.config_class, family.module_class
     model_sets, train_sets = parse_sets(args.sets, config_cls, TrainConfig)
     out = Path(args.out)
 
@@ -147,37 +139,30 @@ def run(args: argparse.Namespace) -> int:
             raise CheckpointError(f"{found[-1]}: training settings {unknown} are unknown to this version")
     init_state = None
     if args.init and not found:
-        from dancekit.training.checkpoint import load_pretrained
-
         init_model, init_meta, _ = load_pretrained(args.init)
         if init_meta["model"] != args.family:
             raise ParameterError(f"--init {args.init} holds a {init_meta['model']!r} model, not {args.family!r}")
         model_base = dict(init_meta["config"])
         init_state = init_model.state_dict()
-    tc = TrainConfig(**{**spec.get("train_defaults", {}), **train_base, **train_sets})
+    tc = TrainConfig(**{**family.train_defaults, **train_base, **train_sets})
 
     data = PreparedData(args.data)
-    preset = spec["preset"]
+    preset = family.preset
     t0 = time.perf_counter()
     stats = compute_stats(data, preset=preset, representation=tc.representation)
-    train_set = WindowDataset(data, "train", preset=preset, window=tc.seq_len, stride=tc.stride, stats=stats,
-                              representation=tc.representation, random_offset=tc.random_offset, seed=tc.seed,
-                              balance_genres=tc.balance_genres, genres=tc.genres)
-    val_set = WindowDataset(data, "val", preset=preset, window=tc.seq_len, stride=tc.stride, stats=stats,
-                            representation=tc.representation, genres=tc.genres)
+    train_set, val_set = family.load("dataset")(data, tc, stats, preset=preset)
     if len(train_set) == 0:
         raise ParameterError(f"no training window of {tc.seq_len} frames fits in the dances of {args.data}")
 
-    dims = {"music_dim": train_set.music_dim, "pose_dim": train_set.pose_dim, "n_classes": len(data.genres)}
-    dims = {k: v for k, v in dims.items() if k in {f.name for f in dataclasses.fields(config_cls)}}
+    # model fields the data decides (registry: data_fields): class count, window length, and the dataset's
+    # own sizes (music_dim, pose_dim, ...); a classifier of fixed windows classifies windows as long as it
+    # was trained on
+    dims = {f: len(data.genres) if f == "n_classes" else tc.seq_len if f == "window" else getattr(train_set, f)
+            for f in family.data_fields}
     for key, value in dims.items():
         if key in model_sets and model_sets[key] != value:
-            raise ParameterError(f"--set {key}={model_sets[key]} does not match the data ({key} = {value})")
-    window_field = spec.get("window_field")
-    if window_field:  # a classifier of fixed windows classifies windows as long as it was trained on
-        if window_field in model_sets and model_sets[window_field] != tc.seq_len:
-            raise ParameterError(f"--set {window_field}={model_sets[window_field]} must equal seq_len ({tc.seq_len})")
-        dims[window_field] = tc.seq_len
+            what = f"seq_len ({value})" if key == "window" else f"the data ({key} = {value})"
+            raise ParameterError(f"--set {key}={model_sets[key]} does not match {what}")
     model_config = config_cls(**{**model_base, **model_sets, **dims})
     seed_everything(tc.seed)  # the initial weights depend on the seed only
     model = model_cls(model_config)
@@ -203,7 +188,7 @@ def run(args: argparse.Namespace) -> int:
               f"{tc.seq_len} frames, {len(val_set)} validation windows; data loaded in {time.perf_counter() - t0:.1f} s")
         print("model:", json.dumps(dataclasses.asdict(model_config)))
         print("train:", json.dumps(dataclasses.asdict(tc)))
-    result = train(model, train_set, val_set if len(val_set) else None, tc, step_fn=OBJECTIVES[spec["objective"]],
+    result = train(model, train_set, val_set if len(val_set) else None, tc, step_fn=family.load("objective"),
                    out_dir=out, resume=args.resume, stats=stats, meta=meta, progress=not args.quiet)
     val = f", val loss {result.val_loss:.4f} (best {result.best_val_loss:.4f})" if result.val_loss is not None else ""
     loss = f"{result.train_loss:.4f}" if result.train_loss is not None else "n/a"

@@ -36,6 +36,7 @@ from dancekit._checks import check_fps
 from dancekit._io import atomic_dir, atomic_path
 from dancekit.errors import DatasetError, ParameterError
 from dancekit.motion import Motion, Skeleton
+from dancekit.motion.analysis import floor_curve
 
 GENRES = ("waltz", "rumba", "chacha", "tango")
 TANG2018_GENRE_CODES = {"W": "waltz", "R": "rumba", "C": "chacha", "T": "tango"}
@@ -80,25 +81,6 @@ def split_by_genre(
         out["val"] += names[n_test : n_test + n_val]
         out["train"] += names[n_test + n_val :]
     return {k: sorted(v) for k, v in out.items()}
-
-
-def floor_curve(
-    positions: np.ndarray, skeleton: Skeleton, *, fps: float, window_s: float = 3.0, percentile: float = 5.0
-) -> np.ndarray:
-    """Floor height at every frame ``(T,)``, in skeleton units.
-
-    The ``percentile`` of the lowest foot joint's height in a ``window_s`` window around each frame,
-    smoothed with a 1-second moving average. A dancer's feet touch the floor most of the time, so
-    jumps do not lift the curve; a drifting capture floor is followed.
-    """
-    from scipy.ndimage import percentile_filter, uniform_filter1d
-
-    up = skeleton.up_index
-    feet = [skeleton.index(f) for f in skeleton.feet] or list(range(skeleton.num_joints))
-    lowest = np.asarray(positions, np.float64)[:, feet, up].min(axis=1)
-    size = max(1, int(round(window_s * fps)))
-    floor = percentile_filter(lowest, percentile, size=size, mode="nearest")
-    return uniform_filter1d(floor, size=max(1, int(round(fps))), mode="nearest")
 
 
 def prepare_tang2018(

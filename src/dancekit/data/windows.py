@@ -8,9 +8,9 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from dancekit.checkpoints.stats import NormStats
 from dancekit.data.prepared import PreparedData
-from dancekit.data.representation import encode_motion
-from dancekit.data.stats import NormStats
+from dancekit.motion.representations import encode_motion
 from dancekit.errors import ParameterError
 
 

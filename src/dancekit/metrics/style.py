@@ -30,7 +30,7 @@ Network
     proportional to each genre's window count: tang2018 has 26 waltzes and one tango).
 
 Checkpoints are the project's self-describing folders (``config.json`` +
-``model.safetensors`` + ``stats.npz``, :mod:`dancekit.training.checkpoint`, family
+``model.safetensors`` + ``stats.npz``, :mod:`dancekit.checkpoints`, family
 ``"style"``); ``config.json`` also records the skeleton, fps, genres and the test scores.
 A trained classifier ships in ``dancekit/assets/models/style/``.
 """
@@ -202,15 +202,6 @@ class StyleClassifier(nn.Module):
         return logits, F.cross_entropy(logits, targets, weight=self.class_weights)
 
 
-def _register() -> None:
-    from dancekit.training.checkpoint import register_family
-
-    register_family(FAMILY, StyleClassifierConfig, StyleClassifier)
-
-
-_register()
-
-
 # ---------------------------------------------------------------------------------------------
 # inference wrapper
 
@@ -300,8 +291,8 @@ def load_style_classifier(path: str | os.PathLike | None = None) -> StyleModel:
     CheckpointError
         If the folder is missing, incomplete or not a style classifier.
     """
+    from dancekit.checkpoints import load_pretrained
     from dancekit.motion import Skeleton
-    from dancekit.training.checkpoint import load_pretrained
 
     folder = Path(path) if path is not None else DEFAULT_CLASSIFIER
     model, meta, stats = load_pretrained(folder)
@@ -379,9 +370,9 @@ def fit_style_classifier(
     cross-entropy; the run folder ``out_dir`` gets ``model/``, ``best/`` (lowest validation
     loss, when ``val`` is given), ``checkpoints/`` and ``log.jsonl``. Returns the best model.
     """
+    from dancekit.checkpoints import load_pretrained
     from dancekit.training import TrainConfig
     from dancekit.training import train as run_training
-    from dancekit.training.checkpoint import load_pretrained
 
     fps = check_fps(fps)
     genres = [str(g) for g in genres]
@@ -487,8 +478,8 @@ def train_style_classifier(
     ``(model, report)`` where ``report`` holds the accuracy and balanced accuracy on the
     validation and test dances (per window and per whole dance).
     """
+    from dancekit.checkpoints import save_pretrained
     from dancekit.data import PreparedData
-    from dancekit.training.checkpoint import save_pretrained
 
     if not isinstance(data, PreparedData):
         data = PreparedData(data)

@@ -1,7 +1,8 @@
-"""Inference pipelines: ``Pipeline.from_pretrained(dir)(audio_path, seed=...) -> Motion``.
+"""Inference pipelines (inference only: no training or dataset imports).
 
-Pipelines are imported lazily (``from dancekit.pipelines import RevolutionPipeline`` works), so
-``dancekit.pipelines.hub`` stays light for commands that only list models.
+``Pipeline.from_pretrained(name_or_folder)(audio_path, seed=...) -> DanceResult`` for dance models;
+:func:`load_pipeline` picks the pipeline class from the family registry (:mod:`dancekit.registry`).
+Pipelines are imported lazily (``from dancekit.pipelines import RevolutionPipeline`` works).
 """
 
 from __future__ import annotations
@@ -12,11 +13,12 @@ from typing import Any
 _LAZY = {
     "RevolutionPipeline": "dancekit.pipelines.revolution",
     "MusicAttributePipeline": "dancekit.pipelines.music_attributes",
-    "load_pipeline": "dancekit.pipelines.hub",
-    "embedded_models": "dancekit.pipelines.hub",
+    "StylePipeline": "dancekit.pipelines.style",
+    "DanceResult": "dancekit.pipelines.base",
+    "load_pipeline": "dancekit.pipelines.base",
 }
 
-__all__ = ["MusicAttributePipeline", "RevolutionPipeline", "embedded_models", "load_pipeline"]
+__all__ = ["DanceResult", "MusicAttributePipeline", "RevolutionPipeline", "StylePipeline", "load_pipeline"]
 
 
 def __getattr__(name: str) -> Any:

@@ -6,8 +6,8 @@
 
 The checkpoint folder (``dancekit train music_attributes``) carries the classifier, the feature preset,
 fps and hop length it was trained with, the class names (``genres``) and the normalisation statistics.
-A dance model folder may carry one as ``FOLDER/music_attributes/``: the Dance Revolution pipeline then
-reads the genre of a song from its music and dances it with the matching genre model.
+A composite dance model may declare one as its ``genre_reader`` component: the Dance Revolution pipeline
+then reads the genre of a song from its music and dances it with the matching genre model.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
+from dancekit.checkpoints import load_pretrained, resolve_model
 from dancekit.errors import CheckpointError
 from dancekit.models.music_attributes import MusicAttributeClassifier
-from dancekit.training.checkpoint import load_pretrained
 
 
 class MusicAttributePipeline:
@@ -68,6 +68,7 @@ class MusicAttributePipeline:
         CheckpointError
             For a missing or corrupt folder, or one that holds another model family.
         """
+        folder = resolve_model(folder)
         model, meta, arrays = load_pretrained(folder, device=device)
         return cls(model, meta=meta, arrays=arrays, folder=str(Path(folder)))
 

@@ -1,21 +1,22 @@
 """Dance Revolution inference: a song → a :class:`~dancekit.motion.Motion` (inference only).
 
     >>> pipe = RevolutionPipeline.from_pretrained("runs/revolution/model")   # doctest: +SKIP
-    >>> motion = pipe("song.ogg", seed=0)                                     # doctest: +SKIP
+    >>> motion = pipe("song.ogg", seed=0).motion                              # doctest: +SKIP
 
 The checkpoint folder carries everything: the model configuration and weights, the feature preset,
 fps and hop length the model was trained with, the pose representation, the skeleton and the
-normalisation statistics (``dancekit.training.checkpoint``).
+normalisation statistics (:mod:`dancekit.checkpoints`).
 
 A dance genre can be asked for in two ways: a genre-conditioned model (``RevolutionConfig.n_genres``)
-takes the genre as an input; any model folder may also carry *genre models* — complete checkpoint
-folders ``FOLDER/genres/<genre>/``, e.g. the model fine-tuned on one genre's dances
-(``dancekit train revolution --init FOLDER --set genres=rumba``) — which then dance that genre.
+takes the genre as an input; a composite model folder may also declare *genre models* in its
+``config.json`` (``"components": {"genres": {"rumba": "genres/rumba", ...}}``) — complete checkpoint
+folders, e.g. the model fine-tuned on one genre's dances (``dancekit train revolution --init FOLDER
+--set genres=rumba``) — which then dance that genre.
 
-With ``genre="auto"`` (the default) the genre is read from the music when the folder also carries a
-music attribute classifier ``FOLDER/music_attributes/`` (``dancekit train music_attributes``, the
-classifier of Music2Dance): the song is danced by the genre model of the genre the classifier finds.
-Without one, or with ``genre="none"``, the model itself dances from the music alone.
+With ``genre="auto"`` (the default) the genre is read from the music when the folder also declares a
+music attribute classifier (``"components": {"genre_reader": "music_attributes"}``, the classifier of
+Music2Dance): the song is danced by the genre model of the genre the classifier finds. Without one, or
+with ``genre="none"``, the model itself dances from the music alone.
 """
 
 from __future__ import annotations
@@ -27,13 +28,15 @@ from typing import Any
 import numpy as np
 import torch
 
-from dancekit.data.representation import REPRESENTATIONS, decode_motion
-from dancekit.data.stats import NormStats
+from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.revolution import RevolutionModel
 from dancekit.motion import Motion, Skeleton
+from dancekit.motion.analysis import floor_curve
+from dancekit.motion.kinematics import normalize_bone_lengths
+from dancekit.motion.representations import decode_motion, get_representation
+from dancekit.pipelines.base import DanceResult
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.training.checkpoint import load_pretrained
 
 
 class RevolutionPipeline:
@@ -56,13 +59,16 @@ class RevolutionPipeline:
                 raise CheckpointError(f"checkpoint {folder}: config.json has no {key!r} entry")
         self.model = model.eval()
         self.meta = meta
+        self.folder = str(folder)
         self.stats = stats
         self.fps = float(meta["fps"])
         self.preset = str(meta.get("preset", "revolution"))
         self.hop_length = int(meta.get("hop_length", 512))
         self.representation = str(meta.get("representation", "positions3d"))
-        if self.representation not in REPRESENTATIONS:
-            raise CheckpointError(f"checkpoint {folder}: unknown representation {self.representation!r}")
+        try:
+            get_representation(self.representation)
+        except ParameterError as exc:
+            raise CheckpointError(f"checkpoint {folder}: {exc}") from None
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         self.genre_models = dict(genre_models or {})  # genre → checkpoint folder, loaded on first use
         self._genre_pipelines: dict[str, RevolutionPipeline] = {}
@@ -80,28 +86,35 @@ class RevolutionPipeline:
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> RevolutionPipeline:
-        """Load a checkpoint folder written by ``dancekit train revolution`` (or ``save_pretrained``).
+        """Load a model: a checkpoint folder written by ``dancekit train revolution`` (or ``save_pretrained``),
+        or a model name (:func:`dancekit.checkpoints.resolve_model`).
 
-        Genre models in ``folder/genres/<genre>/`` are found here and loaded when first asked for; a music
-        attribute classifier in ``folder/music_attributes/`` is loaded here.
+        The components its ``config.json`` declares are found here: genre models (``"genres"``, loaded when
+        first asked for) and a music attribute classifier (``"genre_reader"``, loaded here).
 
         Raises
         ------
         CheckpointError
             For a missing or corrupt folder, or one that holds another model family.
         """
+        folder = resolve_model(folder)
         model, meta, arrays = load_pretrained(folder, device=device)
         missing = [k for k in ("music_mean", "music_std", "dance_mean", "dance_std") if k not in arrays]
         if missing:
             raise CheckpointError(f"checkpoint {folder}: stats.npz lacks {missing}")
         stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in
                              ("music_mean", "music_std", "dance_mean", "dance_std")})
-        genre_models = genre_model_folders(folder)
+        parts = components(folder, meta)
+        unknown_parts = sorted(set(parts) - {"genres", "genre_reader"})
+        if unknown_parts:
+            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown_parts} for a Dance Revolution "
+                                  "model (it understands 'genres' and 'genre_reader')")
+        genre_models = dict(parts.get("genres", {}))
         known = set(meta.get("genres", ()))
         unknown = sorted(set(genre_models) - known) if known else []
         if unknown:
             raise CheckpointError(f"checkpoint {folder}: genre models {unknown} are not genres of its data {sorted(known)}")
-        reader_folder = music_attributes_folder(folder)
+        reader_folder = parts.get("genre_reader")
         reader = None if reader_folder is None else MusicAttributePipeline.from_pretrained(reader_folder, device=device)
         return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
                    genre_reader=reader)
@@ -132,7 +145,7 @@ class RevolutionPipeline:
         genre: str | None = None,
         progress: bool = False,
         postprocess: bool = True,
-    ) -> Motion:
+    ) -> DanceResult:
         """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
 
         Parameters
@@ -146,13 +159,14 @@ class RevolutionPipeline:
         progress : show a progress bar over the generated chunks
         postprocess : for 3D positions, set every bone to the skeleton's rest length (keeping the
             generated bone directions, so IK/BVH export reproduces the positions exactly) and put the
-            feet on the floor (the running floor of :func:`dancekit.data.floor_curve` moved to 0)
+            feet on the floor (the running floor of :func:`dancekit.motion.analysis.floor_curve` moved to 0)
 
         Returns
         -------
-        Motion at the checkpoint's fps with one frame per feature frame
-        (``T = 1 + n_samples // hop_length`` at ``sr = fps * hop_length``), on the training skeleton
-        (``positions3d``) or BODY_25 (``keypoints2d``), in the skeleton's units.
+        :class:`~dancekit.pipelines.DanceResult`: ``.motion`` at the checkpoint's fps with one frame per
+        feature frame (``T = 1 + n_samples // hop_length`` at ``sr = fps * hop_length``), on the training
+        skeleton (``positions3d``) or BODY_25 (``keypoints2d``), in the skeleton's units; and the genre
+        decided (``.genre``, ``.genre_probs`` when read from the music).
 
         Raises
         ------
@@ -162,13 +176,30 @@ class RevolutionPipeline:
             For a genre the model does not know, or any genre for a model with neither a genre condition
             nor genre models.
         """
-        if genre is None or genre == "auto":
+        requested = "auto" if genre is None else str(genre)
+        probs: dict[str, float] = {}
+        if requested == "auto":
             probs = self.read_genre(audio_path, start=start, end=end)
             genre = max(probs, key=probs.get) if probs else None
         genre_index = self._genre_index(genre)
-        if genre_index is not None and self.genre_models:
-            return self.genre_pipeline(genre)(audio_path, seed=seed, start=start, end=end, progress=progress,
-                                              postprocess=postprocess)
+        genre = None if genre_index is None else genre
+        if genre is not None and self.genre_models:
+            motion = self.genre_pipeline(genre).generate(audio_path, seed=seed, start=start, end=end,
+                                                         progress=progress, postprocess=postprocess)
+            danced_by = str(self.genre_models[genre])
+        else:
+            motion = self.generate(audio_path, seed=seed, start=start, end=end, progress=progress,
+                                   postprocess=postprocess, genre_index=genre_index)
+            danced_by = self.folder
+        return DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested, genre=genre,
+                           genre_probs=probs, danced_by=danced_by)
+
+    @torch.no_grad()
+    def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
+                 end: float | None = None, progress: bool = False, postprocess: bool = True,
+                 genre_index: int | None = None) -> Motion:
+        """This model's own dance for the song (no genre models, no genre reading): the :class:`Motion`
+        of :meth:`__call__` with ``genre_index`` the genre input of a genre-conditioned model (or None)."""
         x = self.features(audio_path, start=start, end=end)  # (T, D)
         device = self.model.bop.device
         generator = torch.Generator(device="cpu").manual_seed(int(seed))
@@ -177,7 +208,6 @@ class RevolutionPipeline:
         poses = self.stats.denormalize_dance(y[0].cpu().numpy())  # (T, P)
         motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
         return clean_motion(motion) if postprocess and self.representation == "positions3d" else motion
-
 
     def read_genre(self, audio_path: str | os.PathLike, *, start: float | None = None,
                    end: float | None = None) -> dict[str, float]:
@@ -228,22 +258,8 @@ class RevolutionPipeline:
         return self.genres.index(genre)
 
 
-def genre_model_folders(folder: str | os.PathLike) -> dict[str, Path]:
-    """Genre → checkpoint folder of the genre models in ``folder/genres/<genre>/`` (sorted by name)."""
-    return {p.name: p for p in sorted((Path(folder) / "genres").glob("*")) if (p / "config.json").is_file()}
-
-
-def music_attributes_folder(folder: str | os.PathLike) -> Path | None:
-    """The music attribute classifier checkpoint ``folder/music_attributes/`` (None when there is none)."""
-    path = Path(folder) / "music_attributes"
-    return path if (path / "config.json").is_file() else None
-
-
 def clean_motion(motion: Motion) -> Motion:
     """Rest bone lengths and feet on the floor for a generated 3D :class:`Motion` (positions only)."""
-    from dancekit.data import floor_curve
-    from dancekit.motion.kinematics import normalize_bone_lengths
-
     skeleton = motion.skeleton
     positions = np.asarray(normalize_bone_lengths(motion.to_positions(), skeleton), np.float64)  # (T, J, 3)
     positions[..., skeleton.up_index] -= floor_curve(positions, skeleton, fps=motion.fps)[:, None]

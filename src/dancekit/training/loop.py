@@ -38,8 +38,8 @@ from torch import nn
 from torch.utils.data import DataLoader, Dataset
 
 from dancekit._io import atomic_dir, atomic_path
+from dancekit.checkpoints.folder import WEIGHTS_FILE, read_config, write_pretrained
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.training.checkpoint import WEIGHTS_FILE, read_config, write_pretrained
 from dancekit.training.schedules import CURRICULA, LR_SCHEDULES, learning_rate
 
 STATE_FILE = "training_state.pt"

@@ -2,7 +2,7 @@
 
 A step function maps a collated batch to the scalar loss, reading what it needs from the
 :class:`~dancekit.training.loop.StepContext` (step, epoch, the training configuration, a generator).
-Register new families in :data:`OBJECTIVES`.
+A family names its objective in :mod:`dancekit.registry` (``objective="dancekit.training.objectives:..."``).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from collections.abc import Mapping
 import torch
 from torch import nn
 
-from dancekit.training.loop import StepContext, StepFn
+from dancekit.training.loop import StepContext
 from dancekit.training.schedules import auto_condition_p
 
 
@@ -74,9 +74,3 @@ def music_attributes_step(
     loss = torch.nn.functional.cross_entropy(logits, batch["genre"])
     acc = (logits.argmax(-1) == batch["genre"]).float().mean().item()
     return loss, {"acc": acc}
-
-
-OBJECTIVES: dict[str, StepFn] = {
-    "revolution": revolution_step,
-    "music_attributes": music_attributes_step,
-}

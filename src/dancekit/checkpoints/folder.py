@@ -12,14 +12,14 @@ A checkpoint folder holds
     normalisation statistics as plain arrays (``music_mean``, ``music_std``, ``dance_mean``,
     ``dance_std``).
 
-Model families are registered by name (``"revolution"``: ``RevolutionConfig``, ``RevolutionModel``);
-other families add themselves with :func:`register_family` or a line in ``_BUILTIN``.
+The family name resolves through :mod:`dancekit.registry` (the one table of model families).
+A composite model (a dance model with its genre models and its music attribute classifier) lists its
+components in ``config.json`` under ``"components"`` (see :mod:`dancekit.checkpoints.hub`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import json
 import os
 import zipfile
@@ -31,56 +31,13 @@ import numpy as np
 import torch
 from torch import nn
 
+from dancekit import registry
 from dancekit._io import atomic_dir
 from dancekit.errors import CheckpointError, ParameterError
 
 CONFIG_FILE = "config.json"
 WEIGHTS_FILE = "model.safetensors"
 STATS_FILE = "stats.npz"
-
-# family name → (module, config class, model class), imported on first use
-_BUILTIN: dict[str, tuple[str, str, str]] = {
-    "revolution": ("dancekit.models.revolution", "RevolutionConfig", "RevolutionModel"),
-    "music_attributes": ("dancekit.models.music_attributes", "MusicAttributeConfig", "MusicAttributeClassifier"),
-}
-_REGISTERED: dict[str, tuple[type, type]] = {}
-
-
-def register_family(name: str, config_cls: type, model_cls: type) -> None:
-    """Register a model family: ``model_cls(config_cls(**config))`` rebuilds a model from its config."""
-    if not dataclasses.is_dataclass(config_cls):
-        raise ParameterError(f"the config class of family {name!r} must be a dataclass, got {config_cls}")
-    _REGISTERED[name] = (config_cls, model_cls)
-
-
-def families() -> list[str]:
-    """Names of the known model families."""
-    return sorted(set(_BUILTIN) | set(_REGISTERED))
-
-
-def get_family(name: str) -> tuple[type, type]:
-    """``(config class, model class)`` of a family name."""
-    if name in _REGISTERED:
-        return _REGISTERED[name]
-    if name not in _BUILTIN:
-        raise ParameterError(f"unknown model family {name!r}; known: {families()}")
-    module, config_name, model_name = _BUILTIN[name]
-    mod = importlib.import_module(module)
-    pair = (getattr(mod, config_name), getattr(mod, model_name))
-    _REGISTERED[name] = pair
-    return pair
-
-
-def family_of(model: nn.Module) -> str:
-    """The registered family name of a model (its class attribute ``family``, else a registry lookup)."""
-    name = getattr(model, "family", None)
-    if isinstance(name, str):
-        return name
-    for fam in families():
-        if isinstance(model, get_family(fam)[1]):
-            return fam
-    raise ParameterError(f"{type(model).__name__} is not a registered model family; call register_family first")
-
 
 def _stats_arrays(stats: Any) -> dict[str, np.ndarray]:
     if stats is None:
@@ -103,7 +60,7 @@ def write_pretrained(
     folder = Path(folder)
     if not dataclasses.is_dataclass(config):
         raise ParameterError(f"config must be a dataclass instance, got {type(config).__name__}")
-    doc = {"model": family_of(model), "config": dataclasses.asdict(config), **(extra or {})}
+    doc = {"model": registry.family_of(model), "config": dataclasses.asdict(config), **(extra or {})}
     (folder / CONFIG_FILE).write_text(json.dumps(doc, indent=1, default=_json_default))
     state = {k: v.detach().to("cpu").contiguous() for k, v in model.state_dict().items()}
     save_file(state, str(folder / WEIGHTS_FILE))
@@ -171,7 +128,8 @@ def read_config(folder: str | os.PathLike) -> dict[str, Any]:
 def build_model(family: str, config: Mapping[str, Any], *, folder: str | os.PathLike = "?") -> nn.Module:
     """A fresh model of ``family`` from a configuration mapping."""
     try:
-        config_cls, model_cls = get_family(family)
+        fam = registry.get(family)
+        config_cls, model_cls = fam.config_class, fam.module_class
     except ParameterError as exc:
         raise CheckpointError(f"checkpoint {folder}: {exc}") from exc
     names = {f.name for f in dataclasses.fields(config_cls)}

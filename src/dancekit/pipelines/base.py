@@ -1,0 +1,82 @@
+"""What every dance pipeline shares: the result object and loading a pipeline by model name or folder.
+
+    >>> from dancekit.pipelines import load_pipeline          # doctest: +SKIP
+    >>> result = load_pipeline()("song.mp3", seed=0)           # doctest: +SKIP
+    >>> result.motion, result.genre, result.summary()          # doctest: +SKIP
+
+Inference only: nothing here (or in any pipeline) imports the training or dataset packages.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from dancekit import registry
+from dancekit.checkpoints.hub import read_meta, resolve_model
+from dancekit.errors import CheckpointError, ParameterError
+from dancekit.motion import Motion
+
+
+@dataclass
+class DanceResult:
+    """A generated dance and what the pipeline decided to make it.
+
+    Attributes
+    ----------
+    motion : the dance (:class:`~dancekit.motion.Motion`, the model's skeleton, units and fps)
+    model : the model folder that was asked for (a genre model may have danced it: ``danced_by``)
+    seed : the random seed
+    genre_requested : the genre asked for ("auto", "none" or a genre name)
+    genre : the genre danced (None: the model alone, its style left to the music)
+    genre_probs : the probability of each genre read from the music (empty unless read)
+    danced_by : the folder of the model that generated the motion (the genre model's, or ``model``)
+    """
+
+    motion: Motion
+    model: str
+    seed: int
+    genre_requested: str = "none"
+    genre: str | None = None
+    genre_probs: dict[str, float] = field(default_factory=dict)
+    danced_by: str = ""
+
+    @property
+    def genre_source(self) -> str | None:
+        """How the genre was decided: "music" (read by the classifier), "given", or None (no genre)."""
+        if self.genre is None:
+            return None
+        return "music" if self.genre_probs and self.genre_requested in ("auto", None) else "given"
+
+    def summary(self) -> str:
+        """A few words on the decision, e.g. ``"as waltz (read from the music, p = 0.46)"`` (empty: no genre)."""
+        if self.genre is None:
+            return ""
+        if self.genre_source == "music":
+            return f"as {self.genre} (read from the music, p = {self.genre_probs[self.genre]:.2f})"
+        return f"as {self.genre}"
+
+
+def load_pipeline(model: str | os.PathLike | None = None, checkpoint: str | os.PathLike | None = None,
+                  *, device: str = "cpu") -> Any:
+    """The inference pipeline of a model: a name (the user's models folder, then the embedded models) or a
+    checkpoint folder (``checkpoint``, or a path given as ``model``); ``None``: the default model.
+
+    The pipeline class comes from the family's entry in :mod:`dancekit.registry`.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown model name.
+    CheckpointError
+        For a folder that is not a checkpoint, or holds a family without a pipeline.
+    """
+    folder = resolve_model(checkpoint if checkpoint is not None else model)
+    family = read_meta(folder)["model"]
+    try:
+        cls = registry.get(family).load("pipeline")
+    except (ParameterError, ImportError, AttributeError) as exc:
+        raise CheckpointError(f"{folder} holds a {family!r} model, which has no pipeline: {exc}") from exc
+    return cls.from_pretrained(Path(folder), device=device)

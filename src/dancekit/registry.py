@@ -1,0 +1,158 @@
+"""The one table of model families.
+
+Each family declares, once, everything the toolkit needs to build, train, save, load and run it:
+
+``config`` / ``module``
+    the ``@dataclass`` configuration and the ``nn.Module(config)`` (``dancekit.models.<family>``)
+``objective``
+    ``step_fn(model, batch, ctx) -> (loss, logs)`` of the generic trainer (:mod:`dancekit.training`)
+``dataset``
+    ``build(data, train_config, stats) -> (train_set, val_set)``: the family's training windows
+``preset``
+    the music feature preset its inputs use (``None``: the family reads no music)
+``train_defaults``
+    :class:`~dancekit.training.TrainConfig` values of the family (under ``--set`` and ``--resume``)
+``data_fields``
+    model-config fields filled from the data (``music_dim``, ``pose_dim``, ``n_classes``, ``window``)
+``pipeline``
+    the inference pipeline class (``Pipeline.from_pretrained(folder)``)
+
+Entries are lazy ``"module:name"`` strings, so reading the table imports nothing (no torch);
+:meth:`Family.load` imports one entry when it is needed. Adding a family means one entry here plus its
+model file (``models/``) and pipeline file (``pipelines/``).
+
+This module imports nothing of dancekit but :mod:`dancekit.errors`: every layer may read it.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from dancekit.errors import ParameterError
+
+
+@dataclass(frozen=True)
+class Family:
+    """One model family (see the module docstring for the fields)."""
+
+    name: str
+    config: str
+    module: str
+    objective: str
+    dataset: str
+    pipeline: str
+    preset: str | None = None
+    kind: str = "dance"  # dance (music → motion) | classifier (music or motion → labels)
+    description: str = ""
+    train_defaults: Mapping[str, Any] = field(default_factory=dict)
+    data_fields: tuple[str, ...] = ()
+
+    def load(self, what: str) -> Any:
+        """Import one entry: ``"config"``, ``"module"``, ``"objective"``, ``"dataset"`` or ``"pipeline"``."""
+        if what not in ("config", "module", "objective", "dataset", "pipeline"):
+            raise ParameterError(f"a family has no entry {what!r}")
+        return resolve(getattr(self, what))
+
+    @property
+    def config_class(self) -> type:
+        return self.load("config")
+
+    @property
+    def module_class(self) -> type:
+        return self.load("module")
+
+
+def resolve(spec: str) -> Any:
+    """Import ``"package.module:name"`` and return ``name``."""
+    module_name, sep, attr = spec.partition(":")
+    if not sep:
+        raise ParameterError(f"registry entry {spec!r} must read 'module:name'")
+    return getattr(importlib.import_module(module_name), attr)
+
+
+_FAMILIES: dict[str, Family] = {}
+
+
+def register(family: Family) -> Family:
+    """Add a family to the table (a second family of the same name is an error)."""
+    if family.name in _FAMILIES:
+        raise ParameterError(f"model family {family.name!r} is registered already")
+    _FAMILIES[family.name] = family
+    return family
+
+
+def families(kind: str | None = None) -> tuple[str, ...]:
+    """Names of the registered families (of one ``kind`` when given), sorted."""
+    return tuple(sorted(n for n, f in _FAMILIES.items() if kind is None or f.kind == kind))
+
+
+def get(name: str) -> Family:
+    """The family called ``name``; :class:`ParameterError` naming the known ones otherwise."""
+    try:
+        return _FAMILIES[name]
+    except KeyError:
+        raise ParameterError(f"unknown model family {name!r}; known: {', '.join(families())}") from None
+
+
+def family_of(model: Any) -> str:
+    """The family name of a model instance (its class attribute ``family``, else a table lookup)."""
+    name = getattr(model, "family", None)
+    if isinstance(name, str) and name in _FAMILIES:
+        return name
+    for fam in _FAMILIES.values():
+        if isinstance(model, fam.module_class):
+            return fam.name
+    raise ParameterError(f"{type(model).__name__} is not a registered model family (see dancekit.registry)")
+
+
+FAMILIES = MappingProxyType(_FAMILIES)
+
+# ---------------------------------------------------------------------------------------------- the table
+
+register(Family(
+    name="revolution",
+    config="dancekit.models.revolution:RevolutionConfig",
+    module="dancekit.models.revolution:RevolutionModel",
+    objective="dancekit.training.objectives:revolution_step",
+    dataset="dancekit.training.datasets:music_dance_windows",
+    pipeline="dancekit.pipelines.revolution:RevolutionPipeline",
+    preset="revolution",
+    description="Dance Revolution (ICLR 2021): local self-attention music encoder + LSTM decoder, "
+                "dynamic auto-condition curriculum",
+    data_fields=("music_dim", "pose_dim"),
+))
+
+register(Family(
+    name="music_attributes",
+    config="dancekit.models.music_attributes:MusicAttributeConfig",
+    module="dancekit.models.music_attributes:MusicAttributeClassifier",
+    objective="dancekit.training.objectives:music_attributes_step",
+    dataset="dancekit.training.datasets:music_dance_windows",
+    pipeline="dancekit.pipelines.music_attributes:MusicAttributePipeline",
+    preset="music2dance",
+    kind="classifier",
+    description="Music2Dance §4.3 music attribute classifier: temporal convolutions + BiLSTM over 30-s windows",
+    # 30-s windows; 100 genre-balanced steps (chosen on the validation songs, docs/BENCHMARKS.md
+    # "`--genre auto`: the genre read from the music")
+    train_defaults={"seq_len": 750, "steps": 100, "balance_genres": True, "warmup_steps": 20, "val_every": 25,
+                    "ckpt_every": 100, "log_every": 10},
+    data_fields=("music_dim", "n_classes", "window"),
+))
+
+register(Family(
+    name="style",
+    config="dancekit.metrics.style:StyleClassifierConfig",
+    module="dancekit.metrics.style:StyleClassifier",
+    objective="dancekit.training.objectives:style_step",
+    dataset="dancekit.training.datasets:style_windows",
+    pipeline="dancekit.pipelines.style:StylePipeline",
+    preset=None,
+    kind="classifier",
+    description="dance style classifier (motion → genre) whose features serve the style metrics "
+                "(style accuracy, style diversity, multimodality)",
+    data_fields=("n_joints", "n_classes"),
+))
