@@ -15,7 +15,9 @@ Each family declares, once, everything the toolkit needs to build, train, save, 
 ``data_fields``
     model-config fields filled from the data (``music_dim``, ``pose_dim``, ``n_classes``, ``window``)
 ``pipeline``
-    the inference pipeline class (``Pipeline.from_pretrained(folder)``)
+    the inference pipeline class (``Pipeline.from_pretrained(name_or_folder)``), called on ``input``:
+    ``"audio"`` (a song's path: dance models and the music attribute classifier) or ``"motion"`` (a
+    :class:`~dancekit.motion.Motion`: the style classifier)
 
 Entries are lazy ``"module:name"`` strings, so reading the table imports nothing (no torch);
 :meth:`Family.load` imports one entry when it is needed. Adding a family means one entry here plus its
@@ -47,6 +49,7 @@ class Family:
     pipeline: str
     preset: str | None = None
     kind: str = "dance"  # dance (music → motion) | classifier (music or motion → labels)
+    input: str = "audio"  # what the pipeline is called on: audio (a path) | motion (a Motion)
     description: str = ""
     train_defaults: Mapping[str, Any] = field(default_factory=dict)
     data_fields: tuple[str, ...] = ()
@@ -152,6 +155,7 @@ register(Family(
     pipeline="dancekit.pipelines.style:StylePipeline",
     preset=None,
     kind="classifier",
+    input="motion",
     description="dance style classifier (motion → genre) whose features serve the style metrics "
                 "(style accuracy, style diversity, multimodality)",
     data_fields=("n_joints", "n_classes"),
