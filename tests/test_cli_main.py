@@ -6,7 +6,6 @@ import pytest
 
 from dancekit.cli.main import main
 
-
 # every verb `dancekit --help` must offer (spelled out here, not read from dancekit.cli.main.VERBS,
 # so a verb whose module fails to import and is silently left out of the parser is caught)
 EXPECTED_VERBS = ("features", "info", "prepare", "train", "evaluate", "dance", "render", "models")
