@@ -151,6 +151,54 @@ def test_truncated_ogg(tmp_path):
     _assert_audio_error(cut, "truncated")
 
 
+def test_ogg_cut_at_a_page_boundary_is_truncated(tmp_path):
+    """Cut just before the last Ogg page: every page left is complete, only the end-of-stream flag is missing."""
+    y = _sine(330.0, 6.0) + 0.05 * np.random.default_rng(1).standard_normal(6 * SR).astype(np.float32)
+    sf.write(tmp_path / "a.ogg", y, SR, format="OGG", subtype="VORBIS")
+    data = (tmp_path / "a.ogg").read_bytes()
+    last = data.rfind(b"OggS")
+    assert last > 0 and data[last + 5] & 0x04  # the last page carries the end-of-stream flag ...
+    prev = data.rfind(b"OggS", 0, last)
+    assert not data[prev + 5] & 0x04  # ... the one before it does not
+    cut = tmp_path / "cut.ogg"
+    cut.write_bytes(data[:last])
+    assert sf.info(cut).frames < 6 * SR  # libsndfile alone would silently decode the shorter stream
+    _assert_audio_error(cut, "truncated")
+
+
+@pytest.mark.parametrize("missing", [2, 4, 8])
+def test_wav_missing_its_last_bytes_is_truncated(tmp_path, missing):
+    """The RIFF size counts the file minus its 8-byte RIFF header: a file a few bytes short (under 8) is caught."""
+    save_wav(tmp_path / "a.wav", _sine(440.0, 2.0), sr=SR)
+    data = (tmp_path / "a.wav").read_bytes()
+    assert data[:4] == b"RIFF" and int.from_bytes(data[4:8], "little") == len(data) - 8
+    cut = tmp_path / "cut.wav"
+    cut.write_bytes(data[:-missing])
+    _assert_audio_error(cut, "truncated")
+
+
+def test_wav_without_the_pad_byte_of_an_odd_data_chunk_loads(tmp_path):
+    """An odd-sized data chunk is followed by a pad byte the RIFF size counts; some writers omit it."""
+    n = 2 * SR + 1  # 8-bit mono: an odd number of data bytes
+    sf.write(tmp_path / "odd.wav", _sine(440.0, 3.0)[:n], SR, subtype="PCM_U8")
+    data = (tmp_path / "odd.wav").read_bytes()
+    assert int.from_bytes(data[4:8], "little") == len(data) - 8 and len(data) % 2 == 0
+    nopad = tmp_path / "nopad.wav"
+    nopad.write_bytes(data[:-1])
+    y, sr = load(nopad)
+    assert sr == SR and y.shape == (n,)
+
+
+def test_streamed_wav_with_unknown_riff_size_loads(tmp_path):
+    """RIFF size 0 or 0xFFFFFFFF (written by a stream that could not seek back) is not a truncation."""
+    save_wav(tmp_path / "a.wav", _sine(440.0, 2.0), sr=SR)
+    data = (tmp_path / "a.wav").read_bytes()
+    for size in (0, 0xFFFFFFFF):
+        streamed = tmp_path / f"streamed_{size}.wav"
+        streamed.write_bytes(data[:4] + size.to_bytes(4, "little") + data[8:])
+        assert load(streamed)[0].shape == (2 * SR,)
+
+
 def test_zero_byte_file(tmp_path):
     (tmp_path / "empty.wav").write_bytes(b"")
     _assert_audio_error(tmp_path / "empty.wav", "empty")

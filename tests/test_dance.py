@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -154,15 +155,38 @@ def test_unknown_genre_model_and_format(tmp_path, capsys, song, checkpoint):
     assert "tiny" in _fails(capsys, ["dance", str(song), "-o", str(out), "--checkpoint", str(tmp_path / "tiny")], out)
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere")
-def test_unwritable_output_folder_as_user(tmp_path, capsys, song, checkpoint):
+def test_unwritable_output_folder(tmp_path, capsys, song, checkpoint, monkeypatch):
+    """An existing output folder that may not be written into: one clear line, non-zero exit, nothing left."""
     ro = tmp_path / "ro"
     ro.mkdir()
     ro.chmod(0o500)
+    if os.geteuid() == 0:
+        # root ignores the mode bits, so the OS call answers as it answers a user: EACCES for anything
+        # created inside the read-only folder (os.mkdir is what tempfile.mkdtemp and Path.mkdir call)
+        real_mkdir = os.mkdir
+
+        def mkdir(path, *args, **kwargs):
+            if os.path.dirname(os.fspath(path)) == str(ro):
+                raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fspath(path))
+            return real_mkdir(path, *args, **kwargs)
+
+        monkeypatch.setattr(os, "mkdir", mkdir)
     try:
-        _fails(capsys, ["dance", str(song), "-o", str(ro), "--checkpoint", str(checkpoint)], ro)
+        err = _fails(capsys, ["dance", str(song), "-o", str(ro), "--checkpoint", str(checkpoint)], ro)
     finally:
+        monkeypatch.undo()
         ro.chmod(0o700)
+    assert "output folder is not writable" in err and str(ro) in err and os.strerror(errno.EACCES) in err
+
+
+def test_output_folder_under_a_file(tmp_path, capsys, song, checkpoint):
+    """The output folder cannot be created (ENOTDIR, even for root): one clear line, nothing created."""
+    f = tmp_path / "file.txt"
+    f.write_text("x")
+    out = f / "out"
+    err = _fails(capsys, ["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint)], out)
+    assert "cannot create output folder" in err and str(out) in err and os.strerror(errno.ENOTDIR) in err
+    assert f.read_text() == "x" and sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]
 
 
 def test_output_path_that_is_a_file(tmp_path, capsys, song, checkpoint):

@@ -55,14 +55,20 @@ def test_fk_identity_is_rest_pose(name):
 
 
 def test_fk_known_answer_chain():
-    # root -> a (offset +x 1) -> b (offset +x 2); rotate root by 90 deg about z, a by 90 deg about z
-    offsets = np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0]])
-    R = torch.eye(3, dtype=F64).repeat(1, 3, 1, 1)
-    rz = axis_angle_to_matrix(torch.tensor([0, 0, math.pi / 2], dtype=F64))
-    R[0, 0] = rz
-    R[0, 1] = rz
-    pos = forward_kinematics(R, torch.tensor([[10.0, 0, 0]], dtype=F64), offsets=offsets, parents=[-1, 0, 1])
-    expected = np.array([[10.0, 0, 0], [10.0, 1, 0], [8.0, 1, 0]])
+    # root -> a (offset +x 1) -> b (offset +x 2) -> c (offset +y 3), each rotated by 90 degrees about
+    # another axis: root about z, a about y, b about x (column vectors, right-handed: Rz: x->y, y->-x;
+    # Ry: z->x, x->-z; Rx: y->z, z->-y). Global rotations are G_a = Rz Ry, G_b = Rz Ry Rx, so
+    #   a = t + Rz (1,0,0)             = (10, 1, 0)
+    #   b = a + Rz Ry (2,0,0)          = a + Rz (0,0,-2) = (10, 1, -2)
+    #   c = b + Rz Ry Rx (0,3,0)       = b + Rz Ry (0,0,3) = b + Rz (3,0,0) = (10, 4, -2)
+    # (the reversed product R_child @ R_parent would give b = (10, 3, 0) and c = (10, 0, 0)).
+    offsets = np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0], [0.0, 3, 0]])
+    R = torch.eye(3, dtype=F64).repeat(1, 4, 1, 1)
+    for j, axis in enumerate(torch.eye(3, dtype=F64).flip(0)):  # z, y, x
+        R[0, j] = axis_angle_to_matrix(axis * (math.pi / 2))
+    assert torch.allclose(R[0, 0] @ torch.tensor([1.0, 0, 0], dtype=F64), torch.tensor([0.0, 1, 0], dtype=F64))
+    pos = forward_kinematics(R, torch.tensor([[10.0, 0, 0]], dtype=F64), offsets=offsets, parents=[-1, 0, 1, 2])
+    expected = np.array([[10.0, 0, 0], [10.0, 1, 0], [10.0, 1, -2], [10.0, 4, -2]])
     assert np.allclose(pos[0].numpy(), expected, atol=1e-12)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -80,6 +82,20 @@ def test_frechet_distance_of_a_singular_set_against_itself_is_zero(rng):
     assert frechet_distance(x, x) == pytest.approx(0.0, abs=1e-6)
 
 
+def _frechet_oracle(mu1, s1, mu2, s2) -> float:
+    """Closed-form d² = |mu1 - mu2|² + tr(S1 + S2 - 2 (S1 S2)^½), with tr (S1 S2)^½ = tr (S1^½ S2 S1^½)^½
+    (similar matrices): square roots of symmetric PSD matrices only, by eigendecomposition in float64."""
+
+    def psd_sqrt(a):
+        w, v = np.linalg.eigh((a + a.T) / 2)
+        return (v * np.sqrt(np.clip(w, 0.0, None))) @ v.T
+
+    h = psd_sqrt(np.asarray(s1, np.float64))
+    cross = np.trace(psd_sqrt(h @ s2 @ h))
+    diff = np.asarray(mu1, np.float64) - mu2
+    return float(diff @ diff + np.trace(s1) + np.trace(s2) - 2.0 * cross)
+
+
 def test_frechet_distance_known_answers(rng):
     x = rng.normal(size=(500, 3))
     assert frechet_distance(x, x + [3.0, 0.0, 4.0]) == pytest.approx(25.0, rel=1e-9)  # same covariance
@@ -87,12 +103,62 @@ def test_frechet_distance_known_answers(rng):
     assert d == pytest.approx(2.0, abs=1e-9)  # 5 + 5 - 2 * (2 + 2)
 
 
+def test_frechet_distance_unequal_covariances_known_answers(rng):
+    # diagonal, by hand: |(1, 2)|² + (1 + 9) + (4 + 16) - 2 (sqrt(1 * 4) + sqrt(9 * 16)) = 5 + 30 - 28 = 7
+    d = frechet_distance_from_stats(np.array([1.0, 2.0]), np.diag([1.0, 9.0]), np.zeros(2), np.diag([4.0, 16.0]))
+    assert d == pytest.approx(7.0, abs=1e-9)
+    # one Gaussian a scaled copy of the other: S2 = 4 S1, so d² = tr S1 + 4 tr S1 - 2 tr(2 S1) = tr S1 = 6
+    s1 = np.array([[2.0, 0.5, 0.0], [0.5, 1.0, 0.3], [0.0, 0.3, 3.0]])
+    assert frechet_distance_from_stats(np.zeros(3), s1, np.zeros(3), 4.0 * s1) == pytest.approx(6.0, rel=1e-9)
+    # general non-commuting covariances of different traces: the closed form through symmetric square roots
+    a, b = rng.normal(size=(4, 4)), rng.normal(size=(4, 6))
+    s1, s2 = a @ a.T + 0.1 * np.eye(4), b @ b.T
+    mu1, mu2 = rng.normal(size=4), rng.normal(size=4)
+    assert abs(np.trace(s1) - np.trace(s2)) > 1.0 and not np.allclose(s1 @ s2, s2 @ s1)
+    assert frechet_distance_from_stats(mu1, s1, mu2, s2) == pytest.approx(_frechet_oracle(mu1, s1, mu2, s2), rel=1e-9)
+    # from samples: y = x L^T + m has exactly the covariance L S_x L^T (the sample statistics are what is compared)
+    x = rng.normal(size=(300, 4))
+    y = x @ rng.normal(size=(4, 4)).T + [1.0, -2.0, 0.5, 0.0]
+    expected = _frechet_oracle(x.mean(0), np.cov(x, rowvar=False), y.mean(0), np.cov(y, rowvar=False))
+    assert expected > 1.0
+    assert frechet_distance(x, y) == pytest.approx(expected, rel=1e-9)
+    assert frechet_distance(y, x) == pytest.approx(expected, rel=1e-9)
+
+
 def test_frechet_distance_reports_its_sqrtm_policy(rng):
+    # (1) a singular covariance: S1 = a a^T with a = (2, 1, -1) (rank 1). S1 S2 = a (S2 a)^T has one non-zero
+    # eigenvalue a^T S2 a = 32, so tr (S1 S2)^½ = sqrt(32) and, with |mu1 - mu2|² = 3,
+    # d² = 3 + tr S1 + tr S2 - 2 sqrt(32) = 3 + 6 + 18 - 8 sqrt(2). scipy's sqrtm of this singular product is
+    # not usable, so the policy adds eps * (mean variance) * I = 1e-6 * (6 + 18) / 6 * I to both covariances.
+    a = np.array([2.0, 1.0, -1.0])
+    s1 = np.outer(a, a)
+    s2 = np.array([[8.0, -2.0, -2.0], [-2.0, 5.0, 5.0], [-2.0, 5.0, 5.0]])
+    exact = 27.0 - 8.0 * math.sqrt(2.0)
+    assert _frechet_oracle(np.zeros(3), s1, np.ones(3), s2) == pytest.approx(exact, abs=1e-6)  # sqrt of rounding
+    value, info = frechet_distance_from_stats(np.zeros(3), s1, np.ones(3), s2, return_info=True)
+    assert info["retried"] is True and info["offset"] == pytest.approx(4e-6, rel=1e-12)
+    assert info["max_imag"] <= 1e-3 * 12.0
+    o, eye = info["offset"], np.eye(3)
+    # exactly the regularised Gaussians' distance, less the 2 D o the offsets add to the traces ...
+    assert value == pytest.approx(_frechet_oracle(np.zeros(3), s1 + o * eye, np.ones(3), s2 + o * eye) - 6 * o,
+                                  abs=1e-9)
+    # ... which is within O(sqrt(offset)) of the true distance, and converges to it as eps shrinks
+    assert abs(value - exact) < 10 * math.sqrt(o)
+    value_fine, info_fine = frechet_distance_from_stats(np.zeros(3), s1, np.ones(3), s2, eps=1e-12, return_info=True)
+    assert info_fine["offset"] == pytest.approx(4e-12, rel=1e-12) and value_fine == pytest.approx(exact, abs=1e-4)
+    # (2) fewer samples than dimensions (rank-deficient covariances): sqrtm's small imaginary part is discarded
+    # without a retry, and the value is the closed form
     x = rng.normal(size=(5, 12))
     y = rng.normal(size=(5, 12)) + 1.0
     value, info = frechet_distance(x, y, return_info=True)
-    assert np.isfinite(value) and value > 0
-    assert set(info) == {"offset", "max_imag", "retried"}
+    assert info["retried"] is False and info["offset"] == 0.0 and 0.0 < info["max_imag"] <= 1e-3
+    sx, sy = np.cov(x, rowvar=False), np.cov(y, rowvar=False)
+    assert value == pytest.approx(_frechet_oracle(x.mean(0), sx, y.mean(0), sy), rel=1e-6)
+    # (3) imag_tol=0 rejects any imaginary part: the retry, with offset = eps * mean variance as documented
+    value0, info0 = frechet_distance(x, y, imag_tol=0.0, return_info=True)
+    assert info0["retried"] is True
+    assert info0["offset"] == pytest.approx(1e-6 * (np.trace(sx) + np.trace(sy)) / 24, rel=1e-12)
+    assert value0 == pytest.approx(value, rel=1e-4)
 
 
 def test_frechet_distance_rejects_bad_input(rng):
@@ -328,10 +394,26 @@ def test_smoothed_energy_and_jitter(rng):
 
 
 def test_windowed_fid(rng):
-    ref = rng.normal(size=(50, 3))
-    pred = [rng.normal(size=(4, 3)) for _ in range(6)] + [rng.normal(size=(2, 3))]
+    # 6 generated dances; window k of dance i is row i of a window set: window 0 is the reference itself,
+    # window 1 the reference shifted by c, window 2 the reference scaled by 2 (present in 5 dances: its own
+    # reference is the first 5 rows), window 3 exists in one dance only (below min_samples: NaN)
+    ref = rng.normal(size=(6, 3)) @ np.diag([1.0, 2.0, 0.5]) + [0.3, -1.0, 2.0]
+    c = np.array([1.0, -2.0, 2.0])  # |c|² = 9
+    pred = [np.stack([ref[i], ref[i] + c, 2.0 * ref[i]]) for i in range(6)]
+    pred[5] = pred[5][:2]
+    pred[0] = np.concatenate([pred[0], ref[:1]])
     curve = windowed_fid(pred, ref)
-    assert len(curve) == 4 and all(np.isfinite(curve))
+    assert len(curve) == 4 and np.isnan(curve[3])
+    assert curve[0] == pytest.approx(0.0, abs=1e-9)
+    assert curve[1] == pytest.approx(9.0, rel=1e-9)
+    # window 2 holds 2x the first 5 rows only: the Fréchet distance of exactly those rows to the reference
+    assert curve[2] == pytest.approx(frechet_distance(2.0 * ref[:5], ref), rel=1e-12)
+    # the same with 6 dances in window 2: S2 = 4 S, so d² = |mu|² + tr S + 4 tr S - 2 tr(2 S) = |mu|² + tr S
+    full = windowed_fid([np.stack([ref[i], 2.0 * ref[i]]) for i in range(6)], ref)
+    mu, S = ref.mean(0), np.cov(ref, rowvar=False)
+    assert full[0] == pytest.approx(0.0, abs=1e-9)
+    assert full[1] == pytest.approx(mu @ mu + np.trace(S), rel=1e-9)
+    assert np.isnan(windowed_fid(pred, ref, min_samples=7)).all()
 
 
 # ------------------------------------------------------------------------------ dance → music

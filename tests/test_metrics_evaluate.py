@@ -34,6 +34,15 @@ def dance(seed: int, seconds: float = 24.0, fps: float = 25.0) -> np.ndarray:
     return (rest_pose()[None] + amp * np.sin(2 * np.pi * freq * t + phase)).astype(np.float32)
 
 
+def swing(seconds: float, fps: float, *, period: float = 1.0, shift: float = 0.0) -> np.ndarray:
+    """Every joint swings back and forth as ``cos(2 pi (t - shift) / period)`` (its own amplitude, same phase):
+    the mean joint speed is proportional to ``|sin|``, so the dance stops (kinematic beats) exactly at
+    ``t = shift + k period / 2``."""
+    t = np.arange(int(round(seconds * fps)))[:, None, None] / fps
+    amp = np.linspace(3.0, 12.0, SK.num_joints)[None, :, None] * np.array([1.0, 0.3, 0.6])  # cm
+    return (rest_pose()[None] + amp * np.cos(2 * np.pi * (t - shift) / period)).astype(np.float32)
+
+
 @pytest.fixture
 def folders(tmp_path):
     ref, pred = tmp_path / "ref", tmp_path / "pred"
@@ -90,23 +99,36 @@ def test_cli_evaluate_writes_report_and_table(folders, tmp_path, capsys):
 
 
 def test_cli_evaluate_with_audio_beats(tmp_path):
+    """A 120 BPM click track (beats every 0.5 s) and two dances whose speed minima are known by construction:
+    D0 stops on every beat, D1 half a beat (0.25 s) off. The beat tracker's beats sit within one hop
+    (256 / 22050 s = 11.6 ms, twice that at most) of the clicks, so for D0 every kinematic beat hits
+    (hit rate 1, coverage 15/15) and BAS >= exp(-0.0232² / (2 * 0.05²)) = 0.898; for D1 no kinematic beat is
+    within 0.2 s of a music beat (hit rates 0, coverage 16/15) and BAS <= exp(-0.227² / (2 * 0.05²)) < 1e-4."""
     from dancekit.audio import save_wav, synth
 
+    fps = 20.0  # beats at whole frames: 0.5 s = 10 frames, 0.25 s = 5 frames
     ref, pred, audio = tmp_path / "ref", tmp_path / "pred", tmp_path / "audio"
     for d in (ref, pred, audio):
         d.mkdir()
-    for k in range(2):
-        p = dance(k, seconds=8.0)
-        write_motion(ref / f"D{k}.npz", Motion(skeleton=SK, fps=25.0, positions=p))
-        write_motion(pred / f"D{k}.npz", Motion(skeleton=SK, fps=25.0, positions=p[::-1].copy()))
+    for k, shift in enumerate((0.0, 0.25)):
+        write_motion(ref / f"D{k}.npz", Motion(skeleton=SK, fps=fps, positions=dance(k, seconds=8.0, fps=fps)))
+        write_motion(pred / f"D{k}.npz", Motion(skeleton=SK, fps=fps, positions=swing(8.0, fps, shift=shift)))
         save_wav(audio / f"D{k}.wav", synth.click_track(bpm=120, duration=8.0, sr=22050), sr=22050)
     out = tmp_path / "r.json"
     assert main(["evaluate", "--pred", str(pred), "--ref", str(ref), "--audio", str(audio), "-o", str(out),
                  "--no-style", "--segment-seconds", "4"]) == 0
     report = json.loads(out.read_text())
-    m = report["metrics"]
-    assert 0.0 <= m["bas_bailando"] <= 1.0 and 0.0 <= m["beat_hit_rate"] <= 1.0
     assert report["settings"]["beat_source"] == "beat_track on the audio files"
+    on, off = report["per_dance"]["D0#0"], report["per_dance"]["D1#1"]
+    assert on["beat_hit_rate"] == 1.0 and on["beats_alignment_dual"] == 1.0
+    assert on["beat_coverage"] == pytest.approx(15 / 15)
+    assert 0.898 <= on["bas_bailando"] <= 1.0 and 0.898 <= on["bas_aist"] <= 1.0
+    assert off["beat_hit_rate"] == 0.0 and off["beats_alignment_dual"] == 0.0
+    assert off["beat_coverage"] == pytest.approx(16 / 15)
+    assert off["bas_bailando"] < 1e-4 and off["bas_aist"] < 1e-4
+    m = report["metrics"]  # means over the generated dances
+    assert m["beat_hit_rate"] == pytest.approx(0.5)
+    assert m["bas_bailando"] == pytest.approx((on["bas_bailando"] + off["bas_bailando"]) / 2)
 
 
 def test_cli_evaluate_unknown_names_fail_cleanly(folders, tmp_path, capsys):
@@ -144,28 +166,78 @@ def _prepared(root, dances: dict[str, np.ndarray], splits: dict[str, list[str]],
 
 
 def test_evaluate_with_a_prepared_dataset(tmp_path):
+    """Generated dances that are not the reference ones, with answers known by construction: D3 (a swing that
+    stops on every music beat) moved 3 cm along x and 4 cm along z, D4 with twice its motion."""
+    from dancekit.metrics import beat_align_score, kinematic_beats, smoothed_energy
+
     data = tmp_path / "data"
-    dances = {f"D{k}": dance(k, seconds=12.0) for k in range(5)}
-    _prepared(data, dances, {"train": ["D0", "D1", "D2"], "val": [], "test": ["D3", "D4"]}, 0.5 * np.arange(1, 24))
+    dances = {f"D{k}": dance(k, seconds=12.0) for k in (0, 1, 2, 4)}
+    dances["D3"] = swing(12.0, 25.0, period=0.8)  # stops every 0.4 s = 10 frames
+    beats = 0.4 * np.arange(1, 30)  # 0.4 .. 11.6 s: the music beats, on D3's stops
+    _prepared(data, dances, {"train": ["D0", "D1", "D2"], "val": [], "test": ["D3", "D4"]}, beats)
     pred = tmp_path / "pred"
     pred.mkdir()
-    for n in ("D3", "D4"):
-        write_motion(pred / f"{n}.npz", Motion(skeleton=SK, fps=25.0, positions=dances[n]))
-    report = evaluate_dirs(pred, data, data=data, classifier=None, settings=EvalSettings(segment_seconds=4.0))
+    moved = (dances["D3"] + np.array([3.0, 0.0, 4.0], np.float32)).astype(np.float32)
+    rest = rest_pose().astype(np.float32)
+    doubled = (rest + 2.0 * (dances["D4"] - rest)).astype(np.float32)
+    write_motion(pred / "D3.npz", Motion(skeleton=SK, fps=25.0, positions=moved))
+    write_motion(pred / "D4.npz", Motion(skeleton=SK, fps=25.0, positions=doubled))
+    settings = EvalSettings(segment_seconds=4.0)
+    report = evaluate_dirs(pred, data, data=data, classifier=None, settings=settings)
     assert report["settings"]["fid_reference"] == "train"
     assert report["settings"]["beat_source"] == "prepared features_revolution.npz beat_times"
     assert report["counts"]["fid_reference_dances"] == 3 and report["counts"]["reference_dances"] == 2
+
+    def bas(p):  # the per-dance BAS computed directly
+        return beat_align_score(kinematic_beats(p, fps=25.0), beats, duration=(len(p) - 1) / 25.0)
+
+    d3, d4 = report["per_dance"]["D3#0"], report["per_dance"]["D4#1"]
+    # D3: a rigid move of the reference by |(3, 0, 4)| = 5 cm, its stops exactly on the beats
+    assert d3["fd_dual_mean_joint_distance_cm"] == pytest.approx(5.0, rel=1e-5)
+    assert d3["bas_bailando"] == pytest.approx(1.0) and d3["bas_aist"] == pytest.approx(1.0)
+    assert d3["beat_hit_rate"] == 1.0 and d3["beat_coverage"] == 1.0
+    # D4: the mean joint distance to its reference and the BAS, computed directly
+    direct = float(np.linalg.norm(doubled.astype(np.float64) - dances["D4"], axis=-1).mean())
+    assert direct > 1.0 and d4["fd_dual_mean_joint_distance_cm"] == pytest.approx(direct, rel=1e-6)
+    assert d4["bas_bailando"] == pytest.approx(bas(doubled), rel=1e-9)
+    # twice the motion is twice the (body-relative, smoothed) speed; a rigid move changes no speed
+    se3, se4 = (smoothed_energy(dances[n], fps=25.0, skeleton=SK) for n in ("D3", "D4"))
+    assert d3["smoothed_energy"] == pytest.approx(se3, rel=1e-5)
+    assert d4["smoothed_energy"] == pytest.approx(2.0 * se4, rel=1e-5)
+    # the "real" column scores the reference dances themselves, the "generated" one the predictions
     m, real = report["metrics"], report["real"]
-    assert m["bas_bailando"] == pytest.approx(real["bas_bailando"])  # the generated dances are the real ones
-    assert m["fid_k"] == pytest.approx(real["fid_k"]) and m["fid_k"] > 0  # test dances vs the training split
+    assert real["smoothed_energy"] == pytest.approx((se3 + se4) / 2, rel=1e-5)
+    assert m["smoothed_energy"] == pytest.approx((se3 + 2.0 * se4) / 2, rel=1e-5)
+    assert m["smoothed_energy_ratio"] == pytest.approx((se3 + 2.0 * se4) / (se3 + se4), rel=1e-5)
+    assert real["bas_bailando"] == pytest.approx((1.0 + bas(dances["D4"])) / 2, rel=1e-9)
+    assert m["bas_bailando"] == pytest.approx((1.0 + bas(doubled)) / 2, rel=1e-9)
+    assert real["fd_dual_mean_joint_distance_cm"] == 0.0
+    assert m["fd_dual_mean_joint_distance_cm"] == pytest.approx((5.0 + direct) / 2, rel=1e-5)
+    # FID against the training split: both sets are away from it, the doubled motion differently so
+    assert real["fid_k"] > 0 and m["fid_k"] > 0 and m["fid_k"] != pytest.approx(real["fid_k"], rel=1e-3)
+    # FID against the reference dances themselves: the reference scores 0, the predictions clearly more;
+    # moved copies of both (FID_k and FID_g do not see a horizontal translation) score 0 again
+    by_ref = evaluate_dirs(pred, data, data=data, classifier=None,
+                           settings=EvalSettings(segment_seconds=4.0, fid_reference="ref"))
+    assert by_ref["real"]["fid_k"] == pytest.approx(0.0, abs=1e-6)
+    assert by_ref["real"]["fid_g"] == pytest.approx(0.0, abs=1e-6)
+    assert by_ref["metrics"]["fid_k"] > 1.0
+    copies = tmp_path / "copies"
+    copies.mkdir()
+    for n in ("D3", "D4"):
+        shifted = (dances[n] + np.array([3.0, 0.0, 4.0], np.float32)).astype(np.float32)
+        write_motion(copies / f"{n}.npz", Motion(skeleton=SK, fps=25.0, positions=shifted))
+    moved_only = evaluate_dirs(copies, data, data=data, classifier=None,
+                               settings=EvalSettings(segment_seconds=4.0, fid_reference="ref"))["metrics"]
+    assert moved_only["fid_k"] == pytest.approx(0.0, abs=1e-4) and moved_only["fid_g"] == pytest.approx(0.0, abs=1e-4)
     # the validation split as the reference: the same dances named as validation dances
     (data / "splits.json").write_text(json.dumps({"train": ["D0", "D1", "D2"], "val": ["D3", "D4"], "test": [],
                                                   "seed": 0}))
-    val = evaluate_dirs(pred, data, data=data, classifier=None, settings=EvalSettings(segment_seconds=4.0),
-                        split="val")
+    val = evaluate_dirs(pred, data, data=data, classifier=None, settings=settings, split="val")
     assert val["counts"]["reference_dances"] == 2 and val["metrics"]["fid_k"] == pytest.approx(m["fid_k"])
+    assert val["per_dance"]["D4#1"]["fd_dual_mean_joint_distance_cm"] == pytest.approx(direct, rel=1e-6)
     with pytest.raises(DatasetError):  # nothing in the (now empty) test split to compare with
-        evaluate_dirs(pred, data, data=data, classifier=None, settings=EvalSettings(segment_seconds=4.0))
+        evaluate_dirs(pred, data, data=data, classifier=None, settings=settings)
 
 
 def test_evaluate_real_dances_with_the_shipped_classifier(tang2018_dir):
@@ -173,8 +245,7 @@ def test_evaluate_real_dances_with_the_shipped_classifier(tang2018_dir):
     from dancekit.metrics.style import DEFAULT_CLASSIFIER, load_style_classifier
     from dancekit.motion.formats import read_tang2018
 
-    if not (DEFAULT_CLASSIFIER / "config.json").is_file():
-        pytest.skip("no classifier shipped yet")
+    assert (DEFAULT_CLASSIFIER / "config.json").is_file(), f"no packaged style classifier in {DEFAULT_CLASSIFIER}"
     genres = {"DANCE_C_6": "chacha", "DANCE_R_2": "rumba", "DANCE_W_1": "waltz"}  # test split
     ref = {n: read_tang2018(tang2018_dir / n)[0] for n in genres}
     frozen = {n: Motion(skeleton=m.skeleton, fps=m.fps, positions=np.repeat(m.to_positions()[:1], m.num_frames, 0))

@@ -365,6 +365,17 @@ def test_html_failures_leave_no_file(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["bad.ogg"]
 
 
+@pytest.mark.parametrize(("ci", "outcome"), [("true", pytest.fail.Exception), ("", pytest.skip.Exception)])
+def test_missing_chromium_fails_on_ci_and_skips_elsewhere(monkeypatch, ci, outcome):
+    import _media
+
+    monkeypatch.setattr(_media.shutil, "which", lambda name: None)
+    monkeypatch.setenv("CI", ci)
+    with pytest.raises(BaseException) as info:  # pytest's skip / fail outcomes are BaseExceptions
+        _chromium()
+    assert info.type is outcome and "apt-get install -y chromium" in str(info.value)
+
+
 @pytest.mark.parametrize("with_audio", [True, False])
 def test_html_plays_in_headless_chromium(tmp_path, song, with_audio):
     exe = _chromium()

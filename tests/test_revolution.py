@@ -72,6 +72,42 @@ def test_local_attention_ignores_keys_outside_the_band():
     assert not torch.allclose(out[..., 8:, :], out2[..., 8:, :])
 
 
+def test_encoder_relative_bias_known_answer():
+    """A one-layer local encoder attention with zero queries and keys, identity values and projection: only the
+    hand-set relative bias decides where each frame looks. Head 0 is biased to offset j - i = +1 (the next
+    frame), head 1 to j - i = -2; where that key does not exist, the frame averages the keys in its band."""
+    from dancekit.models.revolution import MusicEncoder
+
+    config = tiny(d_model=8, n_heads=2, window=6, n_layers=1)  # half window 3, 4 dims per head
+    attn = MusicEncoder(config).layers[0].attn
+    assert attn.local and attn.rel_bias.shape == (2, 7)
+    n, d = 12, 8
+    with torch.no_grad():
+        attn.qkv.weight.zero_()
+        attn.qkv.bias.zero_()
+        attn.qkv.weight[2 * d :] = torch.eye(d)  # v = x; q = k = 0: every score is the bias alone
+        attn.proj.weight.copy_(torch.eye(d))
+        attn.proj.bias.zero_()
+        attn.rel_bias.zero_()
+        attn.rel_bias[0, 3 + 1] = 40.0  # index half + offset
+        attn.rel_bias[1, 3 - 2] = 40.0
+    x = torch.randn(1, n, d, generator=gen(5), dtype=torch.float32)
+    with torch.no_grad():
+        y = attn(x)[0]
+    expected = torch.empty(n, d)
+    for i in range(n):
+        band = x[0, max(0, i - 3) : i + 4]
+        expected[i, :4] = x[0, i + 1, :4] if i + 1 < n else band[:, :4].mean(0)
+        expected[i, 4:] = x[0, i - 2, 4:] if i >= 2 else band[:, 4:].mean(0)
+    torch.testing.assert_close(y, expected, rtol=0, atol=1e-5)
+    # the same bias through the functions: local and global attention agree with the hand-computed answer
+    q = torch.zeros(1, 2, n, 4, dtype=torch.float64)
+    v = x[0].double().view(n, 2, 4).permute(1, 0, 2)[None]  # (1, H, n, 4)
+    for out in (local_attention(q, q, v, half_window=3, bias=attn.rel_bias.detach().double()),
+                global_attention(q, q, v, half_window=3, bias=attn.rel_bias.detach().double(), mask=band_mask(n, 3))):
+        torch.testing.assert_close(out[0].permute(1, 0, 2).reshape(n, d).float(), expected, rtol=0, atol=1e-5)
+
+
 # ---- curriculum mask ------------------------------------------------------------------------------
 
 

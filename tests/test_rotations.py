@@ -71,6 +71,25 @@ def test_quaternion_axis_angle_round_trip(rng):
     assert torch.allclose(quaternion_to_axis_angle(axis_angle_to_quaternion(aa)), aa, atol=1e-12)
 
 
+def test_quaternion_to_axis_angle_matches_scipy_for_both_hemispheres(rng):
+    """q and -q are the same rotation: w < 0 must give the short way round (angle <= pi), as scipy does."""
+    from scipy.spatial.transform import Rotation
+
+    q = rng.standard_normal((400, 4)) * rng.uniform(0.5, 2.0, (400, 1))  # not unit: it is normalised first
+    q[:200, 0] = -np.abs(q[:200, 0])  # w < 0
+    q[200:, 0] = np.abs(q[200:, 0])
+    aa = quaternion_to_axis_angle(torch.from_numpy(q)).numpy()
+    angles = np.linalg.norm(aa, axis=-1)
+    assert angles.max() <= math.pi + 1e-12
+    expected = Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_rotvec()  # scipy: scalar last
+    np.testing.assert_allclose(aa, expected, atol=1e-12)
+    # a known answer: 300 degrees about +z written with w = cos(150 deg) < 0 is -60 degrees about +z
+    half = math.radians(150.0)
+    q300 = torch.tensor([math.cos(half), 0.0, 0.0, math.sin(half)], dtype=F64)
+    assert torch.allclose(quaternion_to_axis_angle(q300), torch.tensor([0.0, 0.0, -math.pi / 3], dtype=F64),
+                          atol=1e-12)
+
+
 def test_rotation_6d_round_trip(rots):
     assert torch.allclose(rotation_6d_to_matrix(matrix_to_rotation_6d(rots)), rots, atol=1e-12)
     assert torch.equal(matrix_to_rotation_6d(rots)[..., :3], rots[..., :, 0])

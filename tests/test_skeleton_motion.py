@@ -208,6 +208,13 @@ def test_slice(rng):
         m.slice(20, 10)
 
 
+MIRROR_X = np.diag([-1.0, 1.0, 1.0])  # the mirror: world x negated (the skeletons' left-right axis)
+
+
+def _rot(axis: str, angle: float) -> np.ndarray:
+    return axis_angle_to_matrix(torch.tensor(np.eye(3)["xyz".index(axis)] * angle)).numpy()
+
+
 def test_mirror_known_answer_and_involution(rng):
     m = _motion(rng)
     sk = m.skeleton
@@ -216,8 +223,47 @@ def test_mirror_known_answer_and_involution(rng):
     assert np.allclose(mm.positions[:, li, 0], -m.positions[:, ri, 0])
     assert np.allclose(mm.positions[:, li, 1:], m.positions[:, ri, 1:])
     assert np.allclose(mm.mirror().positions, m.positions)
+    # with rotations: they are the mirrored pose's, so their FK is the mirrored positions (tang2018 is not
+    # left-right symmetric, so at its rest bone lengths: exactly what inverse kinematics promises)
+    from dancekit.motion.kinematics import normalize_bone_lengths, rig_forward_kinematics
+
     mr = m.with_rotations().mirror()
-    assert mr.rotations is not None
+    assert mr.rotations is not None and mr.rotations.shape == (m.num_frames, sk.rig().num_joints, 3, 3)
+    assert np.allclose(mr.positions, mm.positions)
+    fk = rig_forward_kinematics(mr.rotations, mr.root_translation, sk).numpy()
+    np.testing.assert_allclose(fk, normalize_bone_lengths(mm.positions, sk), atol=1e-6)
+    np.testing.assert_allclose(mr.root_translation, mm.positions[:, sk.root], atol=1e-9)
+
+
+def test_mirror_of_rotations_known_answer():
+    """On the symmetric SMPL skeleton: a body turned by theta about the up axis (y) turns by -theta in the
+    mirror, a tilt about the mirror's normal (x) stays, and every other joint stays at rest."""
+    sk = smpl_skeleton()
+    J, theta, alpha = sk.num_joints, 0.7, 0.3
+    R = np.broadcast_to(np.eye(3), (2, J, 3, 3)).copy()
+    R[0, sk.root] = _rot("y", theta)
+    R[1, sk.root] = _rot("x", alpha) @ _rot("y", theta)
+    tr = np.array([[0.2, 0.9, -0.4], [-0.1, 0.95, 0.3]])
+    m = Motion(sk, 30, positions=Motion(sk, 30, rotations=R, root_translation=tr).to_positions())
+    mr = m.with_rotations().mirror()
+    np.testing.assert_allclose(mr.rotations[0, sk.root], _rot("y", -theta), atol=1e-9)
+    np.testing.assert_allclose(mr.rotations[1, sk.root], _rot("x", alpha) @ _rot("y", -theta), atol=1e-9)
+    np.testing.assert_allclose(np.delete(mr.rotations, sk.root, axis=1), np.broadcast_to(np.eye(3), (2, J - 1, 3, 3)),
+                               atol=1e-9)
+    np.testing.assert_allclose(mr.root_translation, tr * [-1.0, 1.0, 1.0], atol=1e-12)
+
+
+def test_mirror_conjugates_rotations_on_a_symmetric_skeleton(rng):
+    """Any pose on SMPL: the mirror's rotations are M R[perm] M (M = diag(-1, 1, 1)), joint for joint."""
+    sk = smpl_skeleton()
+    aa = torch.from_numpy(rng.normal(scale=0.4, size=(6, sk.num_joints, 3)))
+    pos = Motion(sk, 30, rotations=axis_angle_to_matrix(aa).numpy(), root_translation=rng.normal(size=(6, 3)))
+    m = Motion(sk, 30, positions=pos.to_positions()).with_rotations()
+    mr = m.mirror()
+    perm = sk.mirror_permutation()
+    assert not np.allclose(perm, np.arange(sk.num_joints))
+    np.testing.assert_allclose(mr.rotations, MIRROR_X @ m.rotations[:, perm] @ MIRROR_X, atol=1e-9)
+    np.testing.assert_allclose(mr.root_translation, m.root_translation @ MIRROR_X, atol=1e-12)
 
 
 def test_project_2d(rng):
