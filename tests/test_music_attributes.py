@@ -126,17 +126,17 @@ def test_train_cli_music_attributes(prepared_music2dance, tmp_path, capsys):
 
 def test_the_embedded_model_ships_its_music_attribute_classifier():
     """`--genre auto` of the default model needs revolution/music_attributes/: its absence fails, never skips."""
-    from dancekit.pipelines.hub import DEFAULT_MODEL, embedded_models
+    from dancekit.checkpoints import DEFAULT_MODEL, components, embedded_models
     from dancekit.pipelines.music_attributes import MusicAttributePipeline
-    from dancekit.pipelines.revolution import genre_model_folders, music_attributes_folder
 
     folder = embedded_models()[DEFAULT_MODEL]
-    reader = music_attributes_folder(folder)
-    assert reader is not None, f"the embedded model lacks its music attribute classifier ({folder / 'music_attributes'})"
+    parts = components(folder)  # a declared component whose folder is gone fails here
+    reader = parts.get("genre_reader")
+    assert reader is not None, f"the embedded model declares no music attribute classifier ({folder / 'config.json'})"
     for name in ("config.json", "model.safetensors", "stats.npz"):
         assert (reader / name).is_file(), reader / name
     pipe = MusicAttributePipeline.from_pretrained(reader)
-    assert set(genre_model_folders(folder)) <= set(pipe.genres)
+    assert set(parts["genres"]) == {"waltz", "rumba", "chacha", "tango"} and set(parts["genres"]) <= set(pipe.genres)
 
 
 def _save_classifier(folder, *, favour: str, genres: list[str], fps: float = 25.0):
