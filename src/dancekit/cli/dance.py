@@ -51,6 +51,7 @@ def parse_formats(text: str) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from dancekit.pipelines import load_pipeline
+    from dancekit.render import AudioClip, RenderOptions
 
     t0 = time.perf_counter()
     formats = parse_formats(args.format)
@@ -80,11 +81,8 @@ def run(args: argparse.Namespace) -> int:
             stage,
             stem=audio.stem,
             formats=formats,
-            audio_path=str(audio),
-            start=args.start,
-            end=args.end,
-            width=args.width,
-            height=args.height,
+            audio=AudioClip(audio, args.start, args.end),
+            options=RenderOptions(width=args.width, height=args.height),
             progress=not args.quiet,
         )
         final = []
@@ -115,11 +113,8 @@ def export_all(
     *,
     stem: str,
     formats: list[str],
-    audio_path: str | None,
-    start: float | None,
-    end: float | None,
-    width: int = 640,
-    height: int = 480,
+    audio,
+    options,
     progress: bool = True,
 ) -> list[Path]:
     """Write ``motion`` into ``folder`` in every format; returns the written paths."""
@@ -143,15 +138,12 @@ def export_all(
             from dancekit.render import render_motion_mp4
 
             path = folder / f"{stem}.mp4"
-            render_motion_mp4(
-                path, motion, audio_path=audio_path, audio_start=start, audio_end=end,
-                width=width, height=height, progress=progress,
-            )
+            render_motion_mp4(path, motion, audio=audio, options=options, progress=progress)
         elif fmt == "html":
             from dancekit.render import render_motion_html
 
             path = folder / f"{stem}.html"
-            render_motion_html(path, motion, audio_path=audio_path, audio_start=start, audio_end=end, title=stem)
+            render_motion_html(path, motion, audio=audio, options=options)
         else:  # pragma: no cover - parse_formats guards this
             raise AssertionError(fmt)
         written.append(path)
