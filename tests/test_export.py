@@ -1,9 +1,10 @@
-"""RenderOptions / AudioClip validation, the deprecated keywords, layering."""
+"""dancekit.export: every format at once, all or nothing; RenderOptions / AudioClip validation; layering."""
 
 from __future__ import annotations
 
 import ast
 import math
+import os
 import warnings
 from pathlib import Path
 
@@ -11,8 +12,11 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from dancekit.errors import ParameterError
+import dancekit.render
+from dancekit.errors import DancekitError, ExternalToolError, ParameterError
+from dancekit.export import FORMATS, check_formats, check_output_folder, export_motion
 from dancekit.motion import Motion, get_skeleton
+from dancekit.motion.formats import read_motion
 from dancekit.render import AudioClip, RenderOptions, render_motion_html, render_motion_mp4
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "dancekit"
@@ -43,6 +47,120 @@ def song(tmp_path):
 
 def listing(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir())
+
+
+# ---------------------------------------------------------------------- what is written
+@pytest.mark.parametrize(
+    "formats, names",
+    [
+        (["npz"], ["s.npz"]),
+        ("bvh, npz", ["s.bvh", "s.npz"]),
+        (["openpose", "html", "npz", "html"], ["s.html", "s.npz", "s_openpose"]),
+        (list(FORMATS), ["s.bvh", "s.html", "s.mp4", "s.npz", "s_openpose"]),
+    ],
+)
+def test_export_writes_exactly_the_requested_files(tmp_path, motion, formats, names):
+    out = tmp_path / "out"
+    written = export_motion(motion, out, stem="s", formats=formats, options=SMALL)
+    assert listing(out) == names  # and no staging folder
+    assert [p.parent for p in written] == [out] * len(names)
+    assert [p.name for p in written] == [
+        f"s_{f}" if f == "openpose" else f"s.{f}" for f in check_formats(formats)
+    ]
+    if "s.npz" in names:
+        np.testing.assert_allclose(read_motion(out / "s.npz").positions, motion.positions, atol=1e-5)
+
+
+def test_export_writes_what_the_renderers_write(tmp_path, motion, song):
+    clip = AudioClip(song, start=0.5)
+    options = RenderOptions(width=64, height=48, elevation=20.0, title="t")
+    export_motion(motion, tmp_path / "out", stem="s", formats=["mp4", "html"], audio=clip, options=options)
+    render_motion_mp4(tmp_path / "s.mp4", motion, audio=clip, options=options, progress=False)
+    render_motion_html(tmp_path / "s.html", motion, audio=clip, options=options)
+    assert (tmp_path / "out" / "s.mp4").read_bytes() == (tmp_path / "s.mp4").read_bytes()
+    assert (tmp_path / "out" / "s.html").read_bytes() == (tmp_path / "s.html").read_bytes()
+
+
+def test_export_replaces_its_files_and_keeps_the_others(tmp_path, motion):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    (out / "s.npz").write_text("old")
+    (out / "s_openpose").mkdir()
+    (out / "s_openpose" / "stale.json").write_text("{}")
+    export_motion(motion, out, stem="s", formats=["npz", "openpose"])
+    assert listing(out) == ["keep.txt", "s.npz", "s_openpose"]
+    assert (out / "keep.txt").read_text() == "mine"
+    assert read_motion(out / "s.npz").num_frames == 10
+    assert len(list((out / "s_openpose").glob("*_keypoints.json"))) == 10
+    assert not (out / "s_openpose" / "stale.json").exists()
+
+
+# ---------------------------------------------------------------------- all or nothing
+@pytest.mark.parametrize("error", [ExternalToolError("ffmpeg died"), KeyboardInterrupt()])
+@pytest.mark.parametrize("existing", [True, False])
+def test_a_failure_half_way_leaves_the_folder_as_it_was(tmp_path, motion, monkeypatch, error, existing):
+    """The mp4 writer dies after the npz and bvh were written: no file, no staging folder remains."""
+    reached = []
+
+    def boom(path, motion, **kwargs):
+        reached.append(sorted(p.name for p in Path(path).parent.iterdir()))
+        raise error
+
+    monkeypatch.setattr(dancekit.render, "render_motion_mp4", boom)
+    out = tmp_path / "a" / "b" / "out"
+    if existing:
+        out.mkdir(parents=True)
+        (out / "keep.txt").write_text("mine")
+        (out / "s.npz").write_text("old")
+    with pytest.raises(type(error)):
+        export_motion(motion, out, stem="s", formats=["npz", "bvh", "mp4", "html"])
+    assert reached == [["s.bvh", "s.npz"]]  # the failure came after two complete files
+    if existing:
+        assert listing(out) == ["keep.txt", "s.npz"] and (out / "s.npz").read_text() == "old"
+    else:
+        assert listing(tmp_path) == []  # the folders it created are gone too
+
+
+def test_a_failure_while_moving_into_place_is_rolled_back(tmp_path, motion, monkeypatch):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "s.npz").write_text("old npz")
+    replace = os.replace
+
+    def interrupted(src, dst):
+        if Path(dst) == out / "s.bvh":  # s.npz is already in place
+            raise KeyboardInterrupt
+        replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        export_motion(motion, out, stem="s", formats=["npz", "bvh"])
+    assert listing(out) == ["s.npz"] and (out / "s.npz").read_text() == "old npz"
+
+
+def test_bad_arguments_fail_before_anything_is_written(tmp_path, motion):
+    out = tmp_path / "out"
+    with pytest.raises(ParameterError, match="gif"):
+        export_motion(motion, out, stem="s", formats="mp4,gif")
+    with pytest.raises(ParameterError, match="choose from"):
+        export_motion(motion, out, stem="s", formats=[])
+    with pytest.raises(ParameterError, match="'a/b'"):
+        export_motion(motion, out, stem="a/b", formats=["npz"])
+    with pytest.raises(ParameterError, match="options"):
+        export_motion(motion, out, stem="s", formats=["npz"], options={"width": 64})
+    assert listing(tmp_path) == []
+    (tmp_path / "file.txt").write_text("x")
+    for check in (check_output_folder, lambda f: export_motion(motion, f, stem="s", formats=["npz"])):
+        with pytest.raises(DancekitError, match="file.txt"):
+            check(tmp_path / "file.txt")
+        with pytest.raises(DancekitError, match="file.txt"):
+            check(tmp_path / "file.txt" / "out")
+    assert listing(tmp_path) == ["file.txt"] and (tmp_path / "file.txt").read_text() == "x"
+    with pytest.raises(DancekitError, match="/proc/dancekit/out"):  # refused even to root
+        check_output_folder("/proc/dancekit/out")
+    assert check_output_folder(tmp_path / "new" / "out") == tmp_path / "new" / "out"
+    assert listing(tmp_path) == ["file.txt"]  # the check leaves nothing behind
 
 
 # ---------------------------------------------------------------------- options
@@ -116,6 +234,7 @@ def test_the_old_keywords_still_work_with_a_warning(tmp_path, motion, song):
 # ---------------------------------------------------------------------- layering
 _ALLOWED = {
     "render": {"render", "motion", "audio", "errors", "_io", "_checks"},
+    "export": {"export", "render", "motion", "audio", "errors", "_io"},
 }
 
 

@@ -4,7 +4,8 @@
 up axis, units); ``render_motion_mp4`` / ``render_motion_html`` take a
 :class:`dancekit.motion.Motion`. All four take ``audio=AudioClip(path, start, end)`` (the
 song slice that plays with the dance) and ``options=RenderOptions(...)`` (size, camera,
-quality, title), both validated when they are made.
+quality, title), both validated when they are made. To write a dance to every format at
+once, see :func:`dancekit.export.export_motion`.
 """
 
 from dancekit.render.html import render_html, render_motion_html
