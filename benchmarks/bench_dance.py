@@ -64,7 +64,7 @@ def main() -> int:
             motion = pipe(str(path), seed=0).motion
             gen = time.perf_counter() - t0
             t0 = time.perf_counter()
-            render_motion_mp4(Path(tmp) / "out.mp4", motion, audio_path=str(path), progress=False)
+            render_motion_mp4(Path(tmp) / "out.mp4", motion, audio=path, progress=False)
             ren = time.perf_counter() - t0
             minutes = motion.duration / 60
             rows.append((song, motion.duration, gen, gen / minutes, ren, ren / minutes))

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dancekit.render import render_html, render_mp4
+from dancekit.render import AudioClip, RenderOptions, render_html, render_mp4
 from dancekit.render._ffmpeg import ffmpeg_exe
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -86,10 +86,8 @@ def main() -> int:
             fps=fps,
             sides=_SIDES,
             head=0,
-            audio_path=song,
-            audio_start=start,
-            width=args.width,
-            height=args.height,
+            audio=AudioClip(song, start=start),
+            options=RenderOptions(width=args.width, height=args.height),
             progress=False,
         )
         took = time.perf_counter() - t0
@@ -108,8 +106,7 @@ def main() -> int:
                 fps=fps,
                 sides=_SIDES,
                 head=0,
-                audio_path=song,
-                audio_start=start,
+                audio=AudioClip(song, start=start),
             )
             print(
                 f"render_html: {time.perf_counter() - t0:.2f} s, {(tmp / 'bench.html').stat().st_size / 1e6:.1f} MB"

@@ -15,7 +15,14 @@ from _media import run_chromium as _run_chromium
 from _media import stream_info
 
 from dancekit.errors import AudioError, DancekitError, ExternalToolError, ParameterError
-from dancekit.render import render_html, render_motion_html, render_motion_mp4, render_mp4
+from dancekit.render import (
+    AudioClip,
+    RenderOptions,
+    render_html,
+    render_motion_html,
+    render_motion_mp4,
+    render_mp4,
+)
 from dancekit.render._ffmpeg import audio_duration, ffmpeg_exe
 from dancekit.render._motion import motion_arrays
 from dancekit.render._scene import ground_level, prepare_scene
@@ -196,11 +203,8 @@ def test_mp4_streams_match_the_song_slice(tmp_path, song):
         fps=FPS,
         sides=SIDES,
         head=2,
-        audio_path=song,
-        audio_start=1.5,
-        audio_end=2.6,
-        width=160,
-        height=120,
+        audio=AudioClip(song, 1.5, 2.6),
+        options=RenderOptions(width=160, height=120),
         progress=False,
     )
     info = stream_info(out)
@@ -217,7 +221,8 @@ def test_mp4_streams_match_the_song_slice(tmp_path, song):
 def test_mp4_default_slice_follows_the_motion_and_song_end(tmp_path, song):
     out = tmp_path / "a.mp4"
     render_mp4(
-        out, figure(1.0) * 100, parents=PARENTS, fps=FPS, audio_path=song, width=64, height=48, progress=False
+        out, figure(1.0) * 100, parents=PARENTS, fps=FPS, audio=song, options=RenderOptions(width=64, height=48),
+        progress=False,
     )
     info = stream_info(out)
     assert info["video_s"] == pytest.approx(1.0, abs=0.1) and info["audio_s"] == pytest.approx(1.0, abs=0.1)
@@ -228,10 +233,8 @@ def test_mp4_default_slice_follows_the_motion_and_song_end(tmp_path, song):
         figure(3.0) * 100,
         parents=PARENTS,
         fps=FPS,
-        audio_path=song,
-        audio_start=1.0,
-        width=64,
-        height=48,
+        audio=AudioClip(song, start=1.0),
+        options=RenderOptions(width=64, height=48),
         progress=False,
     )
     info = stream_info(out)
@@ -245,7 +248,8 @@ def test_mp4_default_slice_follows_the_motion_and_song_end(tmp_path, song):
 def test_mp4_without_audio(tmp_path):
     out = tmp_path / "silent.mp4"
     render_mp4(
-        out, figure(0.8), parents=PARENTS, fps=FPS, unit_scale=1.0, width=64, height=48, progress=False
+        out, figure(0.8), parents=PARENTS, fps=FPS, unit_scale=1.0, options=RenderOptions(width=64, height=48),
+        progress=False,
     )
     info = stream_info(out)
     assert info["video"] == "h264" and info["audio"] is None
@@ -255,22 +259,23 @@ def test_mp4_without_audio(tmp_path):
 @pytest.mark.parametrize("width, height", [(161, 120), (160, 8), (True, 120)])
 def test_mp4_rejects_bad_sizes(tmp_path, width, height):
     with pytest.raises(ParameterError, match="width|height"):
-        render_mp4(tmp_path / "x.mp4", figure(0.2), parents=PARENTS, fps=FPS, width=width, height=height)
+        render_mp4(tmp_path / "x.mp4", figure(0.2), parents=PARENTS, fps=FPS,
+                   options=RenderOptions(width=width, height=height))
     assert list(tmp_path.iterdir()) == []
 
 
 def test_mp4_failures_leave_no_file(tmp_path, song, monkeypatch):
-    kw = {"parents": PARENTS, "fps": FPS, "width": 64, "height": 48, "progress": False}
+    kw = {"parents": PARENTS, "fps": FPS, "options": RenderOptions(width=64, height=48), "progress": False}
     with pytest.raises(DancekitError, match="does not exist"):
         render_mp4(tmp_path / "missing" / "x.mp4", figure(0.4), **kw)
     corrupt = tmp_path / "corrupt.mp3"
     corrupt.write_bytes(np.random.default_rng(0).integers(0, 256, 5000, dtype=np.uint8).tobytes())
     with pytest.raises(AudioError, match="corrupt.mp3"):
-        render_mp4(tmp_path / "x.mp4", figure(0.4), audio_path=corrupt, **kw)
+        render_mp4(tmp_path / "x.mp4", figure(0.4), audio=corrupt, **kw)
     with pytest.raises(AudioError, match="not found"):
-        render_mp4(tmp_path / "x.mp4", figure(0.4), audio_path=tmp_path / "nope.wav", **kw)
+        render_mp4(tmp_path / "x.mp4", figure(0.4), audio=tmp_path / "nope.wav", **kw)
     with pytest.raises(ParameterError, match="past the end"):
-        render_mp4(tmp_path / "x.mp4", figure(0.4), audio_path=song, audio_start=5.0, **kw)
+        render_mp4(tmp_path / "x.mp4", figure(0.4), audio=AudioClip(song, start=5.0), **kw)
     # an error while frames stream to ffmpeg: ffmpeg is stopped, the partial file removed
     calls = []
 
@@ -283,7 +288,7 @@ def test_mp4_failures_leave_no_file(tmp_path, song, monkeypatch):
     original = FrameRenderer.render
     monkeypatch.setattr(FrameRenderer, "render", broken)
     with pytest.raises(RuntimeError, match="boom"):
-        render_mp4(tmp_path / "x.mp4", figure(0.4), audio_path=song, **kw)
+        render_mp4(tmp_path / "x.mp4", figure(0.4), audio=song, **kw)
     assert calls[-1] == 5
     assert sorted(p.name for p in tmp_path.iterdir()) == ["corrupt.mp3", "song.wav"]
 
@@ -297,7 +302,8 @@ def test_mp4_ffmpeg_failure_is_reported(tmp_path, monkeypatch):
     monkeypatch.setattr("dancekit.render.video.ffmpeg_exe", lambda: str(fake))
     with pytest.raises(ExternalToolError, match="Encoder exploded"):
         render_mp4(
-            tmp_path / "x.mp4", figure(0.4), parents=PARENTS, fps=FPS, width=64, height=48, progress=False
+            tmp_path / "x.mp4", figure(0.4), parents=PARENTS, fps=FPS, options=RenderOptions(width=64, height=48),
+            progress=False,
         )
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fake-ffmpeg"]
 
@@ -318,10 +324,8 @@ def test_html_is_self_contained_and_embeds_motion_and_song(tmp_path, song):
         fps=FPS,
         sides=SIDES,
         head=2,
-        audio_path=song,
-        audio_start=1.5,
-        audio_end=2.7,
-        title="Test <dance>",
+        audio=AudioClip(song, 1.5, 2.7),
+        options=RenderOptions(title="Test <dance>"),
     )
     text = out.read_text()
     assert not re.search(r"https?://", text)  # nothing to fetch
@@ -345,7 +349,7 @@ def test_html_is_self_contained_and_embeds_motion_and_song(tmp_path, song):
 def test_html_song_slice_starts_on_time(tmp_path, song):
     """The embedded mp3 carries its encoder delay: the tone at 1.5 s of the song is at 0.5 s of the slice."""
     out = tmp_path / "dance.html"
-    render_html(out, figure(2.0), parents=PARENTS, fps=FPS, audio_path=song, audio_start=1.0)
+    render_html(out, figure(2.0), parents=PARENTS, fps=FPS, audio=AudioClip(song, start=1.0))
     m = re.search(r'src="data:audio/mpeg;base64,([A-Za-z0-9+/=]+)"', out.read_text())
     mp3 = tmp_path / "slice.mp3"
     mp3.write_bytes(base64.b64decode(m.group(1)))
@@ -359,7 +363,7 @@ def test_html_failures_leave_no_file(tmp_path):
     corrupt = tmp_path / "bad.ogg"
     corrupt.write_bytes(b"OggS" + b"\x00" * 100)
     with pytest.raises(AudioError, match="bad.ogg"):
-        render_html(tmp_path / "x.html", figure(0.4), parents=PARENTS, fps=FPS, audio_path=corrupt)
+        render_html(tmp_path / "x.html", figure(0.4), parents=PARENTS, fps=FPS, audio=corrupt)
     with pytest.raises(ParameterError, match="audio_path"):
         render_html(tmp_path / "x.html", figure(0.4), parents=PARENTS, fps=FPS, audio_start=1.0)
     assert [p.name for p in tmp_path.iterdir()] == ["bad.ogg"]
@@ -380,7 +384,7 @@ def test_missing_chromium_fails_on_ci_and_skips_elsewhere(monkeypatch, ci, outco
 def test_html_plays_in_headless_chromium(tmp_path, song, with_audio):
     exe = _chromium()
     out = tmp_path / "dance.html"
-    audio = {"audio_path": song, "audio_start": 1.5} if with_audio else {}
+    audio = {"audio": AudioClip(song, start=1.5)} if with_audio else {}
     render_html(
         out, figure(1.0, speed=0.5), parents=PARENTS, fps=FPS, unit_scale=1.0, sides=SIDES, head=2, **audio
     )
@@ -467,7 +471,8 @@ def test_render_motion_2d_body25(tmp_path):
             rest[j] = rest[sk.parents[j]] + sk.offsets[j]
     pos = np.repeat(rest[None, :, :2] + [320, 300], 10, axis=0).astype(np.float32)  # image space, px
     out = tmp_path / "b25.mp4"
-    render_motion_mp4(out, Motion(skeleton=sk, fps=25, positions=pos), width=96, height=96, progress=False)
+    render_motion_mp4(out, Motion(skeleton=sk, fps=25, positions=pos), options=RenderOptions(width=96, height=96),
+                      progress=False)
     img = video_frame(out, 0.1, (96, 96))
     rows = np.flatnonzero((np.abs(img.astype(int) - BLUE).max(axis=-1) < 40).any(axis=1))
     head_row = np.flatnonzero((np.abs(img.astype(int) - [232, 196, 160]).max(axis=-1) < 30).any(axis=1))

@@ -57,6 +57,10 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"output folder does not exist: {out.parent}")
 
     from dancekit.motion.formats import detect_format, read_motion, read_tang2018
+    from dancekit.render import AudioClip, RenderOptions, render_motion_html, render_motion_mp4
+
+    given = {"width": args.width, "height": args.height, "title": args.title}
+    options = RenderOptions(**{k: v for k, v in given.items() if v is not None})  # validated before reading
 
     src = Path(args.motion)
     audio, start, end = args.audio, args.start, args.end
@@ -71,16 +75,11 @@ def run(args: argparse.Namespace) -> int:
     if audio is None and (start is not None or end is not None):
         raise ParameterError("--start / --end need --audio")
 
-    from dancekit.render import render_motion_html, render_motion_mp4
-
+    clip = None if audio is None else AudioClip(audio, start, end)
     if kind == "mp4":
-        render_motion_mp4(
-            out, motion, audio_path=audio, audio_start=start, audio_end=end,
-            width=640 if args.width is None else args.width, height=480 if args.height is None else args.height,
-            progress=not args.quiet,
-        )  # fmt: skip
+        render_motion_mp4(out, motion, audio=clip, options=options, progress=not args.quiet)
     else:
-        render_motion_html(out, motion, audio_path=audio, audio_start=start, audio_end=end, title=args.title)
+        render_motion_html(out, motion, audio=clip, options=options)
     if not args.quiet:
         print(out)
     return 0

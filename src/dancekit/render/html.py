@@ -20,13 +20,14 @@ from importlib import resources
 import numpy as np
 
 from dancekit._io import atomic_path
-from dancekit.errors import ParameterError
 from dancekit.render._ffmpeg import audio_span, encode_audio_slice
 from dancekit.render._scene import Scene, camera_basis, default_azimuth, fit_distance, prepare_scene
+from dancekit.render.options import AudioClip, RenderOptions, resolve
 
 _FOV = 40.0  # degrees, vertical; must match FOV in player.js
 _ELEVATION = 12.0
 _ASPECT = 4.0 / 3.0  # the initial distance frames the dance in a 4:3 (or wider) window
+_HTML_KEYWORDS = ("title",)  # deprecated keywords (release 0.1), besides audio_path / _start / _end
 
 
 def _asset(name: str) -> str:
@@ -50,11 +51,17 @@ def page_html(
     audio: tuple[bytes, str] | None = None,
     duration: float | None = None,
     title: str = "dancekit",
+    azimuth: float | None = None,
+    elevation: float = _ELEVATION,
 ) -> str:
-    """The html text of a player page for ``scene`` (``audio``: encoded bytes and MIME type)."""
-    az = default_azimuth(scene)
+    """The html text of a player page for ``scene`` (``audio``: encoded bytes and MIME type).
+
+    ``azimuth`` / ``elevation`` (degrees) set the initial camera; azimuth None is a
+    three-quarter view of the dancer's front.
+    """
+    az = default_azimuth(scene) if azimuth is None else float(azimuth)
     tan_y = math.tan(math.radians(_FOV) / 2)
-    basis = camera_basis(math.radians(az), math.radians(_ELEVATION))
+    basis = camera_basis(math.radians(az), math.radians(elevation))
     dist = fit_distance(scene, basis, tan_half_x=tan_y * _ASPECT, tan_half_y=tan_y)
     qbytes, offset, scale = _quantise(scene.positions)
     data = {
@@ -69,7 +76,7 @@ def page_html(
         "head": scene.head,
         "height": scene.height,
         "azimuth": az,
-        "elevation": _ELEVATION,
+        "elevation": elevation,
         "distance": dist,
         "offset": offset,
         "scale": scale,
@@ -126,10 +133,9 @@ def render_html(
     unit_scale: float = 0.01,
     sides=None,
     head: int | None = None,
-    audio_path: str | os.PathLike | None = None,
-    audio_start: float | None = None,
-    audio_end: float | None = None,
-    title: str | None = None,
+    audio: AudioClip | str | os.PathLike | None = None,
+    options: RenderOptions | None = None,
+    **deprecated,
 ) -> None:
     """Write a self-contained html player for a dance (and its song).
 
@@ -155,11 +161,15 @@ def render_html(
         ``+1`` left (blue) / ``-1`` right (orange) / ``0`` centre per joint.
     head : int or None
         Joint drawn as a head disc.
-    audio_path : path-like or None
-        Song; its slice ``[audio_start, audio_end]`` (seconds; defaults 0 and
-        ``audio_start + T / fps``, clipped to the song) is embedded as MP3.
-    title : str or None
-        Page title (default: the output file's stem).
+    audio : AudioClip, path-like or None
+        Song slice, embedded as MP3 (``start`` / ``end`` default to 0 and
+        ``start + T / fps``, clipped to the song; a plain path: the song from 0 s).
+    options : RenderOptions or None
+        ``title`` (default: the output file's stem) and the initial camera
+        (``azimuth``, ``elevation``); the size and ``crf`` apply to mp4 only.
+    **deprecated
+        The keywords of release 0.1 (``audio_path``, ``audio_start``, ``audio_end``,
+        ``title``) still work, with a ``DeprecationWarning``.
 
     Raises
     ------
@@ -175,34 +185,51 @@ def render_html(
     Examples
     --------
     >>> render_html("dance.html", motion.positions, parents=skeleton.parents, fps=25,
-    ...             audio_path="song.mp3", audio_start=12.0)  # doctest: +SKIP
+    ...             audio=AudioClip("song.mp3", start=12.0))  # doctest: +SKIP
     """
+    options, audio = resolve("render_html", options, audio, deprecated, accepted=_HTML_KEYWORDS)
     scene = prepare_scene(
         positions, parents=parents, fps=fps, up_axis=up_axis, unit_scale=unit_scale, sides=sides, head=head
     )
-    audio = None
+    encoded = None
     duration = None
-    if audio_path is not None:
+    if audio is not None:
         span = audio_span(
-            audio_path, start=audio_start, end=audio_end, motion_duration=scene.num_frames / scene.fps
+            audio.path, start=audio.start, end=audio.end, motion_duration=scene.num_frames / scene.fps
         )
-        audio = encode_audio_slice(span)
+        encoded = encode_audio_slice(span)
         duration = span.duration
-    elif audio_start is not None or audio_end is not None:
-        raise ParameterError("audio_start / audio_end need an audio_path")
+    title = options.title
     if title is None:
         title = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    text = page_html(scene, audio=audio, duration=duration, title=str(title))
+    text = page_html(
+        scene,
+        audio=encoded,
+        duration=duration,
+        title=title,
+        azimuth=options.azimuth,
+        elevation=options.elevation,
+    )
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
 
 
-def render_motion_html(path: str | os.PathLike, motion, **kwargs) -> None:
+def render_motion_html(
+    path: str | os.PathLike,
+    motion,
+    *,
+    audio: AudioClip | str | os.PathLike | None = None,
+    options: RenderOptions | None = None,
+    **deprecated,
+) -> None:
     """:func:`render_html` for a :class:`dancekit.motion.Motion` (skeleton, fps and sides taken from it).
 
-    Keyword arguments (``audio_path``, ``audio_start``, ``audio_end``, ``title``) are
-    passed on to :func:`render_html`.
+    Examples
+    --------
+    >>> render_motion_html("dance.html", motion, audio="song.mp3",
+    ...                    options=RenderOptions(title="my dance"))  # doctest: +SKIP
     """
     from dancekit.render._motion import motion_arrays
 
-    render_html(path, **motion_arrays(motion), **kwargs)
+    options, audio = resolve("render_motion_html", options, audio, deprecated, accepted=_HTML_KEYWORDS)
+    render_html(path, **motion_arrays(motion), audio=audio, options=options)

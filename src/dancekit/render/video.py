@@ -23,9 +23,10 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFilter
 
 from dancekit._io import atomic_path
-from dancekit.errors import ExternalToolError, ParameterError
+from dancekit.errors import ExternalToolError
 from dancekit.render._ffmpeg import AudioSpan, audio_span, ffmpeg_exe, last_line
 from dancekit.render._scene import Scene, camera_basis, default_azimuth, fit_distance, prepare_scene
+from dancekit.render.options import AudioClip, RenderOptions, resolve
 
 # colours (RGB)
 _SKY_TOP = np.array([236, 240, 246], np.float32)
@@ -41,6 +42,7 @@ _BONE_RADIUS = 0.032  # metres, for a 1.75 m figure
 _JOINT_RADIUS = 0.04
 _HEAD_RADIUS = 0.11
 _SS = 2  # supersampling factor of the figure
+_MP4_KEYWORDS = ("width", "height", "azimuth", "elevation", "crf")  # deprecated keywords (release 0.1)
 
 
 def _shade(rgb: tuple[int, int, int], k: float) -> tuple[int, int, int]:
@@ -285,13 +287,6 @@ class FrameRenderer:
         frame.paste(crop.reduce(_SS), (x0, y0))
 
 
-def _check_size(width: int, height: int) -> tuple[int, int]:
-    for name, v in (("width", width), ("height", height)):
-        if not isinstance(v, int | np.integer) or isinstance(v, bool) or v < 16 or v > 4096 or v % 2:
-            raise ParameterError(f"{name} must be an even number of pixels in 16..4096, got {v!r}")
-    return int(width), int(height)
-
-
 def render_mp4(
     path: str | os.PathLike,
     positions: np.ndarray,
@@ -302,15 +297,10 @@ def render_mp4(
     unit_scale: float = 0.01,
     sides=None,
     head: int | None = None,
-    audio_path: str | os.PathLike | None = None,
-    audio_start: float | None = None,
-    audio_end: float | None = None,
-    width: int = 640,
-    height: int = 480,
-    azimuth: float | None = None,
-    elevation: float = 12.0,
-    crf: int = 23,
+    audio: AudioClip | str | os.PathLike | None = None,
+    options: RenderOptions | None = None,
     progress: bool = True,
+    **deprecated,
 ) -> None:
     """Render a dance to an H.264 mp4, with the song slice muxed in as AAC.
 
@@ -333,26 +323,24 @@ def render_mp4(
         ``+1`` left (drawn blue) / ``-1`` right (orange) / ``0`` centre (grey) per joint.
     head : int or None
         Joint to draw as a head disc.
-    audio_path : path-like or None
-        Song to mux in. None renders a silent video of ``T / fps`` seconds.
-    audio_start, audio_end : float or None
-        Slice of the song (seconds) that plays with the dance; frame 0 plays at
-        ``audio_start`` (default 0). ``audio_end`` defaults to ``audio_start + T / fps``;
-        both are clipped to the song. The video lasts exactly as long as the slice
-        (the dance is padded with its last frame or cut to ``round(duration * fps)`` frames).
-    width, height : int
-        Video size in pixels (even numbers).
-    azimuth, elevation : float
-        Camera angles in degrees (azimuth None: a three-quarter view of the dancer's front).
-    crf : int
-        x264 quality (lower is better and larger).
+    audio : AudioClip, path-like or None
+        Song slice to mux in (a plain path: the song from 0 s). Frame 0 plays at
+        ``audio.start``; ``audio.end`` defaults to ``start + T / fps``; both are clipped to
+        the song. The video lasts exactly as long as the slice (the dance is padded with
+        its last frame or cut to ``round(duration * fps)`` frames). None renders a silent
+        video of ``T / fps`` seconds.
+    options : RenderOptions or None
+        Video size, camera and x264 quality (None: the defaults, 640x480).
     progress : bool
         Show a tqdm progress bar on stderr.
+    **deprecated
+        The keywords of release 0.1 (``audio_path``, ``audio_start``, ``audio_end``, ``width``,
+        ``height``, ``azimuth``, ``elevation``, ``crf``) still work, with a ``DeprecationWarning``.
 
     Raises
     ------
     ParameterError
-        On bad arrays, sizes or times.
+        On bad arrays or times.
     AudioError
         If the song is missing or unreadable.
     ExternalToolError
@@ -363,27 +351,24 @@ def render_mp4(
     Examples
     --------
     >>> render_mp4("dance.mp4", motion.positions, parents=skeleton.parents, fps=25,
-    ...            audio_path="song.mp3", audio_start=0.0)  # doctest: +SKIP
+    ...            audio=AudioClip("song.mp3", start=0.0))  # doctest: +SKIP
     """
-    width, height = _check_size(width, height)
-    if not isinstance(crf, int | np.integer) or not 0 <= crf <= 51:
-        raise ParameterError(f"crf must be an integer in 0..51, got {crf!r}")
-    if not -80.0 <= float(elevation) <= 80.0:
-        raise ParameterError(f"elevation must be in -80..80 degrees, got {elevation!r}")
+    options, audio = resolve("render_mp4", options, audio, deprecated, accepted=_MP4_KEYWORDS)
+    width, height = options.width, options.height
     scene = prepare_scene(
         positions, parents=parents, fps=fps, up_axis=up_axis, unit_scale=unit_scale, sides=sides, head=head
     )
     span: AudioSpan | None = None
-    if audio_path is not None:
+    if audio is not None:
         span = audio_span(
-            audio_path, start=audio_start, end=audio_end, motion_duration=scene.num_frames / scene.fps
+            audio.path, start=audio.start, end=audio.end, motion_duration=scene.num_frames / scene.fps
         )
         n_frames = max(1, int(round(span.duration * scene.fps)))
     else:
-        if audio_start is not None or audio_end is not None:
-            raise ParameterError("audio_start / audio_end need an audio_path")
         n_frames = scene.num_frames
-    renderer = FrameRenderer(scene, width=width, height=height, azimuth=azimuth, elevation=elevation)
+    renderer = FrameRenderer(
+        scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation
+    )
     rate = Fraction(scene.fps).limit_denominator(1001)
 
     cmd = [
@@ -395,7 +380,7 @@ def render_mp4(
         cmd += ["-ss", f"{span.start:.6f}", "-t", f"{span.duration:.6f}", "-i", str(span.path)]
         cmd += ["-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-b:a", "160k"]
     cmd += [
-        "-c:v", "libx264", "-preset", "ultrafast", "-tune", "animation", "-crf", str(int(crf)),
+        "-c:v", "libx264", "-preset", "ultrafast", "-tune", "animation", "-crf", str(options.crf),
         "-pix_fmt", "yuv420p", "-movflags", "+faststart", "-f", "mp4",
     ]  # fmt: skip
 
@@ -429,12 +414,23 @@ def render_mp4(
             raise ExternalToolError(f"ffmpeg failed writing {path} (exit {rc}): {last_line(err.read())}")
 
 
-def render_motion_mp4(path: str | os.PathLike, motion, **kwargs) -> None:
+def render_motion_mp4(
+    path: str | os.PathLike,
+    motion,
+    *,
+    audio: AudioClip | str | os.PathLike | None = None,
+    options: RenderOptions | None = None,
+    progress: bool = True,
+    **deprecated,
+) -> None:
     """:func:`render_mp4` for a :class:`dancekit.motion.Motion` (skeleton, fps and sides taken from it).
 
-    Keyword arguments (``audio_path``, ``audio_start``, ``audio_end``, ``width``, ...)
-    are passed on to :func:`render_mp4`.
+    Examples
+    --------
+    >>> render_motion_mp4("dance.mp4", motion, audio=AudioClip("song.mp3", start=12.0),
+    ...                   options=RenderOptions(width=320, height=240))  # doctest: +SKIP
     """
     from dancekit.render._motion import motion_arrays
 
-    render_mp4(path, **motion_arrays(motion), **kwargs)
+    options, audio = resolve("render_motion_mp4", options, audio, deprecated, accepted=_MP4_KEYWORDS)
+    render_mp4(path, **motion_arrays(motion), audio=audio, options=options, progress=progress)
