@@ -44,6 +44,12 @@ class WindowDataset(Dataset):
     each item is shifted by a random amount in ``[0, stride)`` (data augmentation). Dances shorter
     than ``window`` are skipped and listed in ``skipped``.
 
+    The offset of item ``k`` is a pure function of ``(seed, epoch, k)`` (drawn from
+    ``np.random.default_rng([seed, epoch, k])``); the trainer calls :meth:`set_epoch` before each epoch,
+    as with torch's ``DistributedSampler``. The dataset thus holds no random state that advances: a
+    resumed run sees the batches of an uninterrupted one, and DataLoader worker processes or
+    data-parallel ranks (each with a copy of the dataset) draw the same offset for the same item.
+
     ``balance_genres=True`` repeats the windows of each genre ``min(max_repeat, round(n_max / n_g))``
     times, where ``n_g`` is the genre's window count and ``n_max`` the largest one, so a minority
     genre (tango: one dance in tang2018) is seen about as often as the majority (waltz: 19 training
@@ -75,7 +81,10 @@ class WindowDataset(Dataset):
         self.stride = int(stride or max(1, window // 4))
         self.representation = representation
         self.random_offset = random_offset
-        self._rng = np.random.default_rng(seed)
+        if not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
+        self.seed = int(seed)
+        self.epoch = 0
         self.stats = stats if stats is not None else compute_stats(data, preset=preset, representation=representation)
         self.names = data.names(split)
         if genres is not None:
@@ -117,11 +126,23 @@ class WindowDataset(Dataset):
     def __len__(self) -> int:
         return len(self.index)
 
+    def set_epoch(self, epoch: int) -> None:
+        """Select the random offsets of training epoch ``epoch`` (>= 0)."""
+        if isinstance(epoch, bool) or not isinstance(epoch, (int, np.integer)) or epoch < 0:
+            raise ParameterError(f"epoch must be a non-negative integer, got {epoch!r}")
+        self.epoch = int(epoch)
+
+    def offset(self, k: int) -> int:
+        """Random shift of item ``k`` in the current epoch, in ``[0, stride)`` (0 without ``random_offset``)."""
+        if not self.random_offset:
+            return 0
+        return int(np.random.default_rng([self.seed, self.epoch, int(k)]).integers(0, self.stride))
+
     def __getitem__(self, k: int) -> dict[str, torch.Tensor]:
         i, s = self.index[k]
         if self.random_offset:
             T = len(self.music[i])
-            s = min(s + int(self._rng.integers(0, self.stride)), T - self.window)
+            s = min(s + self.offset(k % len(self.index)), T - self.window)  # k % n: a negative index too
         sl = slice(s, s + self.window)
         return {
             "music": torch.from_numpy(self.music[i][sl]),

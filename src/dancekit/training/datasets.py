@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dancekit.checkpoints.stats import NormStats
 from dancekit.data import PreparedData, WindowDataset
-from dancekit.training.loop import TrainConfig
+from dancekit.training.config import TrainConfig
 
 
 def music_dance_windows(data: PreparedData, config: TrainConfig, stats: NormStats, *,

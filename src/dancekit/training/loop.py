@@ -1,9 +1,12 @@
-"""One generic training loop for every model family.
+"""One generic training loop for every model family: :class:`Trainer` (and :func:`train`, its one-call form).
 
 The loop knows nothing about a family: a ``step_fn(model, batch, ctx) -> (loss, logs)`` computes the
-loss of a batch (see :mod:`dancekit.training.objectives`). The loop owns the optimiser (AdamW), the
+loss of a batch (see :mod:`dancekit.training.objectives`). The trainer owns the optimiser (AdamW), the
 learning-rate schedule, gradient clipping, seeding, the progress bar, validation, checkpoints and
-resumption.
+resumption, in one method each (:meth:`Trainer.build`, :meth:`~Trainer.step`, :meth:`~Trainer.validate`,
+:meth:`~Trainer.save_checkpoint`, :meth:`~Trainer.resume`, :meth:`~Trainer.fit`). It reads only the
+generic :class:`~dancekit.training.config.OptimConfig` fields of its configuration; the step functions
+read the rest (``ctx.config``).
 
 Output folder layout (``out_dir``)::
 
@@ -14,9 +17,15 @@ Output folder layout (``out_dir``)::
 
 Every folder is written beside its final place and renamed when complete
 (:func:`dancekit._io.atomic_dir`), so an interrupted run never leaves a half-written checkpoint, and
-``resume=True`` continues from the newest complete one (weights, optimiser state, step, and the
-states of the torch / NumPy / Python random generators, so a resumed run reproduces an
-uninterrupted one on CPU).
+``resume=True`` continues from the newest complete one. A resumed run reproduces an uninterrupted one
+on CPU: the checkpoint holds the weights, the optimiser state, the step and the states of the torch /
+NumPy / Python random generators and of the objectives' generator; everything else that shapes a batch
+is a pure function of (seed, epoch): the shuffled batches (:func:`epoch_batches`) and a dataset's own
+randomness through its ``set_epoch(epoch)`` (:class:`~dancekit.data.WindowDataset`'s window offsets).
+
+Data parallelism: a subclass can override the hooks :meth:`Trainer.shard_batch` (this process's share of a
+global batch), :attr:`Trainer.is_main_process` (only the main process writes files and shows progress) and
+:meth:`Trainer.unwrap` (the bare model to save, e.g. ``DistributedDataParallel.module``).
 """
 
 from __future__ import annotations
@@ -40,86 +49,10 @@ from torch.utils.data import DataLoader, Dataset
 from dancekit._io import atomic_dir, atomic_path
 from dancekit.checkpoints.folder import WEIGHTS_FILE, read_config, write_pretrained
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.training.schedules import CURRICULA, LR_SCHEDULES, learning_rate
+from dancekit.training.config import OptimConfig, TrainConfig
+from dancekit.training.schedules import learning_rate
 
 STATE_FILE = "training_state.pt"
-
-
-@dataclass
-class TrainConfig:
-    """Settings of :func:`train` (saved in every checkpoint under ``"train"``).
-
-    Length: ``steps`` optimisation steps, or ``epochs`` passes over the training windows when set.
-    The data fields (``seq_len``, ``stride``, ``random_offset``, ``representation``) are read by
-    whoever builds the datasets (``dancekit train``); the ``curriculum*`` fields by the objectives of
-    autoregressive families (:func:`dancekit.training.schedules.auto_condition_p`).
-    """
-
-    steps: int = 3000
-    epochs: int | None = None
-    batch_size: int = 16
-    lr: float = 1e-3
-    lr_schedule: str = "cosine"  # cosine | constant
-    warmup_steps: int = 100
-    min_lr: float = 1e-5
-    weight_decay: float = 0.0
-    grad_clip: float | None = 1.0  # max global gradient norm (None: no clipping)
-    seed: int = 0
-    log_every: int = 25
-    val_every: int = 250
-    val_batches: int | None = None  # validate on at most this many batches (None: all)
-    ckpt_every: int = 500
-    keep_checkpoints: int = 3  # resumable step folders to keep
-    num_workers: int = 0
-    threads: int | None = 2  # torch.set_num_threads (None: leave as is)
-    device: str = "cpu"
-    # data
-    seq_len: int = 240  # frames per training window
-    stride: int | None = None  # between window starts (None: seq_len // 4)
-    random_offset: bool = True  # jitter window starts by up to one stride
-    # oversample the windows of minority genres (WindowDataset). An epoch then holds more windows (about
-    # 2.7x on tang2018), so an epoch-based curriculum grows p that much more slowly per step: scale
-    # curriculum_lambda up accordingly (3000 balanced steps at the default λ reach only p = 9).
-    balance_genres: bool = False
-    genre_dropout: float = 0.3  # genre-conditioned models: share of windows trained as "auto"
-    genres: list[str] | None = None  # train and validate on these genres' dances only (None: all)
-    music_dropout: float = 0.0  # share of training windows whose music is replaced by the mean (zeros)
-    representation: str = "positions3d"  # positions3d | keypoints2d
-    # curriculum of autoregressive decoders (dynamic auto-condition)
-    curriculum: str = "linear"  # teacher_forcing | const | linear | quadratic | exponential
-    curriculum_lambda: float = 0.25  # λ per epoch
-    curriculum_q: int = 10  # ground-truth frames per period
-    curriculum_p: int = 10  # p of the "const" curriculum
-    curriculum_p_max: int | None = 30
-    val_p: int = 20  # fixed p of the validation loss, so that it compares across steps and runs
-
-    def __post_init__(self) -> None:
-        positive = ("steps", "batch_size", "log_every", "val_every", "ckpt_every", "keep_checkpoints", "seq_len")
-        for name in positive:
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise ParameterError(f"TrainConfig.{name} must be a positive integer, got {value!r}")
-        for name in ("epochs", "stride", "val_batches", "threads"):
-            value = getattr(self, name)
-            if value is not None and (not isinstance(value, int) or value < 1):
-                raise ParameterError(f"TrainConfig.{name} must be a positive integer or None, got {value!r}")
-        if not self.lr > 0:
-            raise ParameterError(f"TrainConfig.lr must be positive, got {self.lr!r}")
-        if self.lr_schedule not in LR_SCHEDULES:
-            raise ParameterError(f"TrainConfig.lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
-        if self.curriculum not in CURRICULA:
-            raise ParameterError(f"TrainConfig.curriculum must be one of {CURRICULA}, got {self.curriculum!r}")
-        if self.warmup_steps < 0 or self.min_lr < 0 or self.weight_decay < 0 or self.num_workers < 0:
-            raise ParameterError("TrainConfig.warmup_steps, min_lr, weight_decay and num_workers must be >= 0")
-        if self.grad_clip is not None and not self.grad_clip > 0:
-            raise ParameterError(f"TrainConfig.grad_clip must be positive or None, got {self.grad_clip!r}")
-        if not 0.0 <= self.music_dropout <= 1.0 or not 0.0 <= self.genre_dropout <= 1.0:
-            raise ParameterError("TrainConfig.music_dropout and genre_dropout must be in [0, 1]")
-        if self.genres is not None and (not isinstance(self.genres, (list, tuple)) or not self.genres
-                                        or not all(isinstance(g, str) for g in self.genres)):
-            raise ParameterError(f"TrainConfig.genres must be a non-empty list of genre names or None, got {self.genres!r}")
-        if self.curriculum_q < 0 or self.curriculum_p < 0 or self.curriculum_lambda < 0 or self.val_p < 0:
-            raise ParameterError("TrainConfig.curriculum_q, curriculum_p, curriculum_lambda and val_p must be >= 0")
 
 
 @dataclass
@@ -130,7 +63,7 @@ class StepContext:
     epoch: int  # completed epochs, the ``t`` of curricula
     training: bool  # False during validation
     generator: torch.Generator  # for the model's own sampling (e.g. initial decoder states)
-    config: TrainConfig
+    config: TrainConfig  # the configuration given to the trainer
 
 
 StepFn = Callable[[nn.Module, dict[str, torch.Tensor], StepContext], tuple[torch.Tensor, Mapping[str, float]]]
@@ -138,7 +71,7 @@ StepFn = Callable[[nn.Module, dict[str, torch.Tensor], StepContext], tuple[torch
 
 @dataclass
 class TrainResult:
-    """What :func:`train` did."""
+    """What :meth:`Trainer.fit` (:func:`train`) did."""
 
     step: int
     epoch: int
@@ -185,13 +118,18 @@ def _set_rng_state(state: Mapping[str, Any], generator: torch.Generator) -> None
     generator.set_state(state["generator"])
 
 
-def _epoch_batches(n: int, batch_size: int, *, seed: int, epoch: int) -> list[list[int]]:
-    """The shuffled batches of one epoch, a pure function of (seed, epoch) so resumption is exact."""
+def epoch_batches(n: int, batch_size: int, *, seed: int, epoch: int) -> list[list[int]]:
+    """The shuffled batches of ``n`` items in one epoch (the last partial batch dropped, unless it is the only
+    one), a pure function of (seed, epoch) so resumption is exact."""
     g = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
     perm = torch.randperm(n, generator=g).tolist()
     if n < batch_size:
         return [perm]
     return [perm[i * batch_size : (i + 1) * batch_size] for i in range(n // batch_size)]
+
+
+def _plain(obj: Any) -> Any:
+    return obj.tolist() if hasattr(obj, "tolist") else str(obj)
 
 
 def _to_device(batch: Any, device: torch.device) -> Any:
@@ -219,11 +157,15 @@ def evaluate(
     dataset: Dataset,
     step_fn: StepFn,
     *,
-    config: TrainConfig,
+    config: OptimConfig,
     step: int = 0,
     epoch: int = 0,
 ) -> float:
-    """Mean loss of ``step_fn`` over ``dataset`` (in order, eval mode, a fixed generator seed)."""
+    """Mean loss of ``step_fn`` over ``dataset`` (in order, eval mode, a fixed generator seed).
+
+    Reads ``config.device``, ``seed``, ``batch_size``, ``num_workers`` and ``val_batches``; the step
+    function gets ``config`` as ``ctx.config``.
+    """
     was_training = model.training
     model.eval()
     device = torch.device(config.device)
@@ -254,11 +196,322 @@ def _batch_size(batch: Any) -> int:
     return _batch_size(batch[0])
 
 
+Callback = Callable[[dict[str, Any]], None]
+
+
+class Trainer:
+    """Train a model with a step function: build, then step / validate / checkpoint, resumable.
+
+    Parameters
+    ----------
+    model : an ``nn.Module`` of a registered family with a dataclass ``model.config``
+    train_set, val_set : map-style datasets whose items collate into the batches ``step_fn`` expects
+        (``val_set`` may be None: no validation, no ``best/``). A training set with a ``set_epoch(epoch)``
+        method gets it called before each epoch (e.g. :class:`~dancekit.data.WindowDataset`'s offsets).
+    config : the run's settings (:class:`~dancekit.training.TrainConfig`); the trainer reads its
+        :class:`~dancekit.training.config.OptimConfig` fields, ``step_fn`` gets all of it as ``ctx.config``
+    step_fn : ``step_fn(model, batch, ctx) -> (loss, logs)``: the scalar loss to minimise and a mapping of
+        numbers to log (see :mod:`dancekit.training.objectives`)
+    out_dir : run folder (created by :meth:`build`)
+    stats : normalisation statistics saved with every checkpoint (``NormStats`` or arrays)
+    meta : more entries for every checkpoint's ``config.json`` (representation, preset, fps, skeleton)
+    progress : show a tqdm bar (loss, learning rate, ETA) on stderr
+    callbacks : called with every log record (a dict); an exception raised there stops training (the
+        checkpoints written so far stay resumable)
+
+    Raises
+    ------
+    ParameterError
+        When the model has no dataclass ``config`` or the training set is empty.
+
+    Examples
+    --------
+    >>> trainer = Trainer(model, train_set, val_set, TrainConfig(steps=100), step_fn=revolution_step,
+    ...                   out_dir="runs/a")  # doctest: +SKIP
+    >>> result = trainer.fit(resume=True)  # doctest: +SKIP
+    """
+
+    def __init__(
+        self,
+        model: nn.Module,
+        train_set: Dataset,
+        val_set: Dataset | None,
+        config: OptimConfig,
+        *,
+        step_fn: StepFn,
+        out_dir: str | Path,
+        stats: Any = None,
+        meta: Mapping[str, Any] | None = None,
+        progress: bool = True,
+        callbacks: Iterable[Callback] = (),
+    ):
+        if not hasattr(model, "config") or not dataclasses.is_dataclass(model.config):
+            raise ParameterError(f"{type(model).__name__} needs a dataclass `config` attribute to be checkpointed")
+        if len(train_set) == 0:
+            raise ParameterError("the training set is empty (no window fits in any training dance?)")
+        self.model, self.train_set, self.val_set, self.config = model, train_set, val_set, config
+        self.step_fn, self.out_dir, self.stats = step_fn, Path(out_dir), stats
+        self.extra = {**(meta or {}), "train": dataclasses.asdict(config)}  # in every checkpoint's config.json
+        self.progress, self.callbacks = progress, list(callbacks)
+        self.device = torch.device(config.device)
+        self.steps_per_epoch = max(1, len(train_set) // config.batch_size)
+        self.total_steps = config.epochs * self.steps_per_epoch if config.epochs else config.steps
+        # state: what a checkpoint saves and :meth:`resume` restores (with the random generators)
+        self.global_step = 0  # optimisation steps taken
+        self.history: list[dict[str, Any]] = []
+        self.best_val: float | None = None
+        self.optimizer: torch.optim.Optimizer | None = None
+        self.generator: torch.Generator | None = None  # the step functions' (ctx.generator)
+
+    # ---- hooks for data parallelism (a single process: the identity) ------------------------------------
+
+    @property
+    def is_main_process(self) -> bool:
+        """Whether this process writes checkpoints and logs and shows progress (rank 0 under DDP)."""
+        return True
+
+    def unwrap(self) -> nn.Module:
+        """The bare model, whose ``config`` and ``state_dict`` are saved (``model.module`` of a DDP wrapper)."""
+        return getattr(self.model, "module", self.model)
+
+    def shard_batch(self, indices: list[int]) -> list[int]:
+        """This process's items of a global batch (all of them; under DDP e.g. ``indices[rank::world_size]``)."""
+        return indices
+
+    # ---- build -----------------------------------------------------------------------------------------
+
+    def build(self) -> None:
+        """Create the run folder, set threads and device, seed every generator, make the optimiser.
+
+        The order (seeding, then the step functions' generator, then the optimiser) fixes what a seed
+        trains to; :meth:`resume` then overwrites the states from a checkpoint.
+        """
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        if self.config.threads:
+            torch.set_num_threads(self.config.threads)
+        self.model.to(self.device)
+        seed_everything(self.config.seed)
+        self.generator = torch.Generator(device=self.device).manual_seed(self.config.seed)
+        self.optimizer = self.configure_optimizer()
+
+    def configure_optimizer(self) -> torch.optim.Optimizer:
+        """AdamW over every parameter (the rate is set each step from the schedule)."""
+        return torch.optim.AdamW(self.model.parameters(), lr=self.config.lr, weight_decay=self.config.weight_decay)
+
+    # ---- data --------------------------------------------------------------------------------------------
+
+    def epoch_loader(self, epoch: int, *, start: int = 0) -> DataLoader:
+        """The batches of ``epoch`` from its ``start``-th on (mid-epoch resumption), this process's shares.
+
+        Calls ``train_set.set_epoch(epoch)`` when the dataset has it, before any worker copies the dataset.
+        """
+        if hasattr(self.train_set, "set_epoch"):
+            self.train_set.set_epoch(epoch)
+        c = self.config
+        batches = [self.shard_batch(b) for b in
+                   epoch_batches(len(self.train_set), c.batch_size, seed=c.seed, epoch=epoch)[start:]]
+        # its own generator: creating a loader must not consume the global RNG (exact resumption)
+        return DataLoader(self.train_set, batch_sampler=batches, num_workers=c.num_workers,
+                          generator=torch.Generator().manual_seed(c.seed + epoch))
+
+    # ---- step, validate -------------------------------------------------------------------------------
+
+    def learning_rate(self, step: int) -> float:
+        c = self.config
+        return learning_rate(step, base_lr=c.lr, total_steps=self.total_steps, warmup_steps=c.warmup_steps,
+                             kind=c.lr_schedule, min_lr=min(c.min_lr, c.lr))
+
+    def step(self, batch: Any, *, epoch: int) -> dict[str, Any]:
+        """One optimisation step on ``batch``; returns ``{**logs of step_fn, "loss": float, "lr": float}``.
+
+        Raises
+        ------
+        FloatingPointError
+            When the loss is NaN or infinite.
+        """
+        assert self.optimizer is not None and self.generator is not None, "call build() first"
+        lr = self.learning_rate(self.global_step)
+        for group in self.optimizer.param_groups:
+            group["lr"] = lr
+        ctx = StepContext(step=self.global_step, epoch=epoch, training=True, generator=self.generator,
+                          config=self.config)
+        loss, logs = self.step_fn(self.model, _to_device(batch, self.device), ctx)
+        loss_value = float(loss.detach())
+        if not math.isfinite(loss_value):
+            raise FloatingPointError(f"the training loss became {loss_value} at step {self.global_step}")
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        if self.config.grad_clip is not None:
+            torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
+        self.optimizer.step()
+        self.global_step += 1
+        return {**logs, "loss": loss_value, "lr": lr}
+
+    def validate(self, *, epoch: int) -> float:
+        """Mean validation loss (:func:`evaluate`) of the current weights; NaN without a validation set."""
+        if self.val_set is None or not len(self.val_set):
+            return float("nan")
+        return evaluate(self.unwrap(), self.val_set, self.step_fn, config=self.config, step=self.global_step,
+                        epoch=epoch)
+
+    def log(self, record: dict[str, Any]) -> None:
+        """Append ``record`` to the history and ``log.jsonl``; call the callbacks."""
+        self.history.append(record)
+        if self.is_main_process:
+            with atomic_path(self.out_dir / "log.jsonl") as tmp:
+                tmp.write_text("".join(json.dumps(r) + "\n" for r in self.history))
+        for cb in self.callbacks:
+            cb(record)
+
+    # ---- checkpoint, resume ----------------------------------------------------------------------------
+
+    def save_checkpoint(self) -> Path | None:
+        """Write ``checkpoints/step_N/`` (resumable) and ``model/``; prune old checkpoints.
+
+        Returns the checkpoint folder (None outside the main process, which writes nothing).
+        """
+        if not self.is_main_process:
+            return None
+        assert self.optimizer is not None and self.generator is not None, "call build() first"
+        model, step = self.unwrap(), self.global_step
+        state = {
+            "step": step,
+            "optimizer": self.optimizer.state_dict(),
+            "rng": _rng_state(self.generator),
+            "history": json.dumps(self.history),
+            "best_val": self.best_val,
+        }
+        folder = self.out_dir / "checkpoints" / f"step_{step:07d}"
+        with atomic_dir(folder) as tmp:
+            write_pretrained(tmp, model, model.config, stats=self.stats, extra=self.extra)
+            torch.save(state, tmp / STATE_FILE)
+        with atomic_dir(self.out_dir / "model") as tmp:
+            write_pretrained(tmp, model, model.config, stats=self.stats, extra={**self.extra, "step": step})
+        for old in checkpoints(self.out_dir)[: -self.config.keep_checkpoints]:
+            shutil.rmtree(old, ignore_errors=True)
+        return folder
+
+    def save_best(self, val_loss: float) -> None:
+        """Write ``best/`` (the current weights and their validation loss)."""
+        if not self.is_main_process:
+            return
+        model = self.unwrap()
+        with atomic_dir(self.out_dir / "best") as tmp:
+            write_pretrained(tmp, model, model.config, stats=self.stats,
+                             extra={**self.extra, "step": self.global_step, "val_loss": val_loss})
+
+    def resume(self) -> Path | None:
+        """Continue from the newest complete checkpoint in ``out_dir``; returns it (None: there is none).
+
+        Raises
+        ------
+        CheckpointError
+            When the checkpoint does not match the model (the message names the differing fields) or
+            cannot be read.
+        """
+        if self.optimizer is None:
+            self.build()
+        found = checkpoints(self.out_dir)
+        if not found:
+            if self.progress and self.is_main_process:
+                print(f"no checkpoint in {self.out_dir / 'checkpoints'}: starting from step 0")
+            return None
+        self.load_checkpoint(found[-1])
+        return found[-1]
+
+    def load_checkpoint(self, folder: Path) -> None:
+        """Restore weights, optimiser, step, history, best validation loss and random generators from ``folder``."""
+        from safetensors.torch import load_file
+
+        assert self.optimizer is not None and self.generator is not None, "call build() first"
+        model = self.unwrap()
+        saved = read_config(folder)
+        # compared as saved in config.json: tuples are lists there, NumPy numbers plain ones
+        current = json.loads(json.dumps(dataclasses.asdict(model.config), default=_plain))
+        if saved["config"] != current:
+            diff = sorted(k for k in set(saved["config"]) | set(current) if saved["config"].get(k) != current.get(k))
+            raise CheckpointError(f"cannot resume from {folder}: the model configuration differs in {diff}")
+        try:
+            model.load_state_dict(load_file(str(folder / WEIGHTS_FILE), device=str(self.device)))
+            state = torch.load(folder / STATE_FILE, map_location=self.device, weights_only=True)
+            self.optimizer.load_state_dict(state["optimizer"])
+            _set_rng_state(state["rng"], self.generator)
+        except (RuntimeError, OSError, KeyError, ValueError) as exc:
+            raise CheckpointError(f"cannot resume from {folder}: {exc}") from exc
+        self.global_step = int(state["step"])
+        self.history = json.loads(state["history"])
+        self.best_val = state["best_val"]
+
+    # ---- the loop ---------------------------------------------------------------------------------------
+
+    def fit(self, *, resume: bool = False) -> TrainResult:
+        """Train to ``total_steps``: :meth:`step`, then :meth:`after_step` (log, validate, checkpoint).
+
+        ``resume=True`` first restores the newest checkpoint of ``out_dir`` (:meth:`resume`; none: from step 0).
+
+        Raises
+        ------
+        CheckpointError
+            When resuming from a checkpoint that does not match the model.
+        FloatingPointError
+            When the loss becomes NaN or infinite.
+        """
+        from tqdm import tqdm
+
+        if self.optimizer is None:
+            self.build()
+        if resume:
+            self.resume()
+        total = self.total_steps
+        self._bar = tqdm(total=total, initial=self.global_step, unit="step", dynamic_ncols=True,
+                         desc=f"train {getattr(self.unwrap(), 'family', '')}".strip(),
+                         disable=not (self.progress and self.is_main_process))
+        self._losses: list[float] = []  # training losses since the last log record
+        self._t_start = time.perf_counter()
+        self.model.train()
+        try:
+            while self.global_step < total:
+                epoch = self.global_step // self.steps_per_epoch
+                for batch in self.epoch_loader(epoch, start=self.global_step % self.steps_per_epoch):
+                    self.after_step(self.step(batch, epoch=epoch), epoch=epoch)
+                    if self.global_step >= total:
+                        break
+        finally:
+            self._bar.close()
+        last = {key: next((r[key] for r in reversed(self.history) if key in r), None) for key in ("loss", "val_loss")}
+        return TrainResult(step=self.global_step, epoch=self.global_step // self.steps_per_epoch,
+                           train_loss=last["loss"], val_loss=last["val_loss"], best_val_loss=self.best_val,
+                           out_dir=self.out_dir, history=list(self.history))
+
+    def after_step(self, record: dict[str, Any], *, epoch: int) -> None:
+        """Progress; every ``log_every`` steps a log record (the mean loss since the last one); every ``val_every``
+        a validation (and ``best/`` when it is the lowest); every ``ckpt_every`` a checkpoint; all three at the end."""
+        c, step, done = self.config, self.global_step, self.global_step == self.total_steps
+        logs = dict(record)
+        lr, loss = logs.pop("lr"), logs.pop("loss")
+        self._losses.append(loss)
+        self._bar.update(1)
+        self._bar.set_postfix(loss=f"{loss:.4f}", lr=f"{lr:.2e}", **logs)
+        if step % c.log_every == 0 or done:
+            self.log({"step": step, "epoch": epoch, "loss": sum(self._losses) / len(self._losses), "lr": lr, **logs,
+                      "elapsed_s": round(time.perf_counter() - self._t_start, 3)})
+            self._losses = []
+        if self.val_set is not None and len(self.val_set) and (step % c.val_every == 0 or done):
+            val_loss = self.validate(epoch=epoch)
+            self.log({"step": step, "epoch": epoch, "val_loss": val_loss})
+            if self.progress and self.is_main_process:
+                self._bar.write(f"step {step}: val_loss {val_loss:.4f}")
+            if self.best_val is None or val_loss < self.best_val:
+                self.best_val = val_loss
+                self.save_best(val_loss)
+        if step % c.ckpt_every == 0 or done:
+            self.save_checkpoint()
+
 def train(
     model: nn.Module,
     train_set: Dataset,
     val_set: Dataset | None,
-    config: TrainConfig,
+    config: OptimConfig,
     *,
     step_fn: StepFn,
     out_dir: str | Path,
@@ -266,25 +519,16 @@ def train(
     stats: Any = None,
     meta: Mapping[str, Any] | None = None,
     progress: bool = True,
-    callbacks: Iterable[Callable[[dict[str, Any]], None]] = (),
+    callbacks: Iterable[Callback] = (),
 ) -> TrainResult:
-    """Train ``model`` on ``train_set`` with ``step_fn``; validate, checkpoint, resume.
+    """Train ``model`` on ``train_set`` with ``step_fn``; validate, checkpoint, resume: ``Trainer(...).fit(resume=...)``.
 
     Parameters
     ----------
-    model : an ``nn.Module`` of a registered family with a dataclass ``model.config``
-    train_set, val_set : map-style datasets whose items collate into the batches ``step_fn`` expects
-        (``val_set`` may be None: no validation, no ``best/``)
-    config : :class:`TrainConfig`
-    step_fn : ``step_fn(model, batch, ctx) -> (loss, logs)``: the scalar loss to minimise and a
-        mapping of numbers to log (see :mod:`dancekit.training.objectives`)
-    out_dir : run folder (created)
+    model, train_set, val_set, config, step_fn, out_dir, stats, meta, progress, callbacks
+        as for :class:`Trainer`
     resume : continue from the newest complete checkpoint in ``out_dir`` (starts afresh when there is
         none); the model configuration must be the checkpoint's
-    stats : normalisation statistics saved with every checkpoint (``NormStats`` or arrays)
-    meta : more entries for every checkpoint's ``config.json`` (representation, preset, fps, skeleton)
-    progress : show a tqdm bar (loss, learning rate, ETA) on stderr
-    callbacks : called with every log record (a dict)
 
     Returns
     -------
@@ -292,137 +536,13 @@ def train(
 
     Raises
     ------
+    ParameterError
+        When the model has no dataclass ``config`` or the training set is empty.
     CheckpointError
         When resuming from a checkpoint that does not match ``model``.
     FloatingPointError
         When the loss becomes NaN or infinite.
     """
-    from tqdm import tqdm
-
-    if not hasattr(model, "config") or not dataclasses.is_dataclass(model.config):
-        raise ParameterError(f"{type(model).__name__} needs a dataclass `config` attribute to be checkpointed")
-    if len(train_set) == 0:
-        raise ParameterError("the training set is empty (no window fits in any training dance?)")
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if config.threads:
-        torch.set_num_threads(config.threads)
-    device = torch.device(config.device)
-    model.to(device)
-    seed_everything(config.seed)
-    generator = torch.Generator(device=device).manual_seed(config.seed)
-    optimizer = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-
-    steps_per_epoch = max(1, len(train_set) // config.batch_size)
-    total = config.epochs * steps_per_epoch if config.epochs else config.steps
-    extra = {**(meta or {}), "train": dataclasses.asdict(config)}
-
-    step, history, best_val = 0, [], None
-    if resume and (found := checkpoints(out_dir)):
-        step, history, best_val = _load_checkpoint(found[-1], model, optimizer, generator, device)
-    elif resume and progress:
-        print(f"no checkpoint in {out_dir / 'checkpoints'}: starting from step 0")
-
-    def log(record: dict[str, Any]) -> None:
-        history.append(record)
-        with atomic_path(out_dir / "log.jsonl") as tmp:
-            tmp.write_text("".join(json.dumps(r) + "\n" for r in history))
-        for cb in callbacks:
-            cb(record)
-
-    def save(step: int) -> None:
-        state = {
-            "step": step,
-            "optimizer": optimizer.state_dict(),
-            "rng": _rng_state(generator),
-            "history": json.dumps(history),
-            "best_val": best_val,
-        }
-        with atomic_dir(out_dir / "checkpoints" / f"step_{step:07d}") as tmp:
-            write_pretrained(tmp, model, model.config, stats=stats, extra=extra)
-            torch.save(state, tmp / STATE_FILE)
-        with atomic_dir(out_dir / "model") as tmp:
-            write_pretrained(tmp, model, model.config, stats=stats, extra={**extra, "step": step})
-        for old in checkpoints(out_dir)[: -config.keep_checkpoints]:
-            shutil.rmtree(old, ignore_errors=True)
-
-    bar = tqdm(total=total, initial=step, desc=f"train {getattr(model, 'family', '')}".strip(),
-               disable=not progress, dynamic_ncols=True, unit="step")
-    model.train()
-    run_loss, run_n, last_logs = 0.0, 0, {}
-    train_loss = val_loss = None
-    t_start = time.perf_counter()
-    while step < total:
-        epoch = step // steps_per_epoch
-        batches = _epoch_batches(len(train_set), config.batch_size, seed=config.seed, epoch=epoch)
-        batches = batches[step % steps_per_epoch :]
-        # its own generator: creating a loader must not consume the global RNG (exact resumption)
-        loader = DataLoader(train_set, batch_sampler=batches, num_workers=config.num_workers,
-                            generator=torch.Generator().manual_seed(config.seed + epoch))
-        for batch in loader:
-            lr = learning_rate(step, base_lr=config.lr, total_steps=total, warmup_steps=config.warmup_steps,
-                               kind=config.lr_schedule, min_lr=min(config.min_lr, config.lr))
-            for group in optimizer.param_groups:
-                group["lr"] = lr
-            ctx = StepContext(step=step, epoch=epoch, training=True, generator=generator, config=config)
-            loss, logs = step_fn(model, _to_device(batch, device), ctx)
-            loss_value = float(loss.detach())
-            if not math.isfinite(loss_value):
-                raise FloatingPointError(f"the training loss became {loss_value} at step {step}")
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()
-            if config.grad_clip is not None:
-                torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
-            optimizer.step()
-            step += 1
-            run_loss += loss_value
-            run_n += 1
-            last_logs = dict(logs)
-            bar.update(1)
-            bar.set_postfix(loss=f"{loss_value:.4f}", lr=f"{lr:.2e}", **{k: v for k, v in last_logs.items()})
-
-            if step % config.log_every == 0 or step == total:
-                train_loss = run_loss / run_n
-                log({"step": step, "epoch": epoch, "loss": train_loss, "lr": lr, **last_logs,
-                     "elapsed_s": round(time.perf_counter() - t_start, 3)})
-                run_loss, run_n = 0.0, 0
-            if val_set is not None and len(val_set) and (step % config.val_every == 0 or step == total):
-                val_loss = evaluate(model, val_set, step_fn, config=config, step=step, epoch=epoch)
-                log({"step": step, "epoch": epoch, "val_loss": val_loss})
-                if progress:
-                    bar.write(f"step {step}: val_loss {val_loss:.4f}")
-                if best_val is None or val_loss < best_val:
-                    best_val = val_loss
-                    with atomic_dir(out_dir / "best") as tmp:
-                        write_pretrained(tmp, model, model.config, stats=stats,
-                                         extra={**extra, "step": step, "val_loss": val_loss})
-            if step % config.ckpt_every == 0 or step == total:
-                save(step)
-            if step >= total:
-                break
-    bar.close()
-    if train_loss is None:
-        train_loss = next((r["loss"] for r in reversed(history) if "loss" in r), None)
-    if val_loss is None:
-        val_loss = next((r["val_loss"] for r in reversed(history) if "val_loss" in r), None)
-    return TrainResult(step=step, epoch=step // steps_per_epoch, train_loss=train_loss, val_loss=val_loss,
-                       best_val_loss=best_val, out_dir=out_dir, history=list(history))
-
-
-def _load_checkpoint(folder: Path, model: nn.Module, optimizer: torch.optim.Optimizer,
-                     generator: torch.Generator, device: torch.device) -> tuple[int, list, float | None]:
-    from safetensors.torch import load_file
-
-    saved = read_config(folder)
-    current = dataclasses.asdict(model.config)
-    if saved["config"] != current:
-        diff = sorted(k for k in set(saved["config"]) | set(current) if saved["config"].get(k) != current.get(k))
-        raise CheckpointError(f"cannot resume from {folder}: the model configuration differs in {diff}")
-    try:
-        model.load_state_dict(load_file(str(folder / WEIGHTS_FILE), device=str(device)))
-        state = torch.load(folder / STATE_FILE, map_location=device, weights_only=True)
-        optimizer.load_state_dict(state["optimizer"])
-        _set_rng_state(state["rng"], generator)
-    except (RuntimeError, OSError, KeyError, ValueError) as exc:
-        raise CheckpointError(f"cannot resume from {folder}: {exc}") from exc
-    return int(state["step"]), json.loads(state["history"]), state["best_val"]
+    trainer = Trainer(model, train_set, val_set, config, step_fn=step_fn, out_dir=out_dir, stats=stats, meta=meta,
+                      progress=progress, callbacks=callbacks)
+    return trainer.fit(resume=resume)
