@@ -1,5 +1,9 @@
 # dancekit — the two commands a new user needs: `make demo` and `make test`.
-PYTHON ?= python3.11
+# Both create .venv if needed and install the tested set: pip install -c constraints.txt -e '.[dev]'.
+# Python 3.11, 3.12 or 3.13: python3.11 if it runs, else python3; `make PYTHON=python3.12 test` picks one.
+ifeq ($(origin PYTHON),undefined)
+PYTHON := $(shell for p in python3.11 python3; do $$p -c '' >/dev/null 2>&1 && { echo $$p; exit; }; done; echo python3)
+endif
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
@@ -9,12 +13,14 @@ OUT    ?= demo_out
 .PHONY: demo test install bench lint clean
 
 $(PY):
-	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (dancekit needs Python 3.11)" >&2; exit 1; }
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' >/dev/null 2>&1 || { \
+	  echo "error: dancekit needs Python >= 3.11 (tested: 3.11, 3.12, 3.13); '$(PYTHON)' is missing or older." >&2; \
+	  echo "       Install one and run e.g. 'make PYTHON=python3.12 test'." >&2; exit 1; }
 	$(PYTHON) -m venv $(VENV)
 
-$(STAMP): pyproject.toml | $(PY)
+$(STAMP): pyproject.toml constraints.txt | $(PY)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev]'
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[dev]'
 	@touch $(STAMP)
 
 install: $(STAMP)
