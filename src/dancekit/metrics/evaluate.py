@@ -40,8 +40,8 @@ from dancekit.errors import DatasetError, ParameterError
 from dancekit.metrics import beat as beat_mod
 from dancekit.metrics import fid as fid_mod
 from dancekit.metrics import physics, stability
-from dancekit.metrics._common import resample_positions
 from dancekit.metrics.distance import mean_joint_distance
+from dancekit.motion.analysis import resample_positions
 
 __all__ = ["EvalSettings", "evaluate_dirs", "evaluate_motions", "format_markdown", "group_predictions"]
 
@@ -184,7 +184,8 @@ def evaluate_motions(
         beats = music_beats.get(name) if music_beats is not None else None
         row = dance_metrics(m.to_positions(), fps=m.fps, skeleton=m.skeleton, music_beats=beats, settings=settings)
         gt = ref[name]
-        p = resample_positions(np.asarray(m.to_positions(), np.float64), m.fps, gt.fps) * m.skeleton.unit_scale
+        p = resample_positions(np.asarray(m.to_positions(), np.float64), orig_fps=m.fps,
+                               target_fps=gt.fps) * m.skeleton.unit_scale
         g = np.asarray(gt.to_positions(), np.float64) * gt.skeleton.unit_scale
         row["fd_dual_mean_joint_distance_cm"] = 100.0 * mean_joint_distance(p, g)
         per_dance[f"{name}#{k}"] = row

@@ -52,18 +52,10 @@ from torch import nn
 
 from dancekit._io import atomic_path
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.metrics._common import (
-    check_fps,
-    check_positions,
-    horizontal_axes,
-    joint,
-    resample_positions,
-    root_index,
-    to_metres,
-    up_index,
-    up_sign,
-)
+from dancekit.metrics._common import check_fps, check_positions, root_index, to_metres
 from dancekit.metrics.fid import average_pairwise_distance, frechet_distance
+from dancekit.motion.analysis import heading_axes as _heading_axes
+from dancekit.motion.analysis import horizontal_axes, resample_positions
 
 if TYPE_CHECKING:  # pragma: no cover
     from dancekit.motion import Skeleton
@@ -91,23 +83,6 @@ FAMILY = "style"
 
 # ---------------------------------------------------------------------------------------------
 # input representation
-
-
-def _heading_axes(p: np.ndarray, skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-frame body axes (T, 3) each: left (horizontal), up, forward = left x up."""
-    up = np.zeros(3)
-    up[up_index(skeleton)] = up_sign(skeleton)
-    lateral = (p[:, joint(skeleton, "left_hip")] - p[:, joint(skeleton, "right_hip")]) + (
-        p[:, joint(skeleton, "left_shoulder")] - p[:, joint(skeleton, "right_shoulder")]
-    )
-    lateral = lateral - np.outer(lateral @ up, up)
-    norm = np.linalg.norm(lateral, axis=-1, keepdims=True)
-    fallback = np.zeros(3)
-    fallback[horizontal_axes(skeleton)[0]] = 1.0
-    lateral = np.where(norm > 1e-9, lateral / np.maximum(norm, 1e-12), fallback)
-    ups = np.broadcast_to(up, lateral.shape)
-    forward = np.cross(lateral, ups)
-    return lateral, ups, forward
 
 
 def style_input(positions: np.ndarray, *, fps: float, skeleton: Skeleton) -> np.ndarray:
@@ -254,7 +229,7 @@ class StyleModel:
         skeleton = skeleton or self.skeleton
         self.check_skeleton(skeleton)
         fps = check_fps(fps)
-        p = resample_positions(check_positions(positions, skeleton, min_frames=2), fps, self.fps)
+        p = resample_positions(check_positions(positions, skeleton, min_frames=2), orig_fps=fps, target_fps=self.fps)
         x = (style_input(p, fps=self.fps, skeleton=skeleton) - self.mean) / self.std
         L = self.window
         if len(x) < L:
