@@ -169,18 +169,19 @@ def test_evaluate_with_a_prepared_dataset(tmp_path):
 
 
 def test_evaluate_real_dances_with_the_shipped_classifier(tang2018_dir):
+    from dancekit.checkpoints import MODELS_DIR
     from dancekit.metrics.evaluate import evaluate_motions
-    from dancekit.metrics.style import DEFAULT_CLASSIFIER, load_style_classifier
     from dancekit.motion.formats import read_tang2018
+    from dancekit.pipelines import StylePipeline
 
-    if not (DEFAULT_CLASSIFIER / "config.json").is_file():
+    if not (MODELS_DIR / "style" / "config.json").is_file():
         pytest.skip("no classifier shipped yet")
     genres = {"DANCE_C_6": "chacha", "DANCE_R_2": "rumba", "DANCE_W_1": "waltz"}  # test split
     ref = {n: read_tang2018(tang2018_dir / n)[0] for n in genres}
     frozen = {n: Motion(skeleton=m.skeleton, fps=m.fps, positions=np.repeat(m.to_positions()[:1], m.num_frames, 0))
               for n, m in ref.items()}
     pred = {n: [ref[n], frozen[n]] for n in genres}
-    report = evaluate_motions(pred, ref, genres=genres, classifier=load_style_classifier(),
+    report = evaluate_motions(pred, ref, genres=genres, classifier=StylePipeline.from_pretrained(),
                               settings=EvalSettings(segment_seconds=10.0))
     real, m = report["real"], report["metrics"]
     # the feature covariance has eigenvalues from 1e-7 to 3e3: sqrtm's rounding is ~1e-5 here

@@ -149,8 +149,9 @@ def run(args: argparse.Namespace) -> int:
     data = PreparedData(args.data)
     preset = family.preset
     t0 = time.perf_counter()
-    stats = compute_stats(data, preset=preset, representation=tc.representation)
+    stats = compute_stats(data, preset=preset, representation=tc.representation) if preset is not None else None
     train_set, val_set = family.load("dataset")(data, tc, stats, preset=preset)
+    stats = getattr(train_set, "stats", stats)  # a family that reads no music has its own input statistics
     if len(train_set) == 0:
         raise ParameterError(f"no training window of {tc.seq_len} frames fits in the dances of {args.data}")
 

@@ -148,7 +148,7 @@ def evaluate_motions(
     music_beats : reference name → music beat times (s from the dance start); None skips beats
     genres : reference name → genre of the music; None skips ACC
     fid_reference : the real motions forming the FID reference distribution (default: ``ref``)
-    classifier : a :class:`~dancekit.metrics.style.StyleModel`, or None to skip the style metrics
+    classifier : a :class:`~dancekit.pipelines.StylePipeline`, or None to skip the style metrics
     settings : :class:`EvalSettings`
 
     Returns
@@ -349,7 +349,7 @@ def evaluate_dirs(
     ref_dir : folder of real ``NAME.npz`` dances, or a prepared dataset folder (its test split)
     data : prepared dataset folder (music beats, genres, the ``train`` / ``all`` FID reference)
     audio_dir : folder of ``NAME.<wav|mp3|ogg|flac>`` songs (when there is no prepared dataset)
-    classifier : a StyleModel, a checkpoint folder, ``"default"`` (the shipped classifier; skipped
+    classifier : a StylePipeline, a checkpoint folder, ``"default"`` (the shipped classifier; skipped
         with a note if it is missing) or None (skip the style metrics)
     settings : :class:`EvalSettings`
     preset : feature preset whose ``beat_times`` are used (default ``revolution`` if prepared)
@@ -409,18 +409,18 @@ def evaluate_dirs(
 
     model = None
     clf_note = None
+    from dancekit.checkpoints import MODELS_DIR
+    from dancekit.pipelines.style import StylePipeline
+
+    default = MODELS_DIR / "style"
     if isinstance(classifier, str) and classifier == "default":
-        from dancekit.metrics.style import DEFAULT_CLASSIFIER, load_style_classifier
-
-        if (DEFAULT_CLASSIFIER / "config.json").is_file():
-            model = load_style_classifier()
-            model.meta["path"] = str(DEFAULT_CLASSIFIER)
+        if (default / "config.json").is_file():
+            model = StylePipeline.from_pretrained(default)
+            model.meta["path"] = str(default)
         else:
-            clf_note = f"the shipped style classifier is missing ({DEFAULT_CLASSIFIER})"
+            clf_note = f"the shipped style classifier is missing ({default})"
     elif isinstance(classifier, str | os.PathLike):
-        from dancekit.metrics.style import load_style_classifier
-
-        model = load_style_classifier(classifier)
+        model = StylePipeline.from_pretrained(classifier)
         model.meta["path"] = str(classifier)
     else:
         model = classifier
