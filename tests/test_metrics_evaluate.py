@@ -1,4 +1,4 @@
-"""``dancekit evaluate`` and :func:`dancekit.metrics.evaluate.evaluate_dirs` on synthetic folders."""
+"""``dancekit evaluate`` and :func:`dancekit.evaluation.evaluate_dirs` on synthetic folders."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from dancekit.cli.main import main
 from dancekit.errors import DatasetError
-from dancekit.metrics.evaluate import EvalSettings, evaluate_dirs, format_markdown, group_predictions
+from dancekit.evaluation import EvalSettings, evaluate_dirs, format_markdown, group_predictions
 from dancekit.motion import Motion, get_skeleton, write_motion
 
 SK = get_skeleton("tang2018")
@@ -170,7 +170,7 @@ def test_evaluate_with_a_prepared_dataset(tmp_path):
 
 def test_evaluate_real_dances_with_the_shipped_classifier(tang2018_dir):
     from dancekit.checkpoints import MODELS_DIR
-    from dancekit.metrics.evaluate import evaluate_motions
+    from dancekit.evaluation import evaluate_motions
     from dancekit.motion.formats import read_tang2018
     from dancekit.pipelines import StylePipeline
 

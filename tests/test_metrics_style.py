@@ -8,13 +8,8 @@ from _style import fit_tiny_style_classifier
 
 from dancekit.checkpoints import MODELS_DIR
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.metrics.style import (
-    balanced_accuracy,
-    classification_scores,
-    multimodality,
-    style_diversity,
-    style_fid,
-)
+from dancekit.evaluation import style_classifier_scores
+from dancekit.metrics.style import balanced_accuracy, multimodality, style_diversity, style_fid
 from dancekit.models.style import style_input
 from dancekit.motion import get_skeleton
 from dancekit.pipelines import StylePipeline
@@ -74,8 +69,7 @@ def test_style_input_is_heading_and_position_invariant():
 def test_tiny_classifier_learns_synthetic_genres(tiny_classifier):
     model, _ = tiny_classifier
     test = [(synthetic_dance(g, 200 + seed), g) for seed in range(3) for g in (0, 1)]
-    scores = classification_scores([model.embed(p, fps=25.0)[1] for p, _ in test], [g for _, g in test],
-                                   genres=model.genres)
+    scores = style_classifier_scores(model, test, fps=25.0)
     assert scores["dance_accuracy"] == 1.0
     assert scores["window_balanced_accuracy"] >= 0.9
     feats, logp = model.embed(test[0][0], fps=25.0)
