@@ -2,7 +2,7 @@
 # The curriculum ablation of Dance Revolution (Table 3 of the paper, schedule part), at a reduced
 # budget that fits a 2-core CPU: the same default model trained for STEPS steps with
 #   teacher forcing (p = 0), a constant p = 10, and the linear schedule p = floor(λ·epoch) (λ = 1),
-# each scored on the test split by scripts/evaluate_model.py (1 dance per song).
+# each scored on the test split by `dancekit evaluate --checkpoint` (1 dance per song).
 #
 #   [THREADS=2] bash scripts/curriculum_ablation.sh [DATA=data/tang2018] [STEPS=800]
 set -euo pipefail
@@ -22,5 +22,5 @@ for name in teacher_forcing const linear; do
   "$PY" -m dancekit.cli.main train revolution --data "$DATA" --out "$OUT/$name" --quiet \
       --set steps="$STEPS" --set threads="${THREADS:-2}" ${SETS[$name]}
   echo "$name: trained $STEPS steps in $(( $(date +%s) - start )) s"
-  "$PY" scripts/evaluate_model.py --checkpoint "$OUT/$name/model" --data "$DATA" --out "$OUT/$name/eval" --seeds 1
+  "$PY" -m dancekit.cli.main evaluate --checkpoint "$OUT/$name/model" --data "$DATA" -o "$OUT/$name/eval" --seeds 1 --quiet
 done

@@ -10,11 +10,17 @@ Copies ``config.json``, ``model.safetensors`` and ``stats.npz`` (nothing else) a
 
 ``--genre-model GENRE=DIR`` (repeatable) adds a genre model (e.g. the model fine-tuned on one genre's
 dances) as ``genres/GENRE/``, its weights stored as float16 (half the size; the pipeline computes in
-float32); ``--genre-report JSON`` records the genre-steering scores of ``scripts/genre_steering.py``.
+float32); ``--genre-report JSON`` records the genre-steering scores of ``dancekit steering``.
 ``--music-attributes DIR`` adds a music attribute classifier (``dancekit train music_attributes``) as
 ``music_attributes/``: ``--genre auto`` then reads the genre from the music and dances it with the genre
 model. ``--report`` is then the report of that default behaviour; ``--report-none JSON`` adds the report
-of the model alone (``--genre none``) to the card.
+of the model alone (``--genre none``) to the card. The parts are declared in the model's ``config.json``
+(``"components": {"genre_reader": "music_attributes", "genres": {"waltz": "genres/waltz", ...}}``,
+:func:`dancekit.checkpoints.declare_components`), which is how the pipeline finds them.
+
+A classifier is embedded the same way (e.g. the style classifier of ``dancekit evaluate``:
+``python scripts/embed_model.py runs/style/best --name style --description ... --scores scores.json``,
+with the scores of ``dancekit score-classifier runs/style/best --data DIR -o scores.json`` in the card).
 """
 
 from __future__ import annotations
@@ -44,14 +50,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--genre-model", action="append", default=[], metavar="GENRE=DIR",
                         help="add a genre model (float16 weights) as genres/GENRE")
     parser.add_argument("--genre-training", default=None, help="how the genre models were trained (card)")
-    parser.add_argument("--genre-report", default=None, help="genre steering report (scripts/genre_steering.py)")
+    parser.add_argument("--genre-report", default=None, help="genre steering report (dancekit steering -o)")
     parser.add_argument("--music-attributes", default=None, metavar="DIR",
                         help="add a music attribute classifier checkpoint as music_attributes/")
     parser.add_argument("--music-attributes-training", default=None,
                         help="how the music attribute classifier was trained and how it scores (card)")
     parser.add_argument("--report-none", default=None, metavar="JSON",
                         help="dancekit evaluate report of the model alone (--genre none, test split)")
+    parser.add_argument("--scores", default=None, metavar="JSON",
+                        help="a classifier's scores (dancekit score-classifier -o) for the card")
     args = parser.parse_args(argv)
+
+    from dancekit.checkpoints import declare_components
 
     src = Path(args.checkpoint)
     config = json.loads((src / "config.json").read_text())
@@ -81,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
         report = json.loads(Path(args.report).read_text())
         card["metrics_source"] = "dancekit evaluate on the tang2018 test split (6 dances), see docs/BENCHMARKS.md"
         card["metrics"] = _pick(report)
+    components: dict = {}
     if args.genre_model:
         card["genre_models"] = _embed_genre_models(dst, args.genre_model)
         card["genre_training"] = args.genre_training
@@ -90,8 +101,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.music_attributes:
         _copy_checkpoint(Path(args.music_attributes), dst / "music_attributes")
         card["music_attributes"] = args.music_attributes_training
+        components["genre_reader"] = "music_attributes"
+    if args.genre_model:
+        components["genres"] = {g: f"genres/{g}" for g in card["genre_models"]}
+    if components:
+        declare_components(dst, components)
     if args.report_none:
         card["metrics_genre_none"] = _pick(json.loads(Path(args.report_none).read_text()))
+    if args.scores:
+        scores = json.loads(Path(args.scores).read_text())
+        card["scores"] = scores[0] if isinstance(scores, list) and len(scores) == 1 else scores
     (dst / "card.json").write_text(json.dumps(card, indent=1) + "\n")
     size = sum(f.stat().st_size for f in dst.rglob("*") if f.is_file())
     print(f"embedded {src} as {dst} ({size / 1e6:.2f} MB)")
@@ -128,6 +147,7 @@ def _copy_checkpoint(src: Path, out: Path, *, weights: bool = True) -> None:
             continue
         shutil.copy2(src / name, out / name)
     config = json.loads((src / "config.json").read_text())
+    config.pop("components", None)  # the parts embedded with it are declared afresh (declare_components)
     if isinstance(config.get("data"), dict) and config["data"].get("root"):
         config["data"]["root"] = _portable(config["data"]["root"])
     if config.get("init"):

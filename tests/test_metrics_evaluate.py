@@ -1,4 +1,4 @@
-"""``dancekit evaluate`` and :func:`dancekit.metrics.evaluate.evaluate_dirs` on synthetic folders."""
+"""``dancekit evaluate`` and :func:`dancekit.evaluation.evaluate_dirs` on synthetic folders."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from dancekit.cli.main import main
 from dancekit.errors import DatasetError
-from dancekit.metrics.evaluate import EvalSettings, evaluate_dirs, format_markdown, group_predictions
+from dancekit.evaluation import EvalSettings, evaluate_dirs, format_markdown, group_predictions
 from dancekit.motion import Motion, get_skeleton, write_motion
 
 SK = get_skeleton("tang2018")
@@ -241,17 +241,18 @@ def test_evaluate_with_a_prepared_dataset(tmp_path):
 
 
 def test_evaluate_real_dances_with_the_shipped_classifier(tang2018_dir):
-    from dancekit.metrics.evaluate import evaluate_motions
-    from dancekit.metrics.style import DEFAULT_CLASSIFIER, load_style_classifier
+    from dancekit.checkpoints import MODELS_DIR
+    from dancekit.evaluation import evaluate_motions
     from dancekit.motion.formats import read_tang2018
+    from dancekit.pipelines import StylePipeline
 
-    assert (DEFAULT_CLASSIFIER / "config.json").is_file(), f"no packaged style classifier in {DEFAULT_CLASSIFIER}"
+    assert (MODELS_DIR / "style" / "config.json").is_file(), f"no packaged style classifier in {MODELS_DIR / 'style'}"
     genres = {"DANCE_C_6": "chacha", "DANCE_R_2": "rumba", "DANCE_W_1": "waltz"}  # test split
     ref = {n: read_tang2018(tang2018_dir / n)[0] for n in genres}
     frozen = {n: Motion(skeleton=m.skeleton, fps=m.fps, positions=np.repeat(m.to_positions()[:1], m.num_frames, 0))
               for n, m in ref.items()}
     pred = {n: [ref[n], frozen[n]] for n in genres}
-    report = evaluate_motions(pred, ref, genres=genres, classifier=load_style_classifier(),
+    report = evaluate_motions(pred, ref, genres=genres, classifier=StylePipeline.from_pretrained(),
                               settings=EvalSettings(segment_seconds=10.0))
     real, m = report["real"], report["metrics"]
     # the feature covariance has eigenvalues from 1e-7 to 3e3: sqrtm's rounding is ~1e-5 here

@@ -4,20 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _style import fit_tiny_style_classifier
 
+from dancekit.checkpoints import MODELS_DIR
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.metrics.style import (
-    DEFAULT_CLASSIFIER,
-    balanced_accuracy,
-    evaluate_classifier,
-    fit_style_classifier,
-    load_style_classifier,
-    multimodality,
-    style_diversity,
-    style_fid,
-    style_input,
-)
+from dancekit.evaluation import style_classifier_scores
+from dancekit.metrics.style import balanced_accuracy, multimodality, style_diversity, style_fid
+from dancekit.models.style import style_input
 from dancekit.motion import get_skeleton
+from dancekit.pipelines import StylePipeline
+
+DEFAULT_CLASSIFIER = MODELS_DIR / "style"
 
 SK = get_skeleton("tang2018")
 
@@ -53,9 +50,9 @@ def tiny_classifier(tmp_path_factory):
     train = [(synthetic_dance(g, seed), g) for seed in range(4) for g in (0, 1)]
     val = [(synthetic_dance(g, 100 + g), g) for g in (0, 1)]
     out = tmp_path_factory.mktemp("style_run")
-    model = fit_style_classifier(
-        train, skeleton=SK, fps=25.0, genres=["swing", "bob"], out_dir=out, val=val, window_seconds=2.0,
-        stride_seconds=1.0, epochs=4, batch_size=16, channels=16, feature_dim=8, progress=False,
+    model = fit_tiny_style_classifier(
+        train, val, skeleton=SK, fps=25.0, genres=["swing", "bob"], out_dir=out, window=50, stride=25,
+        epochs=4, batch_size=16, channels=16, feature_dim=8,
     )
     return model, out
 
@@ -72,7 +69,7 @@ def test_style_input_is_heading_and_position_invariant():
 def test_tiny_classifier_learns_synthetic_genres(tiny_classifier):
     model, _ = tiny_classifier
     test = [(synthetic_dance(g, 200 + seed), g) for seed in range(3) for g in (0, 1)]
-    scores = evaluate_classifier(model, test, fps=25.0)
+    scores = style_classifier_scores(model, test, fps=25.0)
     assert scores["dance_accuracy"] == 1.0
     assert scores["window_balanced_accuracy"] >= 0.9
     feats, logp = model.embed(test[0][0], fps=25.0)
@@ -82,7 +79,7 @@ def test_tiny_classifier_learns_synthetic_genres(tiny_classifier):
 
 def test_classifier_save_load_round_trip(tiny_classifier):
     model, out = tiny_classifier
-    again = load_style_classifier(out / "best")
+    again = StylePipeline.from_pretrained(out / "best")
     p = synthetic_dance(1, 7)
     np.testing.assert_allclose(again.embed(p, fps=25.0)[0], model.embed(p, fps=25.0)[0], rtol=1e-5, atol=1e-6)
     assert again.genres == ["swing", "bob"]
@@ -95,7 +92,7 @@ def test_classifier_rejects_other_skeletons_and_bad_folders(tiny_classifier, tmp
     with pytest.raises(ParameterError, match="skeleton"):
         model.embed(np.zeros((100, 24, 3)), fps=25.0, skeleton=get_skeleton("smpl"))
     with pytest.raises(CheckpointError):
-        load_style_classifier(tmp_path / "missing")
+        StylePipeline.from_pretrained(tmp_path / "missing")
 
 
 def test_style_fid_diversity_multimodality_known_answers(rng):
@@ -128,7 +125,7 @@ def test_shipped_classifier(tang2018_dir):
     assert (DEFAULT_CLASSIFIER / "config.json").is_file(), f"no packaged style classifier in {DEFAULT_CLASSIFIER}"
     from dancekit.motion.formats import read_tang2018
 
-    model = load_style_classifier()
+    model = StylePipeline.from_pretrained()
     for name, genre in (("DANCE_C_6", "chacha"), ("DANCE_W_1", "waltz"), ("DANCE_R_2", "rumba")):  # test split
         motion = read_tang2018(tang2018_dir / name)[0]
         assert model.genres[model.predict(motion.to_positions(), fps=motion.fps)] == genre

@@ -1,8 +1,11 @@
-"""Argument checks shared by every layer (no dependency beyond :mod:`dancekit.errors`)."""
+"""Argument checks shared by every layer (no dependency beyond :mod:`dancekit.errors` and NumPy)."""
 
 from __future__ import annotations
 
 import math
+from typing import Any
+
+import numpy as np
 
 from dancekit.errors import ParameterError
 
@@ -23,3 +26,27 @@ def check_fps(fps: float, *, name: str = "fps") -> float:
     if not math.isfinite(value) or value <= 0:
         raise ParameterError(problem)
     return value
+
+
+def check_positions(positions: Any, skeleton: Any = None, *, min_frames: int = 2,
+                    name: str = "positions") -> np.ndarray:
+    """World joint positions ``(T, J, 3)`` as a float64 array, else :class:`ParameterError`.
+
+    Raises
+    ------
+    ParameterError
+        If the array is not 3-D with 3 coordinates, has fewer than ``min_frames`` frames, does not
+        match ``skeleton.num_joints`` (when a skeleton is given) or holds NaN / inf.
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 3 or p.shape[2] != 3:
+        raise ParameterError(f"{name} must have shape (T, J, 3), got {p.shape}")
+    if skeleton is not None and p.shape[1] != skeleton.num_joints:
+        raise ParameterError(
+            f"{name} has {p.shape[1]} joints but skeleton {skeleton.name!r} has {skeleton.num_joints}"
+        )
+    if p.shape[0] < min_frames:
+        raise ParameterError(f"{name} has {p.shape[0]} frames; this needs at least {min_frames}")
+    if not np.isfinite(p).all():
+        raise ParameterError(f"{name} contains NaN or inf values")
+    return p

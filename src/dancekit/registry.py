@@ -148,8 +148,8 @@ register(Family(
 
 register(Family(
     name="style",
-    config="dancekit.metrics.style:StyleClassifierConfig",
-    module="dancekit.metrics.style:StyleClassifier",
+    config="dancekit.models.style:StyleClassifierConfig",
+    module="dancekit.models.style:StyleClassifier",
     objective="dancekit.training.objectives:style_step",
     dataset="dancekit.training.datasets:style_windows",
     pipeline="dancekit.pipelines.style:StylePipeline",
@@ -158,5 +158,10 @@ register(Family(
     input="motion",
     description="dance style classifier (motion → genre) whose features serve the style metrics "
                 "(style accuracy, style diversity, multimodality)",
-    data_fields=("n_joints", "n_classes"),
+    # the embedded classifier's run: 4-s windows every 0.5 s (25 fps) of the training dances and their
+    # mirror images, 15 epochs of the 6384 tang2018 windows (99 steps of 64), validated every epoch
+    train_defaults={"seq_len": 100, "stride": 12, "random_offset": False, "steps": 1485, "batch_size": 64,
+                    "lr": 2e-3, "warmup_steps": 50, "weight_decay": 1e-4, "log_every": 99, "val_every": 99,
+                    "ckpt_every": 1485, "keep_checkpoints": 1, "threads": 1},
+    data_fields=("in_dim", "genres", "window", "fps", "class_weights"),
 ))

@@ -1,10 +1,13 @@
-"""``dancekit evaluate``: score a folder of generated dances against the real ones.
+"""``dancekit evaluate``: score generated dances against the real ones.
 
+    dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 5 -o runs/eval
     dancekit evaluate --pred runs/model/test --ref data/tang2018 --data data/tang2018 -o report.json
 
-Prints a markdown table (generated vs real) and writes every metric, per-dance values and the
-settings used to a JSON file (atomically). Layout, music lookup and defaults:
-:mod:`dancekit.metrics.evaluate` and docs/METRICS.md.
+With ``--checkpoint`` the model first dances every song of the split (``OUT/pred/NAME__k.npz``) and the
+report goes to ``OUT/report.json``; with ``--pred`` a folder of dances is scored into the JSON file ``-o``.
+Prints a markdown table (generated vs real); the report holds every metric, per-dance values and the
+settings used (written atomically). Layout, music lookup and defaults: :mod:`dancekit.evaluation` and
+docs/METRICS.md.
 """
 
 from __future__ import annotations
@@ -20,19 +23,30 @@ from dancekit.errors import ParameterError
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "evaluate",
-        help="score generated dances against real ones (FID_k/g, BAS, style FID/ACC, ...)",
-        description="Score a folder of generated dances (NAME.npz or NAME__k.npz, NAME = a reference dance) "
-        "against the reference dances and print a markdown table; every metric goes to the JSON report.",
+        help="score dances against real ones (FID_k/g, BAS, style FID/ACC, ...), a model's or a folder's",
+        description="Dance every song of a split with a model (--checkpoint) and score the dances, or score a "
+        "folder of generated dances (--pred: NAME.npz or NAME__k.npz, NAME = a reference dance) against the "
+        "reference dances; prints a markdown table, every metric goes to the JSON report.",
     )
-    p.add_argument("--pred", required=True, metavar="DIR", help="folder of generated .npz dances")
-    p.add_argument("--ref", required=True, metavar="DIR",
-                   help="folder of real NAME.npz dances, or a prepared dataset folder (its --split)")
-    p.add_argument("--split", default="test", help="split of a prepared --ref folder (default test)")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--checkpoint", metavar="MODEL",
+                      help="a checkpoint folder or model name: dance the songs of --split, then score (needs --data)")
+    what.add_argument("--pred", metavar="DIR", help="folder of generated .npz dances (needs --ref)")
+    p.add_argument("--ref", metavar="DIR",
+                   help="with --pred: folder of real NAME.npz dances, or a prepared dataset folder (its --split)")
+    p.add_argument("--split", default="test", help="split to dance / of a prepared --ref folder (default test)")
     music = p.add_mutually_exclusive_group()
     music.add_argument("--data", metavar="PREPARED_DIR",
-                       help="prepared dataset: music beats (features_*.npz beat_times), genres, FID reference")
+                       help="prepared dataset: songs, music beats (features_*.npz beat_times), genres, FID reference")
     music.add_argument("--audio", metavar="DIR", help="folder of NAME.wav|mp3|ogg|flac songs (beats are tracked)")
-    p.add_argument("-o", "--output", required=True, metavar="JSON", help="report file to write")
+    p.add_argument("-o", "--output", required=True, metavar="PATH",
+                   help="with --checkpoint: output folder (pred/, report.json); with --pred: the report file")
+    gen = p.add_argument_group("generation (--checkpoint)")
+    gen.add_argument("--seeds", type=int, default=None, help="dances per song, seeds 0..N-1 (default 5)")
+    gen.add_argument("--genre", default=None,
+                     help="auto (the genre read from the music when the model has a music attribute classifier, "
+                          "else the model alone; default), none (the model alone), true (each song's own genre), "
+                          "or a genre name for every song")
     p.add_argument("--sigma", type=float, default=0.05, help="BAS Gaussian sigma in seconds (default 0.05)")
     p.add_argument("--tolerance", type=float, default=0.1,
                    help="beat hit tolerance in seconds for coverage / hit rate (default 0.1)")
@@ -47,18 +61,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("--no-style", action="store_true", help="skip the style-classifier metrics")
     p.add_argument("--preset", default=None, help="feature preset whose beat_times to use (default revolution)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random pairs of Diversity (default 0)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
     return p
 
 
 def run(args: argparse.Namespace) -> int:
-    from dancekit.metrics.evaluate import EvalSettings, evaluate_dirs, format_markdown
+    from dancekit.evaluation import EvalSettings, evaluate_checkpoint, evaluate_dirs, format_markdown
 
     if args.segment_seconds < 0:
         raise ParameterError(f"--segment-seconds must be >= 0, got {args.segment_seconds}")
-    out = Path(args.output)
-    if not out.parent.exists():
-        raise ParameterError(f"output folder does not exist: {out.parent}")
     settings = EvalSettings(
         sigma=args.sigma,
         tolerance=args.tolerance,
@@ -68,6 +80,28 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
     )
     classifier = None if args.no_style else (args.classifier or "default")
+    out = Path(args.output)
+    if args.checkpoint is not None:
+        if args.data is None:
+            raise ParameterError("--checkpoint needs --data (the prepared dataset whose songs are danced)")
+        if args.ref is not None or args.preset is not None:
+            raise ParameterError("--ref and --preset go with --pred; --checkpoint scores against --data")
+        seeds = 5 if args.seeds is None else args.seeds
+        report = evaluate_checkpoint(args.checkpoint, args.data, out, split=args.split, seeds=seeds,
+                                     genre=args.genre or "auto", settings=settings, classifier=classifier,
+                                     progress=not args.quiet)
+        g = report["generation"]
+        print(f"generated {g['seconds']:.0f} s of dance in {g['elapsed_s']:.1f} s "
+              f"({g['elapsed_s'] / max(g['seconds'], 1e-9) * 60:.2f} s per minute)")
+        print(format_markdown(report), end="")
+        print(f"report: {out / 'report.json'}")
+        return 0
+    if args.ref is None:
+        raise ParameterError("--pred needs --ref (the real dances)")
+    if args.seeds is not None or args.genre is not None:
+        raise ParameterError("--seeds and --genre go with --checkpoint")
+    if not out.parent.exists():
+        raise ParameterError(f"output folder does not exist: {out.parent}")
     report = evaluate_dirs(args.pred, args.ref, data=args.data, audio_dir=args.audio, classifier=classifier,
                            settings=settings, preset=args.preset, split=args.split)
     print(format_markdown(report), end="")

@@ -1,21 +1,24 @@
 """dancekit.metrics: NumPy in, NumPy out, fps- and skeleton-aware evaluation of dances.
 
+Pure functions: arrays (joint positions ``(T, J, 3)``, beat times, feature vectors) in, numbers or
+arrays out. The metrics import nothing of dancekit but the motion analysis helpers
+(:mod:`dancekit.motion.analysis`), :mod:`dancekit.errors` and :mod:`dancekit._checks`: no torch, no
+models, no files. Scoring generated dances with a model or from folders is :mod:`dancekit.evaluation`.
+
 =====================  ====================================================================
 module                 metrics
 =====================  ====================================================================
 :mod:`.fid`            AIST++ FID_k / FID_g, Div_k / Div_g, the Fréchet distance
 :mod:`.beat`           kinematic beats, BAS (Bailando and AIST++ conventions), beat
                        coverage and hit rate (Dance Revolution)
-:mod:`.style`          genre classifier; style FID, ACC, Diversity, Multimodality
+:mod:`.style`          on style-classifier features: FID, ACC, Diversity, Multimodality
 :mod:`.stability`      FID over windows, freeze score, stillness share, smoothed energy, jitter
 :mod:`.physics`        foot skating, PFC, bone-length variation, ground penetration
 :mod:`.music`          dance-to-music: notes accuracy (key-normalised), chroma L1, beat L1
 :mod:`.distance`       mean joint distance (the dual-learning paper's "Fréchet distance")
-:mod:`.evaluate`       every metric over a folder of generated dances, one report
 =====================  ====================================================================
 
-Definitions, defaults and deviations from the papers: ``docs/METRICS.md``. The style
-classifier (torch) is imported on first use.
+Definitions, defaults and deviations from the papers: ``docs/METRICS.md``.
 """
 
 from dancekit.metrics.beat import (
@@ -45,21 +48,19 @@ from dancekit.metrics.stability import (
     stillness_share,
     windowed_fid,
 )
-
-_LAZY = {
-    "StyleModel": "dancekit.metrics.style",
-    "load_style_classifier": "dancekit.metrics.style",
-    "train_style_classifier": "dancekit.metrics.style",
-    "fit_style_classifier": "dancekit.metrics.style",
-    "evaluate_dirs": "dancekit.metrics.evaluate",
-    "evaluate_motions": "dancekit.metrics.evaluate",
-    "format_markdown": "dancekit.metrics.evaluate",
-    "EvalSettings": "dancekit.metrics.evaluate",
-}
+from dancekit.metrics.style import (
+    balanced_accuracy,
+    classification_scores,
+    dance_genre,
+    multimodality,
+    style_diversity,
+    style_fid,
+)
 
 __all__ = [
     "GEOMETRIC_FEATURE_NAMES",
     "average_pairwise_distance",
+    "balanced_accuracy",
     "beat_align_score",
     "beat_coverage",
     "beat_hit_rate",
@@ -67,6 +68,8 @@ __all__ = [
     "beat_metrics",
     "bone_length_variation",
     "chroma_l1",
+    "classification_scores",
+    "dance_genre",
     "estimate_key",
     "fid_diversity",
     "foot_skating",
@@ -79,20 +82,15 @@ __all__ = [
     "kinematic_beats",
     "kinetic_features",
     "mean_joint_distance",
+    "multimodality",
     "normalize_features",
     "notes_accuracy",
     "pfc",
     "smoothed_energy",
     "stillness_share",
+    "style_diversity",
+    "style_fid",
     "transpose_to_c",
     "windowed_fid",
-    *_LAZY,
 ]
 
-
-def __getattr__(name: str):
-    if name in _LAZY:
-        import importlib
-
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'dancekit.metrics' has no attribute {name!r}")

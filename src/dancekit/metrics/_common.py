@@ -1,9 +1,11 @@
-"""Shared helpers of the metrics: input validation, axes, units, speeds.
+"""Shared helpers of the metrics: joint lookup with a metric's error message, metres, speeds, smoothing.
 
 Every metric takes world joint positions ``(T, J, 3)`` in the units of a skeleton
 (tang2018: centimetres, y up), the frame rate ``fps`` and the skeleton itself.
 Quantities that are compared across datasets are converted to metres and seconds
-through ``skeleton.unit_scale`` (metres per unit) and ``fps``.
+through ``skeleton.unit_scale`` (metres per unit) and ``fps``. The motion analysis the
+metrics share with other layers (up axis, heights, heading frame, floor, resampling,
+kinematic beats) is :mod:`dancekit.motion.analysis`; input checks are :mod:`dancekit._checks`.
 """
 
 from __future__ import annotations
@@ -13,79 +15,17 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dancekit._checks import check_fps as check_fps  # re-exported for the metrics modules
+from dancekit._checks import check_positions as check_positions
 from dancekit.errors import ParameterError
+from dancekit.motion.analysis import up_sign
 
 if TYPE_CHECKING:  # pragma: no cover
     from dancekit.motion import Skeleton
 
-AXES = {"x": 0, "y": 1, "z": 2}
-
-
-def check_positions(
-    positions: np.ndarray,
-    skeleton: Skeleton | None = None,
-    *,
-    min_frames: int = 2,
-    name: str = "positions",
-) -> np.ndarray:
-    """Validate joint positions ``(T, J, 3)`` and return them as float64.
-
-    Raises
-    ------
-    ParameterError
-        If the array is not 3-D with 3 coordinates, has fewer than ``min_frames``
-        frames, does not match ``skeleton.num_joints`` or holds NaN / inf.
-    """
-    p = np.asarray(positions, dtype=np.float64)
-    if p.ndim != 3 or p.shape[2] != 3:
-        raise ParameterError(f"{name} must have shape (T, J, 3), got {p.shape}")
-    if skeleton is not None and p.shape[1] != skeleton.num_joints:
-        raise ParameterError(
-            f"{name} has {p.shape[1]} joints but skeleton {skeleton.name!r} has {skeleton.num_joints}"
-        )
-    if p.shape[0] < min_frames:
-        raise ParameterError(f"{name} has {p.shape[0]} frames; this metric needs at least {min_frames}")
-    if not np.isfinite(p).all():
-        raise ParameterError(f"{name} contains NaN or inf values")
-    return p
-
-
-def up_index(skeleton: Skeleton) -> int:
-    """Index (0, 1, 2) of the skeleton's up axis (``"-y"`` counts as axis 1)."""
-    axis = str(skeleton.up_axis).lower()
-    if axis.lstrip("-") in AXES:
-        return AXES[axis.lstrip("-")]
-    raise ParameterError(f"skeleton {skeleton.name!r} has an unknown up_axis {skeleton.up_axis!r}")
-
-
-def up_sign(skeleton: Skeleton) -> float:
-    """+1, or -1 when "up" is the negative direction of the axis (image space, ``"-y"``)."""
-    return -1.0 if str(skeleton.up_axis).startswith("-") else 1.0
-
-
-def heights(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
-    """Signed height of every point along the up direction (same units as ``positions``)."""
-    return up_sign(skeleton) * positions[..., up_index(skeleton)]
-
-
-def horizontal_axes(skeleton: Skeleton) -> tuple[int, int]:
-    """The two axes other than the up axis, in increasing order."""
-    up = up_index(skeleton)
-    a, b = (i for i in range(3) if i != up)
-    return a, b
-
-
-def unit_scale(skeleton: Skeleton) -> float:
-    """Metres per skeleton unit (tang2018: 0.01)."""
-    s = float(skeleton.unit_scale)
-    if not np.isfinite(s) or s <= 0:
-        raise ParameterError(f"skeleton {skeleton.name!r} has an invalid unit_scale {s!r}")
-    return s
-
 
 def to_metres(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
-    """Positions in metres (a copy)."""
-    return np.asarray(positions, dtype=np.float64) * unit_scale(skeleton)
+    """Positions in metres (a copy), through ``skeleton.unit_scale``."""
+    return np.asarray(positions, dtype=np.float64) * skeleton.unit_scale
 
 
 def y_up(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
@@ -94,7 +34,7 @@ def y_up(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     z up: the cyclic permutation (x, y, z) -> (y, z, x); x up: (z, x, y); -y up: a half turn
     about x (y and z negated).
     """
-    up = up_index(skeleton)
+    up = skeleton.up_index
     if up == 1:
         return positions if up_sign(skeleton) > 0 else positions * np.array([1.0, -1.0, -1.0])
     if up == 2:  # new y = old z
@@ -103,17 +43,10 @@ def y_up(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
 
 
 def joint(skeleton: Skeleton, role: str) -> int:
-    """Index of a joint given by name or canonical role, with a clear error when absent."""
-    try:
-        has = skeleton.has(role)
-    except Exception:  # noqa: BLE001 - a skeleton without has(): try index directly
-        has = True
-    if not has:
+    """Index of a joint given by name or canonical role; :class:`ParameterError` naming it when absent."""
+    if not skeleton.has(role):
         raise ParameterError(f"skeleton {skeleton.name!r} has no joint or role {role!r} (needed by this metric)")
-    try:
-        return int(skeleton.index(role))
-    except (KeyError, ValueError) as exc:
-        raise ParameterError(f"skeleton {skeleton.name!r} has no joint or role {role!r}: {exc}") from None
+    return int(skeleton.index(role))
 
 
 def root_index(skeleton: Skeleton) -> int:
@@ -148,16 +81,3 @@ def moving_average(x: np.ndarray, width: int) -> np.ndarray:
     c = np.cumsum(xp, axis=0)
     c = np.concatenate([np.zeros((1,) + x.shape[1:]), c], axis=0)
     return (c[width:] - c[:-width]) / width
-
-
-def resample_positions(positions: np.ndarray, fps_in: float, fps_out: float) -> np.ndarray:
-    """Linearly resample ``(T, ...)`` frames from ``fps_in`` to ``fps_out`` (same duration)."""
-    if abs(fps_in - fps_out) < 1e-9:
-        return positions
-    T = len(positions)
-    n_out = int(np.floor((T - 1) / fps_in * fps_out + 1e-9)) + 1
-    x = np.arange(n_out) * (fps_in / fps_out)  # fractional input frame of every output frame
-    i0 = np.clip(np.floor(x).astype(int), 0, T - 1)
-    i1 = np.minimum(i0 + 1, T - 1)
-    w = (x - i0).reshape((-1,) + (1,) * (positions.ndim - 1))
-    return (1.0 - w) * positions[i0] + w * positions[i1]

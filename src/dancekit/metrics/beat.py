@@ -1,6 +1,6 @@
 """Beat alignment between a dance and its music.
 
-Kinematic beats
+Kinematic beats (:func:`dancekit.motion.analysis.kinematic_beats`, re-exported here)
     Local minima of the mean joint speed: joint velocities by central differences (world
     positions, so the root's travel counts, as in AIST++), speed averaged over joints, then
     smoothed with a Gaussian of standard deviation ``smooth`` seconds (default 5/60 s, the
@@ -30,11 +30,10 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
-from scipy.signal import argrelextrema
 
+from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
-from dancekit.metrics._common import check_fps, check_positions
+from dancekit.motion.analysis import DEFAULT_BEAT_SMOOTH, kinematic_beats, mean_joint_speed
 
 if TYPE_CHECKING:  # pragma: no cover
     from dancekit.motion import Skeleton
@@ -48,47 +47,9 @@ __all__ = [
     "mean_joint_speed",
 ]
 
-DEFAULT_SMOOTH = 5.0 / 60.0
+DEFAULT_SMOOTH = DEFAULT_BEAT_SMOOTH
 DEFAULT_SIGMA = 0.05
 DEFAULT_TOLERANCE = 0.1
-
-
-def mean_joint_speed(
-    positions: np.ndarray, *, fps: float, skeleton: Skeleton | None = None, smooth: float | None = DEFAULT_SMOOTH
-) -> np.ndarray:
-    """Mean joint speed per frame ``(T,)`` in skeleton units per second, Gaussian-smoothed.
-
-    ``smooth`` is the Gaussian's standard deviation in seconds (None or 0: no smoothing).
-    """
-    fps = check_fps(fps)
-    p = check_positions(positions, skeleton, min_frames=3)
-    speed = np.linalg.norm(np.gradient(p, axis=0), axis=-1).mean(axis=1) * fps
-    if smooth:
-        if smooth < 0:
-            raise ParameterError(f"smooth must be >= 0 seconds, got {smooth}")
-        speed = gaussian_filter1d(speed, sigma=smooth * fps, mode="nearest")
-    return speed
-
-
-def kinematic_beats(
-    positions: np.ndarray, *, fps: float, skeleton: Skeleton | None = None, smooth: float | None = DEFAULT_SMOOTH
-) -> np.ndarray:
-    """Kinematic beats of a dance, in seconds: local minima of the smoothed mean joint speed.
-
-    Parameters
-    ----------
-    positions : (T, J, 3) world joint positions (any units)
-    fps : frames per second
-    skeleton : optional, only checks the joint count
-    smooth : standard deviation of the Gaussian smoothing, seconds
-
-    Returns
-    -------
-    (B,) float64 beat times in seconds, increasing.
-    """
-    speed = mean_joint_speed(positions, fps=fps, skeleton=skeleton, smooth=smooth)
-    idx = argrelextrema(speed, np.less)[0]
-    return idx.astype(np.float64) / float(fps)
 
 
 def _check_times(times: np.ndarray, name: str) -> np.ndarray:

@@ -69,14 +69,12 @@ from dancekit.errors import ParameterError
 from dancekit.metrics._common import (
     check_fps,
     check_positions,
-    horizontal_axes,
     joint,
     root_index,
     to_metres,
-    unit_scale,
-    up_index,
     y_up,
 )
+from dancekit.motion.analysis import horizontal_axes, rest_pose
 
 if TYPE_CHECKING:  # pragma: no cover
     from dancekit.motion import Skeleton
@@ -245,7 +243,7 @@ def kinetic_features(
     p = p - p[0:1, r : r + 1, :]  # the reference works on positions relative to the first root
     T = len(p)
     dt = 1.0 / fps
-    up = up_index(skeleton)
+    up = skeleton.up_index
     h = list(horizontal_axes(skeleton))
 
     i = np.arange(1, T)
@@ -334,31 +332,6 @@ _ROLES = (
 )
 
 
-def _rest_pose(skeleton: Skeleton) -> np.ndarray | None:
-    """Rest-pose joint positions from the skeleton offsets (None when they are all zero)."""
-    offsets = np.asarray(getattr(skeleton, "offsets", None) if skeleton is not None else None, dtype=np.float64)
-    if offsets.ndim != 2 or offsets.shape != (skeleton.num_joints, 3) or not np.any(offsets):
-        return None
-    parents = list(skeleton.parents)
-    rest = np.zeros_like(offsets)
-    done = np.zeros(len(parents), bool)
-
-    def place(j: int) -> None:
-        if done[j]:
-            return
-        pj = parents[j]
-        if pj is None or pj < 0:
-            rest[j] = offsets[j]
-        else:
-            place(pj)
-            rest[j] = rest[pj] + offsets[j]
-        done[j] = True
-
-    for j in range(len(parents)):
-        place(j)
-    return rest
-
-
 def body_dimensions(skeleton: Skeleton, positions: np.ndarray | None = None) -> dict[str, float]:
     """Humerus length ``hl``, shoulder width ``sw`` and hip width ``hw`` in metres.
 
@@ -370,7 +343,7 @@ def body_dimensions(skeleton: Skeleton, positions: np.ndarray | None = None) -> 
         "sw": ("left_shoulder", "right_shoulder"),
         "hw": ("left_hip", "right_hip"),
     }
-    rest = _rest_pose(skeleton)
+    rest = rest_pose(skeleton) if np.any(skeleton.offsets) else None
     out = {}
     for key, (a, b) in pairs.items():
         ia, ib = joint(skeleton, a), joint(skeleton, b)
@@ -380,7 +353,7 @@ def body_dimensions(skeleton: Skeleton, positions: np.ndarray | None = None) -> 
             value = float(np.median(np.linalg.norm(positions[:, ia] - positions[:, ib], axis=-1)))
         else:
             raise ParameterError(f"skeleton {skeleton.name!r} has no rest pose; pass positions to measure {key}")
-        out[key] = value * unit_scale(skeleton)
+        out[key] = value * skeleton.unit_scale
     return out
 
 

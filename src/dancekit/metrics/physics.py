@@ -38,21 +38,10 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.ndimage import minimum_filter1d
 
 from dancekit.errors import ParameterError
-from dancekit.metrics._common import (
-    check_fps,
-    check_positions,
-    heights,
-    horizontal_axes,
-    joint,
-    root_index,
-    to_metres,
-    unit_scale,
-    up_index,
-    up_sign,
-)
+from dancekit.metrics._common import check_fps, check_positions, joint, root_index, to_metres
+from dancekit.motion.analysis import floor_curve, heights, horizontal_axes, up_sign
 
 if TYPE_CHECKING:  # pragma: no cover
     from dancekit.motion import Skeleton
@@ -60,13 +49,15 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["bone_length_variation", "foot_skating", "ground_penetration", "pfc"]
 
 
-def _foot_indices(skeleton: Skeleton, feet: Sequence[str] | None) -> list[int]:
-    names = list(feet) if feet is not None else list(getattr(skeleton, "feet", ()) or ())
+def _foot_names(skeleton: Skeleton, feet: Sequence[str] | None) -> list[str]:
+    names = list(feet) if feet is not None else list(skeleton.feet)
     if not names:
         names = [r for r in ("left_ankle", "right_ankle", "left_toe", "right_toe") if skeleton.has(r)]
     if not names:
         raise ParameterError(f"skeleton {skeleton.name!r} names no foot joints; pass feet=[...]")
-    return [joint(skeleton, n) for n in names]
+    for n in names:
+        joint(skeleton, n)  # a clear error for a missing joint
+    return names
 
 
 def foot_skating(
@@ -102,18 +93,19 @@ def foot_skating(
     """
     fps = check_fps(fps)
     p = to_metres(check_positions(positions, skeleton, min_frames=2), skeleton)
-    idx = _foot_indices(skeleton, feet)
+    names = _foot_names(skeleton, feet)
     h = list(horizontal_axes(skeleton))
-    f = p[:, idx]  # (T, F, 3)
+    f = p[:, [skeleton.index(n) for n in names]]  # (T, F, 3)
     vel = np.gradient(f, axis=0) * fps
     height = heights(f, skeleton)  # (T, F) metres
     if isinstance(floor, str):
         if floor != "local":
             raise ParameterError(f"floor must be a height in skeleton units or 'local', got {floor!r}")
-        size = max(1, int(round(floor_window * fps)))
-        height = height - minimum_filter1d(height.min(axis=1), size=size, mode="nearest")[:, None]
+        # the running minimum of the lowest foot (metres along the up axis)
+        local = floor_curve(p, skeleton, fps=fps, window_s=floor_window, percentile=0.0, smooth_s=0.0, feet=names)
+        height = height - up_sign(skeleton) * local[:, None]
     else:
-        height = height - float(floor) * unit_scale(skeleton)
+        height = height - float(floor) * skeleton.unit_scale
     speed = np.linalg.norm(vel, axis=-1)
     hspeed = np.linalg.norm(vel[..., h], axis=-1)
     contact = (height <= contact_height) & (speed < contact_speed)
@@ -134,7 +126,7 @@ def pfc(positions: np.ndarray, *, fps: float, skeleton: Skeleton) -> float:
     """
     fps = check_fps(fps)
     p = to_metres(check_positions(positions, skeleton, min_frames=3), skeleton)
-    up = up_index(skeleton)
+    up = skeleton.up_index
     h = list(horizontal_axes(skeleton))
     dt = 1.0 / fps
     root = p[:, root_index(skeleton)]
@@ -179,7 +171,7 @@ def ground_penetration(
 ) -> dict[str, float]:
     """How far the body sinks below the floor: ``mean_depth`` and ``max_depth`` (m), ``frame_share``."""
     p = to_metres(check_positions(positions, skeleton, min_frames=1), skeleton)
-    lowest = heights(p, skeleton).min(axis=1) - floor * unit_scale(skeleton)
+    lowest = heights(p, skeleton).min(axis=1) - floor * skeleton.unit_scale
     depth = np.maximum(-lowest, 0.0)
     return {
         "mean_depth": float(depth.mean()),

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
+from dancekit.motion.analysis import resample_indices, resample_positions
 from dancekit.motion.skeleton import Skeleton, get_skeleton
 
 __all__ = ["Motion"]
@@ -206,18 +206,11 @@ class Motion:
             If ``fps`` is not a positive number.
         """
         new_fps = check_fps(fps)
-        T = self.num_frames
-        n = int(math.floor((T - 1) * new_fps / self.fps + 1e-9)) + 1
-        src = np.arange(n) * (self.fps / new_fps)  # fractional source frame
-        i0 = np.clip(np.floor(src + 1e-9).astype(int), 0, T - 1)
-        i1 = np.minimum(i0 + 1, T - 1)
-        w = np.clip(src - i0, 0.0, 1.0)
+        i0, i1, w = resample_indices(self.num_frames, orig_fps=self.fps, target_fps=new_fps)
+        n = len(w)
 
         def lerp(a: np.ndarray | None) -> np.ndarray | None:
-            if a is None:
-                return None
-            ww = w.reshape((-1,) + (1,) * (a.ndim - 1)).astype(a.dtype)
-            return a[i0] * (1 - ww) + a[i1] * ww
+            return None if a is None else resample_positions(a, orig_fps=self.fps, target_fps=new_fps)
 
         rot = None
         if self.rotations is not None:

@@ -74,3 +74,16 @@ def music_attributes_step(
     loss = torch.nn.functional.cross_entropy(logits, batch["genre"])
     acc = (logits.argmax(-1) == batch["genre"]).float().mean().item()
     return loss, {"acc": acc}
+
+
+def style_step(
+    model: nn.Module, batch: Mapping[str, torch.Tensor], ctx: StepContext
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """Class-weighted cross-entropy of a style classifier: ``batch["x"]`` (B, L, D) normalised
+    :func:`~dancekit.models.style.style_input` windows → ``batch["y"]`` (B,) genre indices.
+
+    Logs the batch accuracy as ``acc``. The class weights are the model's (``config.class_weights``).
+    """
+    logits, loss = model(batch["x"], batch["y"])  # (B, G), scalar
+    acc = float((logits.argmax(-1) == batch["y"]).float().mean())
+    return loss, {"acc": round(acc, 4)}

@@ -239,8 +239,10 @@ def assemble_run(
 
     data = PreparedData(data_dir)
     t0 = time.perf_counter()
-    stats = compute_stats(data, preset=fam.preset, representation=config.representation)
+    stats = (compute_stats(data, preset=fam.preset, representation=config.representation)
+             if fam.preset is not None else None)
     train_set, val_set = fam.load("dataset")(data, config, stats, preset=fam.preset)
+    stats = getattr(train_set, "stats", stats)  # a family that reads no music has its own input statistics
     if len(train_set) == 0:
         raise ParameterError(f"no training window of {config.seq_len} frames fits in the dances of {data_dir}")
     load_seconds = time.perf_counter() - t0

@@ -1,8 +1,6 @@
-"""Calibrating baselines for ``dancekit evaluate``: what do trivial "models" score?
+"""Calibrating baselines for ``dancekit evaluate``: what do trivial "models" score? (``dancekit baselines``)
 
-    python scripts/baselines.py --data data/tang2018 --out runs/baselines
-
-For every dance of the test split, writes one ``NAME.npz`` per baseline into ``OUT/<baseline>/``:
+For every dance of the test split, one ``NAME.npz`` per baseline is written into ``OUT/<baseline>/``:
 
 ``ground_truth``     the real test dance itself
 ``mean_pose``        a frozen dance: the mean training pose (joints relative to the pelvis, averaged
@@ -13,26 +11,31 @@ For every dance of the test split, writes one ``NAME.npz`` per baseline into ``O
                      (z-scored with the training statistics) are closest to the test song's,
                      cropped (or looped) to the test length
 
-Each folder is then scored by the same code as ``dancekit evaluate --pred OUT/<baseline> --ref DATA
---data DATA`` (``OUT/<baseline>.json``); the combined markdown table goes to ``OUT/table.md``.
+Each folder is then scored by :func:`~dancekit.evaluation.evaluate_dirs` exactly as ``dancekit evaluate
+--pred OUT/<baseline> --ref DATA --data DATA`` would (``OUT/<baseline>.json``); the combined markdown
+table goes to ``OUT/table.md`` and the source dances of the two copying baselines to ``OUT/choices.json``.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
+import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from dancekit._io import atomic_dir, atomic_path
-from dancekit.errors import DancekitError
+from dancekit.evaluation.report import metrics_table
+from dancekit.evaluation.score import EvalSettings, evaluate_dirs
+from dancekit.motion.analysis import heading_rotation
+
+__all__ = ["BASELINES", "make_baselines", "run_baselines"]
 
 BASELINES = ("ground_truth", "mean_pose", "random_train", "nearest_music")
 
 
-def _fit_length(positions: np.ndarray, T: int, skeleton) -> np.ndarray:
+def _fit_length(positions: np.ndarray, T: int, skeleton: Any) -> np.ndarray:
     """Crop to ``T`` frames, or loop (each repeat continues horizontally from where the root stopped)."""
     out = [positions]
     n = len(positions)
@@ -45,36 +48,32 @@ def _fit_length(positions: np.ndarray, T: int, skeleton) -> np.ndarray:
     return np.concatenate(out)[:T]
 
 
-def _mean_local_pose(data, names) -> np.ndarray:
+def _mean_local_pose(data: Any, names: list[str]) -> np.ndarray:
     """Mean pose in the heading frame (J, 3), skeleton units."""
-    from dancekit.metrics.style import _heading_axes
-
     sk = data.skeleton
     total, count = 0.0, 0
     for n in names:
         p = data.motion(n).to_positions().astype(np.float64)
-        lat, up, fwd = _heading_axes(p, sk)
-        R = np.stack([lat, up, fwd], axis=1)
+        R = heading_rotation(p, sk)  # (T, 3, 3) world -> body
         local = np.einsum("tij,tkj->tki", R, p - p[:, sk.root : sk.root + 1])
         total = total + local.sum(axis=0)
         count += len(p)
     return total / count
 
 
-def _place(local: np.ndarray, gt: np.ndarray, skeleton, T: int) -> np.ndarray:
+def _place(local: np.ndarray, gt: np.ndarray, skeleton: Any, T: int) -> np.ndarray:
     """A frozen dance: ``local`` rotated to the heading of ``gt``'s first frame, at its first root."""
-    from dancekit.metrics.style import _heading_axes
-
-    lat, up, fwd = _heading_axes(gt[:1].astype(np.float64), skeleton)
-    R = np.stack([lat[0], up[0], fwd[0]], axis=0)  # world -> body
+    R = heading_rotation(gt[:1].astype(np.float64), skeleton)[0]  # (3, 3) world -> body
     pose = local @ R + gt[0, skeleton.root]
     return np.repeat(pose[None], T, axis=0)
 
 
-def make_baselines(data_root: str, out: Path, *, seed: int = 0) -> dict[str, Path]:
+def make_baselines(data_root: str | os.PathLike, out: str | os.PathLike, *, seed: int = 0) -> dict[str, Path]:
+    """Write the baseline dances (see the module docstring) into ``out/<baseline>/``; returns the folders."""
     from dancekit.data import PreparedData
     from dancekit.motion import Motion, write_motion
 
+    out = Path(out)
     data = PreparedData(data_root)
     sk, fps = data.skeleton, data.fps
     test, train = data.names("test"), data.names("train")
@@ -85,7 +84,7 @@ def make_baselines(data_root: str, out: Path, *, seed: int = 0) -> dict[str, Pat
     mu, sd = allf.mean(0), np.maximum(allf.std(0), 1e-6)
     mean_feat = {n: ((feats[n] - mu) / sd).mean(0) for n in feats}
     folders = {}
-    choices = {}
+    choices: dict[str, dict[str, str]] = {}
     for b in BASELINES:
         with atomic_dir(out / b) as tmp:
             for n in test:
@@ -110,45 +109,28 @@ def make_baselines(data_root: str, out: Path, *, seed: int = 0) -> dict[str, Pat
     return folders
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", required=True, help="prepared dataset folder")
-    parser.add_argument("--out", required=True, help="output folder")
-    parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
+def run_baselines(data_root: str | os.PathLike, out: str | os.PathLike, *, seed: int = 0,
+                  progress: bool = True) -> tuple[dict[str, dict], str]:
+    """Write and score every baseline (:func:`make_baselines`); returns ``(reports, table)``.
 
-    from dancekit.metrics.evaluate import TABLE_ROWS, EvalSettings, _fmt, evaluate_dirs
-
-    out = Path(args.out)
+    Writes ``out/<baseline>.json`` (each report) and ``out/table.md`` (the table of all of them).
+    """
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    try:
-        folders = make_baselines(args.data, out, seed=args.seed)
-        reports = {}
-        for b, folder in folders.items():
-            reports[b] = evaluate_dirs(folder, args.data, data=args.data, settings=EvalSettings(seed=args.seed))
-            with atomic_path(out / f"{b}.json") as tmp:
-                tmp.write_text(json.dumps(reports[b], indent=1))
+    folders = make_baselines(data_root, out, seed=seed)
+    reports = {}
+    for b, folder in folders.items():
+        reports[b] = evaluate_dirs(folder, data_root, data=data_root, settings=EvalSettings(seed=seed))
+        with atomic_path(out / f"{b}.json") as tmp:
+            tmp.write_text(json.dumps(reports[b], indent=1))
+        if progress:
             print(f"{b}: done")
-    except DancekitError as exc:
-        print(f"baselines: error: {exc}", file=sys.stderr)
-        return 2
-    lines = ["| metric | " + " | ".join(BASELINES) + " |", "| --- |" + " ---: |" * len(BASELINES)]
-    for key, label, fmt in TABLE_ROWS:
-        values = [reports[b]["metrics"].get(key) for b in BASELINES]
-        if all(v is None for v in values):
-            continue
-        lines.append(f"| {label} | " + " | ".join(_fmt(v, fmt) for v in values) + " |")
     first = reports[BASELINES[0]]
-    c = first["counts"]
-    lines += ["", f"{c['songs']} test dances; FID reference: {first['settings']['fid_reference']} split "
-              f"({c['fid_reference_dances']} dances); FID_k / FID_g on {first['settings']['segment_seconds']}-s "
-              f"segments; BAS sigma {first['settings']['sigma']} s; hit tolerance {first['settings']['tolerance']} s."]
-    table = "\n".join(lines) + "\n"
+    c, st = first["counts"], first["settings"]
+    table = metrics_table([(b, reports[b]["metrics"]) for b in BASELINES]) + "\n\n" + (
+        f"{c['songs']} test dances; FID reference: {st['fid_reference']} split ({c['fid_reference_dances']} dances); "
+        f"FID_k / FID_g on {st['segment_seconds']}-s segments; BAS sigma {st['sigma']} s; "
+        f"hit tolerance {st['tolerance']} s.\n")
     with atomic_path(out / "table.md") as tmp:
         tmp.write_text(table)
-    print(table, end="")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return reports, table

@@ -1,4 +1,8 @@
-"""Evaluate a folder of generated dances against the real ones: every metric, one report.
+"""Score generated dances against the real ones: every metric of :mod:`dancekit.metrics`, one report.
+
+:func:`evaluate_motions` scores :class:`~dancekit.motion.Motion` objects (with a style classifier,
+:class:`~dancekit.pipelines.StylePipeline`, for the style metrics); :func:`evaluate_dirs` reads them from
+folders (what ``dancekit evaluate --pred DIR --ref DIR`` runs).
 
 Files
     ``pred``: a folder of motion ``.npz`` files named after the reference dance whose music
@@ -36,14 +40,16 @@ from typing import Any
 
 import numpy as np
 
-from dancekit.errors import DatasetError, ParameterError
+from dancekit.errors import CheckpointError, DatasetError, ParameterError
 from dancekit.metrics import beat as beat_mod
 from dancekit.metrics import fid as fid_mod
 from dancekit.metrics import physics, stability
-from dancekit.metrics._common import resample_positions
 from dancekit.metrics.distance import mean_joint_distance
+from dancekit.metrics.style import dance_genre, multimodality, style_diversity
+from dancekit.motion.analysis import resample_positions
 
-__all__ = ["EvalSettings", "evaluate_dirs", "evaluate_motions", "format_markdown", "group_predictions"]
+__all__ = ["EvalSettings", "dance_metrics", "evaluate_dirs", "evaluate_motions", "group_predictions",
+           "load_classifier"]
 
 AUDIO_SUFFIXES = (".wav", ".mp3", ".ogg", ".flac")
 SAMPLE_SEP = "__"
@@ -148,7 +154,7 @@ def evaluate_motions(
     music_beats : reference name → music beat times (s from the dance start); None skips beats
     genres : reference name → genre of the music; None skips ACC
     fid_reference : the real motions forming the FID reference distribution (default: ``ref``)
-    classifier : a :class:`~dancekit.metrics.style.StyleModel`, or None to skip the style metrics
+    classifier : a :class:`~dancekit.pipelines.StylePipeline`, or None to skip the style metrics
     settings : :class:`EvalSettings`
 
     Returns
@@ -184,7 +190,8 @@ def evaluate_motions(
         beats = music_beats.get(name) if music_beats is not None else None
         row = dance_metrics(m.to_positions(), fps=m.fps, skeleton=m.skeleton, music_beats=beats, settings=settings)
         gt = ref[name]
-        p = resample_positions(np.asarray(m.to_positions(), np.float64), m.fps, gt.fps) * m.skeleton.unit_scale
+        p = resample_positions(np.asarray(m.to_positions(), np.float64), orig_fps=m.fps,
+                               target_fps=gt.fps) * m.skeleton.unit_scale
         g = np.asarray(gt.to_positions(), np.float64) * gt.skeleton.unit_scale
         row["fd_dual_mean_joint_distance_cm"] = 100.0 * mean_joint_distance(p, g)
         per_dance[f"{name}#{k}"] = row
@@ -240,12 +247,10 @@ def evaluate_motions(
     fid_curve: list[float] = []
     clf_info = None
     if classifier is not None:
-        from dancekit.metrics.style import multimodality, style_diversity
-
         classifier.check_skeleton(skeleton)
         ref_w = np.concatenate([classifier.embed(m.to_positions(), fps=m.fps, skeleton=m.skeleton)[0] for m in fid_ref])
         clf_info = {"genres": classifier.genres, "window_frames": classifier.window, "fps": classifier.fps,
-                    "path": str(classifier.meta.get("path", "")), "n_reference_windows": int(len(ref_w))}
+                    "path": str(getattr(classifier, "folder", "")), "n_reference_windows": int(len(ref_w))}
         for label, items in (("pred", flat_pred), ("real", [(n, ref[n]) for n in names])):
             target = metrics if label == "pred" else real
             windows, dance_feats, music, correct = [], [], [], []
@@ -255,7 +260,7 @@ def evaluate_motions(
                 dance_feats.append(f.mean(axis=0))
                 music.append(name)
                 if genres is not None and name in genres and genres[name] in classifier.genres:
-                    correct.append(int(np.argmax(logp.mean(axis=0))) == classifier.genres.index(genres[name]))
+                    correct.append(dance_genre(logp) == classifier.genres.index(genres[name]))
             allw = np.concatenate(windows)
             target["style_fid"] = fid_mod.frechet_distance(allw, ref_w) if len(allw) >= 2 else float("nan")
             target["style_acc"] = float(np.mean(correct)) if correct else float("nan")
@@ -348,8 +353,9 @@ def evaluate_dirs(
     ref_dir : folder of real ``NAME.npz`` dances, or a prepared dataset folder (its test split)
     data : prepared dataset folder (music beats, genres, the ``train`` / ``all`` FID reference)
     audio_dir : folder of ``NAME.<wav|mp3|ogg|flac>`` songs (when there is no prepared dataset)
-    classifier : a StyleModel, a checkpoint folder, ``"default"`` (the shipped classifier; skipped
-        with a note if it is missing) or None (skip the style metrics)
+    classifier : a :class:`~dancekit.pipelines.StylePipeline`, a checkpoint folder or model name,
+        ``"default"`` (the embedded classifier; skipped with a note if it is missing) or None (skip the
+        style metrics)
     settings : :class:`EvalSettings`
     preset : feature preset whose ``beat_times`` are used (default ``revolution`` if prepared)
     split : the split of a prepared ``ref_dir`` that holds the reference dances (default ``test``)
@@ -406,23 +412,7 @@ def evaluate_dirs(
         names = prepared.names("train") if mode == "train" else prepared.names()
         fid_reference = [prepared.motion(n) for n in names]
 
-    model = None
-    clf_note = None
-    if isinstance(classifier, str) and classifier == "default":
-        from dancekit.metrics.style import DEFAULT_CLASSIFIER, load_style_classifier
-
-        if (DEFAULT_CLASSIFIER / "config.json").is_file():
-            model = load_style_classifier()
-            model.meta["path"] = str(DEFAULT_CLASSIFIER)
-        else:
-            clf_note = f"the shipped style classifier is missing ({DEFAULT_CLASSIFIER})"
-    elif isinstance(classifier, str | os.PathLike):
-        from dancekit.metrics.style import load_style_classifier
-
-        model = load_style_classifier(classifier)
-        model.meta["path"] = str(classifier)
-    else:
-        model = classifier
+    model, clf_note = load_classifier(classifier)
     report = evaluate_motions(pred, ref, music_beats=music_beats, genres=genres, fid_reference=fid_reference,
                               classifier=model, settings=dataclasses.replace(settings, fid_reference=mode))
     report["settings"].update({
@@ -436,64 +426,20 @@ def evaluate_dirs(
     return report
 
 
-# ---------------------------------------------------------------------------------------------
-# markdown
+def load_classifier(classifier: Any = "default") -> tuple[Any, str | None]:
+    """The style classifier of an evaluation and a note for the report (or None).
 
-#: (key, label, format) rows of the markdown table, in order.
-TABLE_ROWS: tuple[tuple[str, str, str], ...] = (
-    ("fid_k", "FID_k (AIST++)", "{:.2f}"),
-    ("fid_g", "FID_g (AIST++)", "{:.2f}"),
-    ("div_k", "Div_k", "{:.2f}"),
-    ("div_g", "Div_g", "{:.2f}"),
-    ("bas_bailando", "BAS (Bailando, over music beats)", "{:.4f}"),
-    ("bas_aist", "BAS (AIST++, over kinematic beats)", "{:.4f}"),
-    ("beat_coverage", "Beat coverage B_k/B_m", "{:.3f}"),
-    ("beat_hit_rate", "Beat hit rate B_a/B_k", "{:.3f}"),
-    ("beats_alignment_dual", "Beats alignment (dual-learning, 0.2 s)", "{:.3f}"),
-    ("style_fid", "FID (style classifier)", "{:.2f}"),
-    ("style_acc", "ACC (style)", "{:.3f}"),
-    ("style_diversity", "Diversity (style features)", "{:.2f}"),
-    ("style_multimodality", "Multimodality (style features)", "{:.2f}"),
-    ("fd_dual_mean_joint_distance_cm", "FD (dual-learning, mean joint distance, cm)", "{:.1f}"),
-    ("freeze_score", "Freeze score (energy last/first 10 s)", "{:.3f}"),
-    ("stillness_share", "Stillness share (1 s windows < 10 cm/s)", "{:.3f}"),
-    ("smoothed_energy", "Smoothed energy (m/s)", "{:.3f}"),
-    ("smoothed_energy_ratio", "Smoothed energy / real", "{:.3f}"),
-    ("jitter_speed", "Jitter (speed removed by 5-frame average, m/s)", "{:.4f}"),
-    ("jitter_speed_ratio", "Jitter / real", "{:.3f}"),
-    ("jerk", "Mean jerk (m/s³)", "{:.1f}"),
-    ("jerk_ratio", "Jerk / real", "{:.3f}"),
-    ("foot_skating_ratio", "Foot skating ratio", "{:.3f}"),
-    ("foot_skating_ratio_ratio", "Foot skating / real", "{:.3f}"),
-    ("pfc", "PFC (EDGE)", "{:.3f}"),
-    ("bone_length_variation", "Bone-length variation (std/mean)", "{:.4f}"),
-    ("ground_penetration_m", "Ground penetration (mean depth, m)", "{:.4f}"),
-)
+    ``"default"``: the embedded classifier (:data:`~dancekit.pipelines.style.DEFAULT_STYLE_MODEL`; a note
+    instead when it cannot be found); a string or path: that checkpoint folder or model name; None: no
+    classifier; anything else is taken as a loaded :class:`~dancekit.pipelines.StylePipeline`.
+    """
+    from dancekit.pipelines.style import DEFAULT_STYLE_MODEL, StylePipeline
 
-
-def _fmt(value: Any, fmt: str) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "–"
-    text = fmt.format(value)
-    return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.000"
-
-
-def format_markdown(report: Mapping[str, Any], *, title: str | None = None) -> str:
-    """The report as a markdown table: metric | generated | real."""
-    lines = []
-    if title:
-        lines += [f"### {title}", ""]
-    lines += ["| metric | generated | real |", "| --- | ---: | ---: |"]
-    for key, label, fmt in TABLE_ROWS:
-        g = report["metrics"].get(key)
-        r = report["real"].get(key)
-        if g is None and r is None:
-            continue
-        lines.append(f"| {label} | {_fmt(g, fmt)} | {_fmt(r, fmt)} |")
-    c = report["counts"]
-    lines += ["", f"{c['generated_files']} generated dances for {c['songs']} songs; "
-              f"FID reference: {report['settings']['fid_reference']} ({c['fid_reference_dances']} dances)."]
-    for note in report.get("notes", []):
-        lines.append(f"- {note}")
-    return "\n".join(lines) + "\n"
-
+    if isinstance(classifier, str) and classifier == "default":
+        try:
+            return StylePipeline.from_pretrained(DEFAULT_STYLE_MODEL), None
+        except (CheckpointError, ParameterError) as exc:
+            return None, f"the shipped style classifier is missing: {exc}"
+    if isinstance(classifier, str | os.PathLike):
+        return StylePipeline.from_pretrained(classifier), None
+    return classifier, None

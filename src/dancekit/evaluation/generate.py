@@ -1,0 +1,118 @@
+"""Dance every song of a split with a model, and score the dances: ``dancekit evaluate --checkpoint``.
+
+For every dance of the split, the model dances to the same slice of the same song
+(:meth:`PreparedData.audio <dancekit.data.PreparedData.audio>`) with ``seeds`` seeds, written as
+``NAME__k.npz`` (``NAME.npz`` with one seed; multimodality needs several); the folder is then scored
+exactly as ``dancekit evaluate --pred OUT/pred --ref DATA --data DATA --split SPLIT`` would.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from dancekit._io import atomic_path
+from dancekit.errors import ParameterError
+from dancekit.evaluation.score import SAMPLE_SEP, EvalSettings, evaluate_dirs
+
+__all__ = ["GENRE_CHOICES", "dance_split", "evaluate_checkpoint", "requested_genre"]
+
+#: ``genre`` values with a meaning of their own (any other value is a genre name for every song).
+GENRE_CHOICES = ("auto", "none", "true")
+
+
+def requested_genre(genre: str, song_genre: str) -> str | None:
+    """What to ask the pipeline for: ``"auto"`` → None (the genre read from the music when the model has a
+    music attribute classifier, else the model alone), ``"true"`` → the song's own genre, anything else
+    (``"none"``: the model alone, or a genre name) as it is."""
+    return {"auto": None, "true": song_genre}.get(genre, genre)
+
+
+def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *, seeds: int = 5,
+                genre: str = "auto", progress: bool = True) -> dict[str, float]:
+    """Generate ``seeds`` dances for every song of ``split`` into ``out_dir`` (its old ``.npz`` files are
+    removed first).
+
+    Parameters
+    ----------
+    pipe : a dance pipeline (``pipe(audio, seed=, start=, end=, genre=)`` → :class:`~dancekit.pipelines.DanceResult`)
+    data : a :class:`~dancekit.data.PreparedData`
+    split : the split whose songs are danced
+    seeds : dances per song (seeds ``0 .. seeds-1``)
+    genre : see :func:`requested_genre`
+
+    Returns
+    -------
+    ``{"files": n, "seconds": seconds of dance, "elapsed_s": wall time}``
+    """
+    from tqdm import tqdm
+
+    from dancekit.motion import write_motion
+
+    if seeds < 1:
+        raise ParameterError(f"seeds must be at least 1, got {seeds}")
+    names = data.names(split)
+    if not names:
+        raise ParameterError(f"the {split!r} split of {data.root} has no dances")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for old in out.glob("*.npz"):
+        old.unlink()
+    t0 = time.perf_counter()
+    seconds, files = 0.0, 0
+    for name in tqdm(names, desc="generate", unit="song", disable=not progress):
+        ref = data.audio(name)
+        for k in range(seeds):
+            motion = pipe(ref.path, seed=k, start=ref.start, end=ref.end,
+                          genre=requested_genre(genre, data.genre(name))).motion
+            stem = name if seeds == 1 else f"{name}{SAMPLE_SEP}{k}"
+            write_motion(out / f"{stem}.npz", motion)
+            seconds += motion.duration
+            files += 1
+    return {"files": files, "seconds": seconds, "elapsed_s": time.perf_counter() - t0}
+
+
+def evaluate_checkpoint(
+    checkpoint: str | os.PathLike,
+    data: str | os.PathLike,
+    out_dir: str | os.PathLike,
+    *,
+    split: str = "test",
+    seeds: int = 5,
+    genre: str = "auto",
+    settings: EvalSettings | None = None,
+    classifier: Any = "default",
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Dance every song of ``split`` with a model and score the dances against the real ones.
+
+    Writes ``OUT/pred/*.npz`` (:func:`dance_split`) and ``OUT/report.json`` (:func:`evaluate_dirs` with the
+    prepared dataset as reference, music and FID reference); returns the report, whose ``generation``
+    entry records the model, seeds, genre and timing.
+
+    Parameters
+    ----------
+    checkpoint : a checkpoint folder or a model name (``dancekit models``)
+    data : prepared dataset folder
+    out_dir : output folder
+    split, seeds, genre : see :func:`dance_split`
+    settings, classifier : see :func:`~dancekit.evaluation.evaluate_dirs`
+    """
+    from dancekit.data import PreparedData
+    from dancekit.pipelines import load_pipeline
+
+    prepared = PreparedData(data)
+    pipe = load_pipeline(checkpoint)
+    out = Path(out_dir)
+    pred = out / "pred"
+    gen = dance_split(pipe, prepared, split, pred, seeds=seeds, genre=genre, progress=progress)
+    report = evaluate_dirs(pred, data, data=data, classifier=classifier, settings=settings, split=split)
+    report["generation"] = {"checkpoint": str(checkpoint), "split": split, "seeds": seeds, "genre": genre,
+                            "files": gen["files"], "seconds": round(gen["seconds"], 3),
+                            "elapsed_s": round(gen["elapsed_s"], 3)}
+    with atomic_path(out / "report.json") as tmp:
+        tmp.write_text(json.dumps(report, indent=1))
+    return report

@@ -1,0 +1,166 @@
+"""dancekit.evaluation and its verbs: evaluate a checkpoint end to end, baselines, comparison tables,
+checkpoint selection, classifier scores."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from _prepared import write_fake_prepared
+
+from dancekit.cli.main import main
+from dancekit.errors import ParameterError
+
+
+@pytest.fixture(scope="module")
+def data_with_audio(tmp_path_factory):
+    """The tiny fake prepared dataset, its songs a synthetic 120-BPM click track (train W_1 R_1, val W_2)."""
+    import soundfile as sf
+
+    root = tmp_path_factory.mktemp("evaluation")
+    data = write_fake_prepared(root / "prepared", np.random.default_rng(0))
+    sr = 22050
+    y = np.zeros(int(4.0 * sr), np.float32)
+    for t in np.arange(0.25, 4.0, 0.5):
+        i = int(t * sr)
+        y[i : i + 200] = np.hanning(200) * 0.8
+    sf.write(root / "clicks.wav", y, sr)
+    meta = json.loads((data / "meta.json").read_text())
+    for d in meta["dances"].values():
+        d["audio"] = [str(root / "clicks.wav"), 0.0, d["frames"] / 25.0]
+    (data / "meta.json").write_text(json.dumps(meta))
+    return data
+
+
+@pytest.fixture(scope="module")
+def tiny_checkpoint(tmp_path_factory):
+    import torch
+
+    from dancekit.checkpoints import save_pretrained
+    from dancekit.models.revolution import RevolutionConfig, RevolutionModel
+    from dancekit.motion import get_skeleton
+
+    torch.manual_seed(0)
+    model = RevolutionModel(RevolutionConfig(d_model=16, n_heads=2, d_ff=32, decoder_hidden=16))
+    stats = {"music_mean": np.zeros(438, np.float32), "music_std": np.ones(438, np.float32),
+             "dance_mean": np.zeros(72, np.float32), "dance_std": np.full(72, 10.0, np.float32)}
+    meta = {"fps": 25.0, "preset": "revolution", "representation": "positions3d", "hop_length": 512,
+            "skeleton": get_skeleton("tang2018").to_dict()}
+    return save_pretrained(tmp_path_factory.mktemp("ckpt") / "tiny", model, model.config, stats=stats, extra=meta)
+
+
+def test_evaluate_checkpoint_end_to_end(tiny_checkpoint, data_with_audio, tmp_path, capsys):
+    out = tmp_path / "eval"
+    rc = main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
+               "--seeds", "2", "-o", str(out), "--quiet", "--segment-seconds", "1"])
+    assert rc == 0
+    printed = capsys.readouterr().out
+    assert "| FID_k (AIST++) |" in printed and "generated" in printed
+    assert sorted(p.name for p in (out / "pred").glob("*.npz")) == ["DANCE_W_2__0.npz", "DANCE_W_2__1.npz"]
+    report = json.loads((out / "report.json").read_text())
+    assert report["counts"]["samples_per_song"] == {"DANCE_W_2": 2}
+    assert report["generation"]["seeds"] == 2 and report["generation"]["split"] == "val"
+    assert report["settings"]["fid_reference"] == "train"
+    assert report["classifier"]["genres"] == ["waltz", "rumba", "chacha", "tango"]  # the embedded classifier
+    m = report["metrics"]
+    assert m["style_multimodality"] is not None and m["style_multimodality"] > 0  # two seeds, two dances
+    assert m["style_acc"] in (0.0, 0.5, 1.0)
+    # the same folder scored by `evaluate --pred` gives the same report
+    again = tmp_path / "again.json"
+    assert main(["evaluate", "--pred", str(out / "pred"), "--ref", str(data_with_audio), "--data",
+                 str(data_with_audio), "--split", "val", "-o", str(again), "--segment-seconds", "1"]) == 0
+    assert json.loads(again.read_text())["metrics"] == m
+
+
+def test_evaluate_flags_are_checked(tiny_checkpoint, data_with_audio, tmp_path, capsys):
+    assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "-o", str(tmp_path / "x")]) == 2
+    assert "--data" in capsys.readouterr().err
+    assert main(["evaluate", "--pred", str(tmp_path), "-o", str(tmp_path / "r.json")]) == 2
+    assert "--ref" in capsys.readouterr().err
+    assert main(["evaluate", "--pred", str(tmp_path), "--ref", str(tmp_path), "--seeds", "2",
+                 "-o", str(tmp_path / "r.json")]) == 2
+    assert "--seeds" in capsys.readouterr().err
+
+
+def test_baselines_and_compare(data_with_audio, tmp_path, capsys):
+    split = {"train": ["DANCE_W_1", "DANCE_R_1"], "val": [], "test": ["DANCE_W_2"], "seed": 0}
+    data = tmp_path / "data"
+    import shutil
+
+    shutil.copytree(data_with_audio, data)
+    (data / "splits.json").write_text(json.dumps(split))
+    out = tmp_path / "bl"
+    assert main(["baselines", "--data", str(data), "-o", str(out)]) == 0
+    printed = capsys.readouterr().out
+    table = (out / "table.md").read_text()
+    assert table.startswith("| metric | ground_truth | mean_pose | random_train | nearest_music |")
+    assert printed.endswith(table)
+    gt = json.loads((out / "ground_truth.json").read_text())
+    frozen = json.loads((out / "mean_pose.json").read_text())
+    assert gt["metrics"]["fid_k"] == pytest.approx(gt["real"]["fid_k"])  # the real dances themselves
+    assert frozen["metrics"]["stillness_share"] == 1.0
+    assert set(json.loads((out / "choices.json").read_text())) == {"random_train", "nearest_music"}
+    assert main(["compare", f"gt={out / 'ground_truth.json'}", f"frozen={out / 'mean_pose.json'}"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "| metric | real (test) | gt | frozen |"
+    assert any(line.startswith("| Stillness share") and line.endswith("| 1.000 |") for line in lines)
+    assert main(["compare", "nonsense"]) == 2
+
+
+def test_format_value_and_tables():
+    from dancekit.evaluation import format_comparison, format_markdown, format_value
+
+    assert format_value(-0.00001, "{:.3f}") == "0.000" and format_value(-0.00001, "{:.3f}", signed_zero=True) == "-0.000"
+    assert format_value(None, "{:.2f}") == "–" and format_value(float("nan"), "{:.2f}") == "–"
+    report = {"metrics": {"jitter_speed": -1e-6}, "real": {"jitter_speed": 0.04}, "notes": [],
+              "counts": {"generated_files": 1, "songs": 1, "fid_reference_dances": 1},
+              "settings": {"fid_reference": "ref"}}
+    assert "| 0.0000 | 0.0400 |" in format_markdown(report)
+    # the published comparison tables keep the sign of a rounded zero (docs/BENCHMARKS.md)
+    assert "| 0.0400 | -0.0000 |" in format_comparison([("a", report)])
+    with pytest.raises(ParameterError):
+        format_comparison([])
+
+
+def test_score_classifier_style_and_errors(data_with_audio, tiny_checkpoint, tmp_path, capsys):
+    out = tmp_path / "scores.json"
+    assert main(["score-classifier", "style", "--data", str(data_with_audio), "-o", str(out)]) == 0
+    (scores,) = json.loads(out.read_text())
+    assert scores["family"] == "style" and scores["test"] is None
+    assert scores["train"]["n_dances"] == 2 and scores["val"]["n_dances"] == 1
+    assert "train: 2 dances" in capsys.readouterr().out
+    assert main(["score-classifier", str(tiny_checkpoint), "--data", str(data_with_audio)]) == 2
+    assert "not a classifier" in capsys.readouterr().err
+
+
+def test_steering_needs_genres(tiny_checkpoint, data_with_audio):
+    from dancekit.data import PreparedData
+    from dancekit.evaluation import load_classifier, steering
+    from dancekit.pipelines import load_pipeline
+
+    style, _ = load_classifier()
+    with pytest.raises(ParameterError, match="offers no genre"):
+        steering(load_pipeline(tiny_checkpoint), PreparedData(data_with_audio), style, split="val")
+
+
+def test_select_checkpoint_on_a_tiny_run(data_with_audio, tmp_path, capsys):
+    from dancekit.evaluation.selection import candidates, step_of, val_losses
+
+    run = tmp_path / "run"
+    assert main(["train", "revolution", "--data", str(data_with_audio), "--out", str(run), "--quiet",
+                 "--set", "d_model=16", "--set", "n_heads=2", "--set", "d_ff=32", "--set", "decoder_hidden=16",
+                 "--set", "seq_len=40", "--set", "batch_size=2", "--set", "steps=2", "--set", "ckpt_every=1",
+                 "--set", "val_every=1", "--set", "threads=1"]) == 0
+    found = candidates(run)
+    assert [c.name for c in found][:2] == ["step_0000001", "step_0000002"]
+    losses = val_losses(run)
+    assert sorted(losses) == [1, 2] and step_of(run / "best", losses) == min(losses, key=losses.get)
+    capsys.readouterr()
+    assert main(["select-checkpoint", "--run", str(run), "--data", str(data_with_audio), "--seeds", "1",
+                 "--quiet", "--install", str(tmp_path / "chosen")]) == 0
+    report = json.loads((run / "selection.json").read_text())
+    assert report["split"] == "val" and len(report["candidates"]) == len(found)
+    assert {"style", "dance_accuracy", "stillness_max", "val_loss"} <= set(report["chosen"])
+    assert (tmp_path / "chosen" / "model.safetensors").is_file()
+    assert "chosen:" in capsys.readouterr().out
