@@ -15,6 +15,8 @@ module                 metrics
 :mod:`.stability`      FID over windows, freeze score, stillness share, smoothed energy, jitter
 :mod:`.physics`        foot skating, PFC, bone-length variation, ground penetration
 :mod:`.music`          dance-to-music: notes accuracy (key-normalised), chroma L1, beat L1
+:mod:`.music_beats`    composed music against a reference: beat coverage / hit (BCS, BHS; the
+                       D2M-GAN/CDCD and LORIS protocols), beat F1 (mir_eval), tempo, click baselines
 :mod:`.distance`       mean joint distance (the dual-learning paper's "Fréchet distance")
 =====================  ====================================================================
 
@@ -40,6 +42,23 @@ from dancekit.metrics.fid import (
     normalize_features,
 )
 from dancekit.metrics.music import beat_l1, chroma_l1, estimate_key, notes_accuracy, transpose_to_c
+from dancekit.metrics.music_beats import (
+    beat_f1,
+    clicks_on,
+    clip_bin_counts,
+    clip_bin_counts_audio,
+    coverage_hit,
+    coverage_hit_audio,
+    coverage_hit_scores,
+    dense_clicks,
+    metronome,
+    onset_bins,
+    onset_times,
+    tempo_error,
+    tempo_from_beats,
+    tempo_hit,
+    wrong_tempo_metronome,
+)
 from dancekit.metrics.physics import bone_length_variation, foot_skating, ground_penetration, pfc
 from dancekit.metrics.stability import (
     freeze_score,
@@ -58,6 +77,21 @@ from dancekit.metrics.style import (
 )
 
 __all__ = [
+    "beat_f1",
+    "clicks_on",
+    "clip_bin_counts",
+    "clip_bin_counts_audio",
+    "coverage_hit",
+    "coverage_hit_audio",
+    "coverage_hit_scores",
+    "dense_clicks",
+    "metronome",
+    "onset_bins",
+    "onset_times",
+    "tempo_error",
+    "tempo_from_beats",
+    "tempo_hit",
+    "wrong_tempo_metronome",
     "GEOMETRIC_FEATURE_NAMES",
     "average_pairwise_distance",
     "balanced_accuracy",
