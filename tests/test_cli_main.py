@@ -8,7 +8,8 @@ from dancekit.cli.main import main
 
 # every verb `dancekit --help` must offer (spelled out here, not read from dancekit.cli.main.VERBS,
 # so a verb whose module fails to import and is silently left out of the parser is caught)
-EXPECTED_VERBS = ("features", "info", "prepare", "train", "evaluate", "dance", "render", "models")
+EXPECTED_VERBS = ("features", "info", "prepare", "train", "evaluate", "baselines", "compare", "select-checkpoint",
+                  "steering", "score-classifier", "dance", "render", "models")
 
 
 def test_help_lists_verbs(capsys):
@@ -17,7 +18,7 @@ def test_help_lists_verbs(capsys):
     assert exc.value.code == 0
     out = capsys.readouterr().out
     assert out.startswith("usage: dancekit") and "VERB" in out
-    listed = re.findall(r"^ {4}(\w+)(?: {2,}\S|$)", out, flags=re.MULTILINE)  # "    verb    its help"
+    listed = re.findall(r"^ {4}([\w-]+)(?: {2,}\S|$)", out, flags=re.MULTILINE)  # "    verb    its help"
     assert listed == list(EXPECTED_VERBS), listed
 
 
