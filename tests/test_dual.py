@@ -259,3 +259,71 @@ def test_start_pose_pool():
     assert int(model.pool_count) == 4
     pose = model.sample_start_pose(torch.Generator().manual_seed(0))
     assert any(torch.equal(pose, p) for p in model.pose_pool)
+
+
+# ---------------------------------------------------------------------------------------------- pipelines
+
+
+@pytest.fixture(scope="module")
+def tiny_checkpoint(tmp_path_factory):
+    """An untrained tang2018-sized dual model saved as a checkpoint folder (rot6d, the dual preset)."""
+    from dancekit.checkpoints import save_pretrained
+    from dancekit.motion import get_skeleton
+
+    sk = get_skeleton("tang2018")
+    cfg = DualConfig(**{**TINY, "music_dim": 53, "music_raw_from": 40, "pose_dim": 171, "window": 10})
+    torch.manual_seed(0)
+    model = DualModel(cfg)
+    stats = {"music_mean": np.zeros(53, np.float32), "music_std": np.ones(53, np.float32),
+             "dance_mean": np.full(171, 5.0, np.float32), "dance_std": np.full(171, 2.0, np.float32)}
+    folder = tmp_path_factory.mktemp("dual") / "model"
+    save_pretrained(folder, model, cfg, stats=stats, extra={"representation": "rot6d", "preset": "dual", "fps": 25.0,
+                                                           "hop_length": 512, "skeleton": sk.to_dict()})
+    return folder
+
+
+def _motion(T=30):
+    from dancekit.motion import Motion, get_skeleton
+
+    sk = get_skeleton("tang2018")
+    pos = np.random.default_rng(0).normal(0, 10, (T, sk.num_joints, 3)).astype(np.float32)
+    return Motion(skeleton=sk, fps=25.0, positions=pos)
+
+
+def test_compose_pipeline_writes_midi_and_wav(tiny_checkpoint, tmp_path):
+    from dancekit.pipelines.dual import ComposePipeline
+
+    pipe = ComposePipeline.from_pretrained(tiny_checkpoint)
+    a = pipe(_motion(), seed=3, tempo=120)
+    b = pipe(_motion(), seed=3, tempo=120)
+    np.testing.assert_array_equal(a.chroma, b.chroma)  # deterministic under a seed
+    assert a.chroma.shape == (30, 12) and a.beat.shape == (30,) and a.arrangement.tempo == pytest.approx(120.0)
+    given = pipe(_motion(), root="A", minor=True)
+    assert given.start_chord == "A minor"
+    np.testing.assert_array_equal(given.chroma[0], chord_token("A", True)[:12].numpy())  # frame 0 = start token
+    files = a.write(tmp_path, stem="dance")
+    assert files["midi"].stat().st_size > 0 and files["wav"].stat().st_size > 0
+
+
+def test_compose_refuses_another_skeleton(tiny_checkpoint):
+    from dancekit.errors import ParameterError
+    from dancekit.motion import Motion, get_skeleton
+    from dancekit.pipelines.dual import ComposePipeline
+
+    other = get_skeleton("body25")
+    m = Motion(skeleton=other, fps=25.0, positions=np.zeros((10, other.num_joints, other.dims), np.float32))
+    with pytest.raises(ParameterError, match="skeleton"):
+        ComposePipeline.from_pretrained(tiny_checkpoint)(m)
+
+
+def test_dance_pipeline_start_pose_and_denormalisation(tiny_checkpoint):
+    from dancekit.pipelines.dual import DualPipeline
+
+    pipe = DualPipeline.from_pretrained(tiny_checkpoint)
+    motion = _motion(T=5)
+    s = pipe.start_pose(motion, seed=0)
+    # translation normalised with the stats (mean 5, std 2), 6D raw
+    np.testing.assert_allclose(s[:3].numpy(), (motion.with_rotations().root_translation[0] - 5.0) / 2.0, rtol=1e-5)
+    from dancekit.motion.representations import encode_motion
+
+    np.testing.assert_allclose(s[3:].numpy(), encode_motion(motion, "rot6d")[0, 3:], atol=1e-6)
