@@ -327,3 +327,16 @@ def test_dance_pipeline_start_pose_and_denormalisation(tiny_checkpoint):
     from dancekit.motion.representations import encode_motion
 
     np.testing.assert_allclose(s[3:].numpy(), encode_motion(motion, "rot6d")[0, 3:], atol=1e-6)
+
+
+def test_compose_cli_writes_midi_and_wav(tiny_checkpoint, tmp_path):
+    from dancekit.cli.main import main
+    from dancekit.motion.formats import write_motion
+
+    write_motion(tmp_path / "dance.npz", _motion())
+    out = tmp_path / "out"
+    assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--checkpoint", str(tiny_checkpoint),
+                 "--tempo", "110", "--render", "builtin", "--quiet"]) == 0
+    assert (out / "dance.mid").stat().st_size > 0 and (out / "dance.wav").stat().st_size > 0
+    assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--checkpoint", str(tiny_checkpoint),
+                 "--tempo", "fast"]) == 2
