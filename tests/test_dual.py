@@ -340,3 +340,19 @@ def test_compose_cli_writes_midi_and_wav(tiny_checkpoint, tmp_path):
     assert (out / "dance.mid").stat().st_size > 0 and (out / "dance.wav").stat().st_size > 0
     assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--checkpoint", str(tiny_checkpoint),
                  "--tempo", "fast"]) == 2
+
+
+def test_dual_windows_keep_chroma_beat_and_6d_raw():
+    from dancekit.checkpoints import NormStats
+    from dancekit.errors import ParameterError
+    from dancekit.training.datasets import partial_stats, raw_columns
+
+    assert raw_columns(preset="dual", representation="rot6d") == (40, 3)
+    with pytest.raises(ParameterError, match="rot6d"):
+        raw_columns(preset="dual", representation="positions3d")
+    stats = NormStats(music_mean=np.full(53, 2.0, np.float32), music_std=np.full(53, 3.0, np.float32),
+                      dance_mean=np.full(171, 2.0, np.float32), dance_std=np.full(171, 3.0, np.float32))
+    p = partial_stats(stats, music_raw_from=40, dance_raw_from=3)
+    assert (p.music_mean[:40] == 2).all() and (p.music_mean[40:] == 0).all() and (p.music_std[40:] == 1).all()
+    assert (p.dance_std[:3] == 3).all() and (p.dance_mean[3:] == 0).all() and (p.dance_std[3:] == 1).all()
+    assert (stats.music_mean == 2).all()  # the saved statistics are left as they are
