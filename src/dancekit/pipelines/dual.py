@@ -12,7 +12,7 @@ dance stay raw (``music_raw_from`` / ``dance_raw_from`` of the model configurati
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -32,9 +32,10 @@ def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, 
     model, meta, arrays = load_pretrained(folder, device=device)
     if not isinstance(model, DualModel):
         raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a dual-learning model")
-    missing = [k for k in ("music_mean", "music_std", "dance_mean", "dance_std", ) if k not in arrays]
-    if missing or "skeleton" not in meta or "fps" not in meta:
-        raise CheckpointError(f"checkpoint {folder}: needs stats {missing or ''} and config.json 'skeleton', 'fps'")
+    missing = [k for k in ("music_mean", "music_std", "dance_mean", "dance_std") if k not in arrays]
+    missing += [k for k in ("skeleton", "fps") if k not in meta]
+    if missing:
+        raise CheckpointError(f"checkpoint {folder}: stats.npz / config.json lack {missing}")
     c = model.config
     stats = NormStats(**{k: np.array(arrays[k], np.float32) for k in ("music_mean", "music_std", "dance_mean",
                                                                         "dance_std")})
@@ -128,7 +129,6 @@ class ComposeResult:
     start_chord: str
     arrangement: Any
     seed: int
-    info: dict[str, Any] = field(default_factory=dict)
 
     def write(self, out_dir: str | os.PathLike, *, stem: str = "music", sr: int = 22050,
               render: str = "auto") -> dict[str, Path]:
