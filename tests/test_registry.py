@@ -24,6 +24,8 @@ TINY: dict[str, list[str]] = {
     "revolution": ["d_model=16", "n_heads=2", "d_ff=32", "decoder_hidden=16", "window=6"],
     "music_attributes": ["channels=4,4,4", "lstm_hidden=4"],
     "style": ["channels=8", "feature_dim=8"],
+    "dual": ["m2d_d_model=8", "m2d_heads=2", "m2d_ff=8", "m2d_layers=1", "d2m_d_model=8", "d2m_heads=2", "d2m_ff=8",
+             "d2m_layers=1", "gw_sinkhorn_iters=3", "gw_projection_iters=2"],
 }
 TRAIN = ["steps=2", "batch_size=2", "seq_len=32", "stride=16", "val_every=2", "ckpt_every=2", "log_every=1",
          "warmup_steps=0", "threads=1"]

@@ -165,3 +165,21 @@ register(Family(
                     "ckpt_every": 1485, "keep_checkpoints": 1, "threads": 1},
     data_fields=("in_dim", "genres", "window", "fps", "class_weights"),
 ))
+
+# One family for both generators of dual learning: joint training couples them (GW and cycle losses), so they
+# share one module, one optimiser step and one checkpoint. Its pipeline is music → dance (G_M→D); the
+# dance → music pipeline (G_D→M, `dancekit compose`) reads the same checkpoint: dancekit.pipelines.dual.
+register(Family(
+    name="dual",
+    config="dancekit.models.dual:DualConfig",
+    module="dancekit.models.dual:DualModel",
+    objective="dancekit.training.objectives:dual_step",
+    dataset="dancekit.training.datasets:dual_windows",
+    pipeline="dancekit.pipelines.dual:DualPipeline",
+    preset="dual",
+    description="Dual learning of music and dance (MM 2021): G_M→D and G_D→M transformers trained jointly with "
+                "reconstruction, cycle and Gromov-Wasserstein losses",
+    train_defaults={"representation": "rot6d", "seq_len": 75, "stride": 25, "batch_size": 16, "lr": 5e-4,
+                    "warmup_steps": 100, "steps": 3000},
+    data_fields=("music_dim", "pose_dim", "window", "music_raw_from", "dance_raw_from"),
+))

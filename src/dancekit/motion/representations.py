@@ -150,3 +150,54 @@ def encode_motion(motion: Motion, representation: str = "positions3d") -> np.nda
 def decode_motion(x: np.ndarray, skeleton: Skeleton, fps: float, representation: str = "positions3d") -> Motion:
     """Per-frame features ``(T, P)`` → a :class:`Motion` at ``fps`` on ``skeleton`` (BODY_25 for 2D)."""
     return get_representation(representation).decode(x, skeleton, fps)
+
+
+# ------------------------------------------------------------------------------------------------ rot6d
+# Dual learning of music and dance (Wu et al., MM 2021, §3.1): root translation + a 6D rotation (the first two
+# columns of the local rotation matrix, Zhou et al. 2019) per joint of the skeleton's rig, i.e. the rotations
+# the toolkit's inverse kinematics computes (tang2018: 28 rig joints → 3 + 6·28 = 171 columns).
+
+#: columns of ``rot6d`` that hold the root translation (the rest are 6D rotations, never normalised)
+ROT6D_TRANSLATION = 3
+
+
+def encode_rot6d(motion: Motion) -> np.ndarray:
+    """A 3D Motion → ``rot6d`` features ``(T, 3 + 6·J_rig)`` float32: ``[root translation (3), 6D of each rig joint]``.
+
+    Rotations come from :meth:`Motion.with_rotations` (inverse kinematics when the motion has positions only).
+    """
+    import torch
+
+    from dancekit.motion.rotations import matrix_to_rotation_6d
+
+    if motion.skeleton.dims != 3:
+        raise ParameterError(f"rot6d needs a 3D motion, {motion.skeleton.name!r} is 2D")
+    m = motion.with_rotations()
+    assert m.rotations is not None and m.root_translation is not None
+    d6 = matrix_to_rotation_6d(torch.from_numpy(np.asarray(m.rotations, np.float64))).numpy()  # (T, Jr, 6)
+    T = m.num_frames
+    return np.concatenate([np.asarray(m.root_translation, np.float64), d6.reshape(T, -1)], axis=1).astype(np.float32)
+
+
+def decode_rot6d(x: np.ndarray, skeleton: Skeleton, fps: float) -> Motion:
+    """``rot6d`` features ``(T, 3 + 6·J_rig)`` → a Motion with rotations (Gram-Schmidt: always proper rotations)
+    and positions by forward kinematics."""
+    import torch
+
+    from dancekit.motion.rotations import rotation_6d_to_matrix
+
+    x = np.asarray(x, dtype=np.float64)
+    Jr = skeleton.rig().num_joints
+    if x.ndim != 2 or x.shape[1] != ROT6D_TRANSLATION + 6 * Jr:
+        raise ParameterError(f"rot6d features must have shape (T, {ROT6D_TRANSLATION + 6 * Jr}) for skeleton "
+                             f"{skeleton.name!r}, got {x.shape}")
+    T = len(x)
+    rot = rotation_6d_to_matrix(torch.from_numpy(x[:, ROT6D_TRANSLATION:].reshape(T, Jr, 6))).numpy()
+    m = Motion(skeleton=skeleton, fps=float(fps), rotations=rot.astype(np.float32),
+               root_translation=x[:, :ROT6D_TRANSLATION].astype(np.float32))
+    return m.with_positions()
+
+
+register_representation(Representation(
+    "rot6d", dim=lambda sk: ROT6D_TRANSLATION + 6 * sk.rig().num_joints, encode=encode_rot6d, decode=decode_rot6d,
+    description="root translation (3) + 6D rotation (first two matrix columns) of each rig joint (6 J_rig)"))

@@ -15,10 +15,12 @@ _LAZY = {
     "MusicAttributePipeline": "dancekit.pipelines.music_attributes",
     "StylePipeline": "dancekit.pipelines.style",
     "DanceResult": "dancekit.pipelines.base",
+    "DualPipeline": "dancekit.pipelines.dual",
+    "ComposePipeline": "dancekit.pipelines.dual",
     "load_pipeline": "dancekit.pipelines.base",
 }
 
-__all__ = ["DanceResult", "MusicAttributePipeline", "RevolutionPipeline", "StylePipeline", "load_pipeline"]
+__all__ = ["ComposePipeline", "DanceResult", "DualPipeline", "MusicAttributePipeline", "RevolutionPipeline", "StylePipeline", "load_pipeline"]
 
 
 def __getattr__(name: str) -> Any:

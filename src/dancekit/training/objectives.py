@@ -87,3 +87,18 @@ def style_step(
     logits, loss = model(batch["x"], batch["y"])  # (B, G), scalar
     acc = float((logits.argmax(-1) == batch["y"]).float().mean())
     return loss, {"acc": round(acc, 4)}
+
+
+def dual_step(
+    model: nn.Module, batch: Mapping[str, torch.Tensor], ctx: StepContext
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """All losses of the dual-learning model (MM 2021 §3.4) on a batch of :func:`~dancekit.training.datasets.dual_windows`.
+
+    ``batch``: ``{"music": (B, T, 53), "dance": (B, T, P), ...}`` with the chroma + beat and 6D columns raw.
+    The model routes each loss to its generator (:class:`~dancekit.models.dual.DualModel`); this logs each
+    part. In training, the windows' first poses join the model's start-pose pool (sampled at inference).
+    """
+    if ctx.training:
+        model.remember_start_poses(batch["dance"])
+    loss, parts = model(batch["music"], batch["dance"])
+    return loss, {name: float(value.detach()) for name, value in parts.items()}

@@ -1,0 +1,389 @@
+"""Dual learning of music and dance (Wu et al., ACM MM 2021): G_M→D and G_D→M transformers, one module.
+
+One file, one model family: :class:`DualConfig` and :class:`DualModel`, which holds both generators
+(joint training couples them through the Gromov-Wasserstein and cycle losses, so they share one
+checkpoint, one optimiser and one training step).
+
+Representations (§3.1)
+    * music in: the ``dual`` feature preset, 53 columns ``[mfcc 20, mfcc_delta 20, chroma 12, beat 1]``.
+      Columns ``[music_raw_from, 53)`` (chroma + beat) are *not* normalised, so they are at once the
+      input of G_M→D and the output space of G_D→M (12-d chroma in [0, 1] + 1-d beat in {0, 1}).
+    * dance: ``rot6d`` (:mod:`dancekit.motion.representations`): root translation (3, normalised with
+      the training statistics) + a raw 6D rotation per rig joint (first two matrix columns). Columns
+      ``[dance_raw_from, P)`` are never normalised (the geodesic loss needs them as they are).
+
+Generators (§3.3, §4.2): :class:`Seq2Seq`, a transformer encoder (full, unmasked self-attention) and an
+autoregressive transformer decoder (causal self-attention + cross-attention to the encoder) over windows
+of ``window`` frames (T = 75 in the paper). The decoder starts from a start token, the first frame of the
+window: the first ground-truth frame in training, a pose (given or sampled from a pool of training start
+poses) or a chord (root of 12 pitch classes × major/minor, :func:`chord_token`) in inference. The output
+of a window is ``[start, ŷ_1, ..., ŷ_{T-1}]``; longer sequences are windows that overlap by one frame, each
+starting from the last generated frame of the previous one (§4.2).
+
+Losses (§3.4)
+    * L_Y (Eq. 7–8): L1 on the root translation + squared geodesic distance of every joint rotation,
+      summed over the components of a frame, averaged over frames.
+    * L_X (Eq. 9): L1 on the 12 chroma + L1 on the beat, summed per frame, averaged over frames.
+    * reconstruction (Eq. 6) and cycle (Eq. 10) losses of both generators; the entropic Gromov-Wasserstein
+      distance (Algorithm 1, :mod:`dancekit.models.gromov`) between the time-averaged music embeddings of
+      Enc_M→D and the time-averaged dance embeddings of Enc_D→M.
+    * which loss updates which network, exactly as the paper's prescription::
+
+          L_GW + L_dance^rec + L_dance^cycle  → G_M→D   (GW reaches Enc_M→D only: the dance embeddings are detached)
+          L_music^rec + L_music^cycle         → G_D→M
+
+      i.e. in the dance cycle G_M→D(G_D→M(y)) the composed music is detached, in the music cycle
+      G_D→M(G_M→D(x)) the generated dance is detached.
+    * ablations (Table 4): ``gw``, ``cycle`` switches, and ``generators="m2d"`` / ``"d2m"`` to train one
+      generator alone (separate training; then ``gw`` and ``cycle`` must be off).
+
+Choices the paper leaves open (documented, not from the paper): decoders are trained with teacher forcing
+(the cycle losses run on the teacher-forced outputs); G_M→D reads composed music as its MFCC blocks at their
+training mean (zeros after normalisation) with the composed chroma + beat; embeddings for GW are the time
+average of the encoder output.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import torch
+from torch import nn
+
+from dancekit.errors import ParameterError
+from dancekit.models.gromov import entropic_gromov_wasserstein
+from dancekit.motion.rotations import rotation_6d_to_matrix
+
+GENERATORS = ("both", "m2d", "d2m")
+PITCH_CLASSES = ("C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B")
+IDENTITY_6D = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+
+
+@dataclass
+class DualConfig:
+    """Hyper-parameters of :class:`DualModel` (saved as ``config.json`` with the weights).
+
+    The defaults are small enough to train on 2 CPU cores; :meth:`paper` gives §4.2's sizes (6 layers,
+    8 heads, 512 hidden units for G_M→D and 256 for G_D→M).
+    """
+
+    music_dim: int = 53  # the `dual` preset
+    pose_dim: int = 171  # rot6d of tang2018: 3 + 6 · 28 rig joints
+    window: int = 75  # T, frames per window (3 s at 25 fps)
+    music_raw_from: int = 40  # music columns [40, 53) = chroma (12) + beat (1): raw, and G_D→M's output
+    dance_raw_from: int = 3  # dance columns [3, P) = 6D rotations: raw; [0, 3) = normalised root translation
+    m2d_d_model: int = 128
+    m2d_layers: int = 2
+    m2d_heads: int = 4
+    m2d_ff: int = 256
+    d2m_d_model: int = 64
+    d2m_layers: int = 2
+    d2m_heads: int = 4
+    d2m_ff: int = 128
+    dropout: float = 0.1
+    gw: bool = True  # Gromov-Wasserstein loss (Table 4 "GW")
+    cycle: bool = True  # cycle consistency losses (Table 4 "CC")
+    generators: str = "both"  # both | m2d | d2m: which generators are trained (one alone: separate training)
+    gw_weight: float = 1.0
+    cycle_weight: float = 1.0
+    gw_epsilon: float = 0.2  # ε of Algorithm 1
+    gw_sinkhorn_iters: int = 30  # L
+    gw_projection_iters: int = 20  # M
+    pool_size: int = 64  # start poses kept from the training windows (sampled at inference)
+
+    def __post_init__(self) -> None:
+        for name in ("music_dim", "pose_dim", "m2d_d_model", "m2d_layers", "m2d_heads", "m2d_ff", "d2m_d_model",
+                     "d2m_layers", "d2m_heads", "d2m_ff", "gw_sinkhorn_iters", "gw_projection_iters", "pool_size"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ParameterError(f"DualConfig.{name} must be a positive integer, got {value!r}")
+        if not isinstance(self.window, int) or self.window < 2:
+            raise ParameterError(f"DualConfig.window must be an integer >= 2, got {self.window!r}")
+        if not 0 <= self.music_raw_from < self.music_dim:
+            raise ParameterError(f"DualConfig.music_raw_from must be in [0, {self.music_dim}), got {self.music_raw_from}")
+        if not 0 <= self.dance_raw_from < self.pose_dim or (self.pose_dim - self.dance_raw_from) % 6:
+            raise ParameterError(f"DualConfig: pose_dim - dance_raw_from must be a positive multiple of 6 (6D "
+                                 f"rotations), got {self.pose_dim} - {self.dance_raw_from}")
+        for prefix in ("m2d", "d2m"):
+            d, h = getattr(self, f"{prefix}_d_model"), getattr(self, f"{prefix}_heads")
+            if d % h:
+                raise ParameterError(f"DualConfig.{prefix}_d_model ({d}) must be divisible by {prefix}_heads ({h})")
+        if self.generators not in GENERATORS:
+            raise ParameterError(f"DualConfig.generators must be one of {GENERATORS}, got {self.generators!r}")
+        if self.generators != "both" and (self.gw or self.cycle):
+            raise ParameterError("separate training (generators='m2d' or 'd2m') needs gw=False and cycle=False: "
+                                 "both losses need the other generator")
+        if not 0.0 <= self.dropout < 1.0 or not self.gw_epsilon > 0:
+            raise ParameterError("DualConfig.dropout must be in [0, 1) and gw_epsilon positive")
+
+    @property
+    def music_out_dim(self) -> int:
+        """Columns G_D→M composes: chroma + beat (13)."""
+        return self.music_dim - self.music_raw_from
+
+    @classmethod
+    def paper(cls, **overrides) -> DualConfig:
+        """§4.2: 6 layers and 8 heads in both generators, 512 hidden units for G_M→D and 256 for G_D→M."""
+        sizes = dict(m2d_d_model=512, m2d_layers=6, m2d_heads=8, m2d_ff=2048,
+                     d2m_d_model=256, d2m_layers=6, d2m_heads=8, d2m_ff=1024)
+        return cls(**{**sizes, **overrides})
+
+
+# --------------------------------------------------------------------------------------------------
+# losses
+
+
+def geodesic_squared(R1: torch.Tensor, R2: torch.Tensor, *, eps: float = 1e-7) -> torch.Tensor:
+    """Squared geodesic distance ``(...)`` between rotation matrices ``(..., 3, 3)`` (Eq. 8, squared).
+
+    ``θ = atan2(|skew(R1 R2ᵀ)| / 2, (tr(R1 R2ᵀ) - 1) / 2)``, the same angle as Eq. 8's arccos but accurate
+    and with finite gradients everywhere (the norm is smoothed by ``eps²``, which adds at most ``eps²``
+    to θ² at θ = 0 and nothing measurable at θ = π).
+    """
+    R = R1 @ R2.transpose(-1, -2)
+    tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
+    skew = torch.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    sin = 0.5 * torch.sqrt((skew**2).sum(-1) + eps**2)
+    return torch.atan2(sin, 0.5 * (tr - 1.0)) ** 2
+
+
+def dance_loss(pred: torch.Tensor, target: torch.Tensor, *, raw_from: int = 3) -> torch.Tensor:
+    """L_Y (Eq. 7): per frame, L1 of the translation ``[:raw_from]`` + Σ_joints geodesic² of the 6D rotations
+    ``[raw_from:]``; averaged over batch and frames. ``pred``, ``target``: (B, T, P)."""
+    trans = (pred[..., :raw_from] - target[..., :raw_from]).abs().sum(-1)  # (B, T)
+    shape = pred.shape[:-1] + (-1, 6)
+    R1 = rotation_6d_to_matrix(pred[..., raw_from:].reshape(shape))  # (B, T, J, 3, 3)
+    R2 = rotation_6d_to_matrix(target[..., raw_from:].reshape(shape))
+    return (trans + geodesic_squared(R1, R2).sum(-1)).mean()
+
+
+def music_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """L_X (Eq. 9): per frame, L1 of the 12 chroma + L1 of the beat; averaged over batch and frames.
+    ``pred``, ``target``: (B, T, 13)."""
+    return (pred - target).abs().sum(-1).mean()
+
+
+def chord_token(root: int | str, minor: bool = False) -> torch.Tensor:
+    """The music start token of a chord: a 12-d chroma with 1 on the triad's pitch classes + beat 0 → (13,).
+
+    ``root``: a pitch class 0..11 (C = 0) or its name (``"F#"``); ``minor``: minor instead of major third.
+    """
+    if isinstance(root, str):
+        if root not in PITCH_CLASSES:
+            raise ParameterError(f"unknown chord root {root!r}; choose one of {', '.join(PITCH_CLASSES)}")
+        root = PITCH_CLASSES.index(root)
+    if not 0 <= int(root) < 12:
+        raise ParameterError(f"chord root must be a pitch class 0..11, got {root!r}")
+    token = torch.zeros(13)
+    for interval in (0, 3 if minor else 4, 7):
+        token[(int(root) + interval) % 12] = 1.0
+    return token
+
+
+# --------------------------------------------------------------------------------------------------
+# one generator
+
+
+def sinusoidal_encoding(n: int, d: int, *, device=None, dtype=torch.float32) -> torch.Tensor:
+    """Vaswani et al.'s positional encoding → (n, d)."""
+    pos = torch.arange(n, dtype=torch.float64, device=device)[:, None]
+    div = torch.exp(torch.arange(0, d, 2, dtype=torch.float64, device=device) * (-math.log(10000.0) / d))
+    pe = torch.zeros(n, d, dtype=torch.float64, device=device)
+    pe[:, 0::2] = torch.sin(pos * div)
+    pe[:, 1::2] = torch.cos(pos * div)[:, : d // 2]
+    return pe.to(dtype)
+
+
+class Seq2Seq(nn.Module):
+    """Transformer encoder (full self-attention) + autoregressive transformer decoder: (B, T, in) → (B, T, out)."""
+
+    def __init__(self, in_dim: int, out_dim: int, *, d_model: int, layers: int, heads: int, ff: int,
+                 dropout: float, sigmoid: bool = False):
+        super().__init__()
+        self.out_dim, self.sigmoid = out_dim, sigmoid
+        self.src_embed = nn.Linear(in_dim, d_model)
+        self.tgt_embed = nn.Linear(out_dim, d_model)
+        self.encoder = nn.TransformerEncoder(
+            nn.TransformerEncoderLayer(d_model, heads, ff, dropout, batch_first=True, norm_first=True),
+            layers, norm=nn.LayerNorm(d_model), enable_nested_tensor=False)
+        self.decoder = nn.TransformerDecoder(
+            nn.TransformerDecoderLayer(d_model, heads, ff, dropout, batch_first=True, norm_first=True),
+            layers, norm=nn.LayerNorm(d_model))
+        self.head = nn.Linear(d_model, out_dim)
+
+    def encode(self, src: torch.Tensor) -> torch.Tensor:
+        """(B, T, in) → memory (B, T, d), full (unmasked) self-attention."""
+        x = self.src_embed(src)  # (B, T, d)
+        x = x + sinusoidal_encoding(x.shape[1], x.shape[2], device=x.device, dtype=x.dtype)
+        return self.encoder(x)
+
+    def decode(self, prev: torch.Tensor, memory: torch.Tensor) -> torch.Tensor:
+        """Decoder inputs ``prev (B, L, out)`` (start token first) → next frames (B, L, out), causally."""
+        L = prev.shape[1]
+        x = self.tgt_embed(prev)  # (B, L, d)
+        x = x + sinusoidal_encoding(L, x.shape[2], device=x.device, dtype=x.dtype)
+        mask = torch.triu(torch.full((L, L), float("-inf"), device=x.device, dtype=x.dtype), diagonal=1)
+        y = self.head(self.decoder(x, memory, tgt_mask=mask))  # (B, L, out)
+        return torch.sigmoid(y) if self.sigmoid else y
+
+    def teacher_forced(self, src: torch.Tensor, tgt: torch.Tensor, memory: torch.Tensor | None = None) -> torch.Tensor:
+        """Training output ``[tgt_0, ŷ_1..ŷ_{T-1}]`` (B, T, out): the start token is the first target frame,
+        ``ŷ_t`` is predicted from ``tgt_0..tgt_{t-1}`` and the whole source window."""
+        memory = self.encode(src) if memory is None else memory
+        return torch.cat([tgt[:, :1], self.decode(tgt[:, :-1], memory)], dim=1)
+
+    def generate(self, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
+        """Autoregressive output for one window: ``start (B, out)`` then T - 1 generated frames → (B, T, out)."""
+        memory = self.encode(src)  # (B, T, d)
+        out = start[:, None, :]  # (B, 1, out)
+        for _ in range(src.shape[1] - 1):
+            nxt = self.decode(out, memory)[:, -1:]  # (B, 1, out)
+            out = torch.cat([out, nxt], dim=1)
+        return out
+
+
+# --------------------------------------------------------------------------------------------------
+# the model
+
+
+class DualModel(nn.Module):
+    """G_M→D (music (B, T, 53) → dance (B, T, P)) and G_D→M (dance → chroma + beat (B, T, 13)).
+
+    Examples
+    --------
+    >>> cfg = DualConfig(music_dim=17, music_raw_from=4, pose_dim=15, window=8, m2d_d_model=16, m2d_heads=2,
+    ...                  m2d_ff=32, d2m_d_model=8, d2m_heads=2, d2m_ff=16, m2d_layers=1, d2m_layers=1)
+    >>> model = DualModel(cfg)
+    >>> music, dance = torch.randn(4, 8, 17), torch.randn(4, 8, 15)
+    >>> loss, parts = model(music, dance)
+    >>> sorted(parts)
+    ['dance_cycle', 'dance_rec', 'gw', 'music_cycle', 'music_rec']
+    >>> model.generate_dance(music[:1, :20], start=dance[:1, 0]).shape
+    torch.Size([1, 8, 15])
+    """
+
+    family: ClassVar[str] = "dual"
+
+    def __init__(self, config: DualConfig):
+        super().__init__()
+        self.config = c = config
+        self.m2d = Seq2Seq(c.music_dim, c.pose_dim, d_model=c.m2d_d_model, layers=c.m2d_layers, heads=c.m2d_heads,
+                           ff=c.m2d_ff, dropout=c.dropout)
+        self.d2m = Seq2Seq(c.pose_dim, c.music_out_dim, d_model=c.d2m_d_model, layers=c.d2m_layers,
+                           heads=c.d2m_heads, ff=c.d2m_ff, dropout=c.dropout, sigmoid=True)
+        # start poses of training windows (a ring buffer, saved with the weights), sampled at inference
+        self.register_buffer("pose_pool", torch.zeros(c.pool_size, c.pose_dim))
+        self.register_buffer("pool_count", torch.zeros((), dtype=torch.long))
+
+    # ---- losses -----------------------------------------------------------------------------------
+
+    def music_from_composed(self, composed: torch.Tensor) -> torch.Tensor:
+        """G_M→D's input for composed music (B, T, 13): MFCC blocks at their mean (0), chroma + beat composed."""
+        pad = composed.new_zeros(composed.shape[:-1] + (self.config.music_raw_from,))
+        return torch.cat([pad, composed], dim=-1)  # (B, T, music_dim)
+
+    def forward(self, music: torch.Tensor, dance: torch.Tensor) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+        """All losses of one batch of windows, routed to the generators as the paper prescribes.
+
+        Parameters
+        ----------
+        music : (B, T, music_dim) features, columns ``[music_raw_from:]`` raw chroma + beat (the music target)
+        dance : (B, T, pose_dim) rot6d, translation normalised, 6D raw
+
+        Returns
+        -------
+        loss : the weighted sum of the enabled losses
+        parts : each enabled loss (``dance_rec``, ``music_rec``, ``gw``, ``dance_cycle``, ``music_cycle``)
+        """
+        c = self.config
+        self._check(music, dance)
+        target_music = music[..., c.music_raw_from:]  # (B, T, 13)
+        parts: dict[str, torch.Tensor] = {}
+        if c.generators in ("both", "m2d"):
+            memory_x = self.m2d.encode(music)  # (B, T, d_x)
+            dance_hat = self.m2d.teacher_forced(music, dance, memory_x)  # (B, T, P)
+            parts["dance_rec"] = dance_loss(dance_hat, dance, raw_from=c.dance_raw_from)
+        if c.generators in ("both", "d2m"):
+            memory_y = self.d2m.encode(dance)  # (B, T, d_y)
+            music_hat = self.d2m.teacher_forced(dance, target_music, memory_y)  # (B, T, 13)
+            parts["music_rec"] = music_loss(music_hat, target_music)
+        if c.gw:  # reaches Enc_M→D only
+            z_x, z_y = memory_x.mean(1), memory_y.mean(1).detach()  # (B, d_x), (B, d_y)
+            parts["gw"] = entropic_gromov_wasserstein(
+                z_x, z_y, epsilon=c.gw_epsilon, sinkhorn_iters=c.gw_sinkhorn_iters,
+                projection_iters=c.gw_projection_iters)
+        if c.cycle:
+            # dance cycle G_M→D(G_D→M(y)) updates G_M→D; music cycle G_D→M(G_M→D(x)) updates G_D→M
+            dance_cyc = self.m2d.teacher_forced(self.music_from_composed(music_hat.detach()), dance)
+            parts["dance_cycle"] = dance_loss(dance_cyc, dance, raw_from=c.dance_raw_from)
+            music_cyc = self.d2m.teacher_forced(dance_hat.detach(), target_music)
+            parts["music_cycle"] = music_loss(music_cyc, target_music)
+        weights = {"gw": c.gw_weight, "dance_cycle": c.cycle_weight, "music_cycle": c.cycle_weight}
+        loss = sum(weights.get(k, 1.0) * v for k, v in parts.items())
+        return loss, parts
+
+    @torch.no_grad()
+    def remember_start_poses(self, dance: torch.Tensor) -> None:
+        """Add the first frames of training windows ``dance (B, T, P)`` to the start-pose pool (a ring buffer)."""
+        n = self.pose_pool.shape[0]
+        for pose in dance[:, 0]:
+            self.pose_pool[int(self.pool_count) % n] = pose
+            self.pool_count += 1
+
+    def sample_start_pose(self, generator: torch.Generator | None = None) -> torch.Tensor:
+        """A start pose (P,) drawn from the pool with ``generator`` (the rest pose at the mean translation if the
+        pool is empty)."""
+        filled = min(int(self.pool_count), self.pose_pool.shape[0])
+        if filled == 0:
+            pose = torch.zeros(self.config.pose_dim, device=self.pose_pool.device)
+            pose[self.config.dance_raw_from:] = torch.tensor(IDENTITY_6D).repeat(
+                (self.config.pose_dim - self.config.dance_raw_from) // 6)
+            return pose
+        k = int(torch.randint(filled, (1,), generator=generator))
+        return self.pose_pool[k].clone()
+
+    # ---- inference ----------------------------------------------------------------------------------
+
+    @torch.no_grad()
+    def generate_dance(self, music: torch.Tensor, *, start: torch.Tensor) -> torch.Tensor:
+        """Dance for music of any length: ``music (B, n, music_dim)``, ``start (B, P)`` → (B, n, P)."""
+        return self._generate(self.m2d, music, start)
+
+    @torch.no_grad()
+    def generate_music(self, dance: torch.Tensor, *, start: torch.Tensor) -> torch.Tensor:
+        """Chroma + beat for a dance of any length: ``dance (B, n, P)``, ``start (B, 13)`` → (B, n, 13)."""
+        return self._generate(self.d2m, dance, start)
+
+    def _generate(self, net: Seq2Seq, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
+        """Windows of T frames overlapping by one; each starts from the last generated frame of the previous."""
+        was_training = self.training
+        self.eval()
+        try:
+            B, n, _ = src.shape
+            T = self.config.window
+            if n == 0:
+                return src.new_zeros(B, 0, net.out_dim)
+            out, s, prev = [start[:, None, :]], 0, start
+            while s + 1 < n:
+                chunk = src[:, s: s + T]  # (B, ≤T, in)
+                y = net.generate(chunk, prev)  # (B, ≤T, out)
+                out.append(y[:, 1:])
+                prev, s = y[:, -1], s + chunk.shape[1] - 1
+            return torch.cat(out, dim=1)
+        finally:
+            self.train(was_training)
+
+    def _check(self, music: torch.Tensor, dance: torch.Tensor) -> None:
+        c = self.config
+        if music.ndim != 3 or music.shape[2] != c.music_dim:
+            raise ParameterError(f"music must have shape (B, T, {c.music_dim}), got {tuple(music.shape)}")
+        if dance.ndim != 3 or dance.shape[0] != music.shape[0] or dance.shape[1] != music.shape[1] \
+                or dance.shape[2] != c.pose_dim:
+            raise ParameterError(f"dance must have shape {tuple(music.shape[:2]) + (c.pose_dim,)}, got "
+                                 f"{tuple(dance.shape)}")
+
+    def num_parameters(self) -> int:
+        """Number of trainable parameters."""
+        return sum(p.numel() for p in self.parameters() if p.requires_grad)

@@ -1,0 +1,193 @@
+"""Dual learning inference (MM 2021): music → dance with G_M→D, dance → music with G_D→M (inference only).
+
+    >>> dance = DualPipeline.from_pretrained("runs/dual/model")("song.ogg", seed=0).motion     # doctest: +SKIP
+    >>> piece = ComposePipeline.from_pretrained("runs/dual/model")(motion, seed=0)            # doctest: +SKIP
+    >>> piece.write("out/", stem="dance")      # dance.mid + dance.wav                       # doctest: +SKIP
+
+Both read one ``dual`` checkpoint folder (both generators are one model). Its ``stats.npz`` holds the
+training statistics of every column; the chroma + beat columns of the music and the 6D columns of the
+dance stay raw (``music_raw_from`` / ``dance_raw_from`` of the model configuration), as in training.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from dancekit.checkpoints import NormStats, load_pretrained, resolve_model
+from dancekit.errors import CheckpointError, ParameterError
+from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
+from dancekit.motion import Motion, Skeleton
+from dancekit.motion.representations import decode_motion, encode_motion
+from dancekit.pipelines.base import DanceResult
+
+
+def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
+    folder = resolve_model(folder)
+    model, meta, arrays = load_pretrained(folder, device=device)
+    if not isinstance(model, DualModel):
+        raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a dual-learning model")
+    missing = [k for k in ("music_mean", "music_std", "dance_mean", "dance_std") if k not in arrays]
+    missing += [k for k in ("skeleton", "fps") if k not in meta]
+    if missing:
+        raise CheckpointError(f"checkpoint {folder}: stats.npz / config.json lack {missing}")
+    c = model.config
+    stats = NormStats(**{k: np.array(arrays[k], np.float32) for k in ("music_mean", "music_std", "dance_mean",
+                                                                        "dance_std")})
+    if len(stats.music_mean) != c.music_dim or len(stats.dance_mean) != c.pose_dim:
+        raise CheckpointError(f"checkpoint {folder}: statistics do not match the model's music_dim / pose_dim")
+    stats.music_mean[c.music_raw_from:], stats.music_std[c.music_raw_from:] = 0.0, 1.0
+    stats.dance_mean[c.dance_raw_from:], stats.dance_std[c.dance_raw_from:] = 0.0, 1.0
+    if meta.get("representation", "rot6d") != "rot6d":
+        raise CheckpointError(f"checkpoint {folder}: a dual model works on rot6d, not {meta['representation']!r}")
+    return model.eval(), meta, stats, Path(folder)
+
+
+class DualPipeline:
+    """Music → dance with G_M→D: a song → :class:`~dancekit.pipelines.DanceResult`."""
+
+    def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?"):
+        self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
+        self.fps = float(meta["fps"])
+        self.hop_length = int(meta.get("hop_length", 512))
+        self.preset = str(meta.get("preset", "dual"))
+        self.skeleton = Skeleton.from_dict(meta["skeleton"])
+
+    @classmethod
+    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> DualPipeline:
+        """A ``dual`` checkpoint folder or model name (:func:`dancekit.checkpoints.resolve_model`)."""
+        model, meta, stats, folder = _load(folder, device)
+        return cls(model, meta=meta, stats=stats, folder=str(folder))
+
+    def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
+                 end: float | None = None) -> np.ndarray:
+        """The song's ``dual`` features (T, 53), MFCC blocks normalised, chroma + beat raw."""
+        from dancekit.features import extract_file
+
+        fs = extract_file(audio_path, fps=self.fps, preset=self.preset, start=start, end=end,
+                          hop_length=self.hop_length)
+        feats = np.asarray(fs.features, np.float32)
+        if feats.ndim != 2 or feats.shape[1] != self.model.config.music_dim:
+            raise CheckpointError(f"the {self.preset!r} features of {audio_path} have shape {feats.shape}, the model "
+                                  f"expects {self.model.config.music_dim} columns")
+        return self.stats.normalize_music(feats)
+
+    def start_pose(self, pose: Motion | np.ndarray | None, seed: int) -> torch.Tensor:
+        """The decoder's start token (P,): the first frame of ``pose`` (a Motion on the model's skeleton, or a
+        rot6d vector), else a start pose drawn from the model's pool with ``seed``."""
+        if pose is None:
+            return self.model.sample_start_pose(torch.Generator().manual_seed(int(seed)))
+        if isinstance(pose, Motion):
+            _check_skeleton(pose, self.skeleton)
+            pose = encode_motion(pose.slice(0, 1), "rot6d")[0]
+        x = np.asarray(pose, np.float32).reshape(-1)
+        if x.shape != (self.model.config.pose_dim,):
+            raise ParameterError(f"a start pose must have {self.model.config.pose_dim} rot6d values, got {x.shape}")
+        return torch.from_numpy(self.stats.normalize_dance(x))
+
+    @torch.no_grad()
+    def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
+                 end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
+                 progress: bool = False) -> DanceResult:
+        """A dance for the song (excerpt ``[start, end)`` s), one frame per feature frame.
+
+        ``seed`` draws the start pose from the model's pool (the paper's diverse generation) unless
+        ``start_pose`` is given. The model has no genre input: ``genre`` must be None, "auto" or "none".
+        """
+        if genre not in (None, "auto", "none"):
+            raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
+        x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
+        s = self.start_pose(start_pose, seed)[None]  # (1, P)
+        y = self.model.generate_dance(x, start=s)[0].cpu().numpy()  # (T, P)
+        motion = decode_motion(self.stats.denormalize_dance(y), self.skeleton, self.fps, "rot6d")
+        return DanceResult(motion=motion, model=self.folder, seed=int(seed),
+                           genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
+
+
+@dataclass
+class ComposeResult:
+    """Music composed for a dance: G_D→M's chroma + beats, and the MIDI / audio made from them.
+
+    Attributes
+    ----------
+    chroma : (T, 12) composed chroma in [0, 1], one row per motion frame
+    beat : (T,) composed beat activation in [0, 1]
+    fps : frames per second of both
+    start_chord : the start token's chord, e.g. "A minor"
+    arrangement : :class:`dancekit.audio.midi.Arrangement` (beats, chords, tempo, the PrettyMIDI object)
+    seed : the random seed
+    """
+
+    chroma: np.ndarray
+    beat: np.ndarray
+    fps: float
+    start_chord: str
+    arrangement: Any
+    seed: int
+
+    def write(self, out_dir: str | os.PathLike, *, stem: str = "music", sr: int = 22050,
+              render: str = "auto") -> dict[str, Path]:
+        """Write ``stem.mid`` and ``stem.wav`` (FluidSynth when available, else the built-in synthesiser)."""
+        from dancekit.audio.midi import write_arrangement
+
+        return write_arrangement(self.arrangement, out_dir, stem=stem, sr=sr, backend=render)
+
+
+class ComposePipeline:
+    """Dance → music with G_D→M: a :class:`Motion` on the model's skeleton → :class:`ComposeResult`."""
+
+    def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?"):
+        self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
+        self.fps = float(meta["fps"])
+        self.skeleton = Skeleton.from_dict(meta["skeleton"])
+
+    @classmethod
+    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> ComposePipeline:
+        model, meta, stats, folder = _load(folder, device)
+        return cls(model, meta=meta, stats=stats, folder=str(folder))
+
+    @torch.no_grad()
+    def __call__(self, motion: Motion, *, seed: int = 0, tempo: str | float = "auto",
+                 root: int | str | None = None, minor: bool | None = None) -> ComposeResult:
+        """Compose chroma + beats for ``motion`` and arrange them (chords on the beats, bass, drums).
+
+        Parameters
+        ----------
+        motion : a 3D dance on the model's skeleton (resampled to the model's fps when it differs)
+        seed : draws the start chord (root of 12 pitch classes × major / minor) unless given
+        tempo : "auto" (the composed beats) or a BPM (a regular grid phased on the first composed beat)
+        root, minor : the start chord (e.g. ``root="A", minor=True``)
+        """
+        if not isinstance(motion, Motion):
+            raise ParameterError(f"compose needs a Motion, got {type(motion).__name__}")
+        _check_skeleton(motion, self.skeleton)
+        if abs(motion.fps - self.fps) > 1e-6:
+            motion = motion.resample(self.fps)
+        g = torch.Generator().manual_seed(int(seed))
+        if root is None:
+            root = int(torch.randint(12, (1,), generator=g))
+        if minor is None:
+            minor = bool(torch.randint(2, (1,), generator=g))
+        token = chord_token(root, bool(minor))
+        y = torch.from_numpy(self.stats.normalize_dance(encode_motion(motion, "rot6d")))[None]  # (1, T, P)
+        out = self.model.generate_music(y, start=token[None])[0].cpu().numpy()  # (T, 13)
+        from dancekit.audio.midi import arrange
+
+        chroma, beat = out[:, :12], out[:, 12]
+        root_name = PITCH_CLASSES[int(root)] if not isinstance(root, str) else root
+        return ComposeResult(chroma=chroma, beat=beat, fps=self.fps, seed=int(seed),
+                             start_chord=f"{root_name} {'minor' if minor else 'major'}",
+                             arrangement=arrange(chroma, beat, fps=self.fps, tempo=tempo))
+
+
+def _check_skeleton(motion: Motion, skeleton: Skeleton) -> None:
+    if motion.skeleton.dims != 3 or list(motion.skeleton.joint_names) != list(skeleton.joint_names):
+        raise ParameterError(
+            f"this model dances on the {skeleton.name!r} skeleton ({skeleton.num_joints} joints); the motion is on "
+            f"{motion.skeleton.name!r} ({motion.skeleton.num_joints} joints, {motion.skeleton.dims}D). Mapping another "
+            "skeleton's joints by role is not supported yet: convert the dance to this skeleton first")

@@ -1,0 +1,373 @@
+"""Dual learning of music and dance (MM 2021): rot6d, the losses, Gromov-Wasserstein, the two generators."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from dancekit.models.dual import DualConfig, DualModel, chord_token, dance_loss, geodesic_squared, music_loss
+from dancekit.models.gromov import entropic_gromov_wasserstein, l1_cost_matrix
+from dancekit.motion.rotations import axis_angle_to_matrix, matrix_to_rotation_6d, rotation_6d_to_matrix
+
+# ---------------------------------------------------------------------------------------------- rot6d
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_6d_always_decodes_to_a_proper_rotation(scale):
+    g = torch.Generator().manual_seed(0)
+    d6 = torch.randn(500, 6, generator=g, dtype=torch.float64) * scale
+    d6[0] = 0.0  # degenerate: zeros
+    d6[1, 3:] = 2.0 * d6[1, :3]  # degenerate: parallel columns
+    R = rotation_6d_to_matrix(d6)
+    eye = torch.eye(3, dtype=torch.float64).expand_as(R)
+    assert torch.allclose(R.transpose(-1, -2) @ R, eye, atol=1e-10)
+    assert torch.allclose(torch.linalg.det(R), torch.ones(500, dtype=torch.float64), atol=1e-10)
+
+
+def test_6d_round_trip():
+    g = torch.Generator().manual_seed(1)
+    R = axis_angle_to_matrix(torch.randn(200, 3, generator=g, dtype=torch.float64))
+    assert torch.allclose(rotation_6d_to_matrix(matrix_to_rotation_6d(R)), R, atol=1e-12)
+
+
+def test_rot6d_representation_round_trip(rng):
+    from dancekit.motion import Motion, get_skeleton
+    from dancekit.motion.representations import decode_motion, encode_motion, pose_dim
+
+    sk = get_skeleton("tang2018")
+    assert pose_dim(sk, "rot6d") == 3 + 6 * sk.rig().num_joints == 171
+    pos = rng.normal(0, 10, (12, sk.num_joints, 3)).astype(np.float32)
+    x = encode_motion(Motion(skeleton=sk, fps=25.0, positions=pos), "rot6d")
+    assert x.shape == (12, 171) and x.dtype == np.float32
+    m = decode_motion(x, sk, 25.0, "rot6d")
+    assert m.rotations is not None and m.positions is not None
+    np.testing.assert_allclose(encode_motion(m, "rot6d"), x, atol=1e-5)
+    # the translation columns are the root; the decoded positions are the IK'd ones (rest bone lengths)
+    np.testing.assert_allclose(m.positions[:, sk.root], x[:, :3], atol=1e-4)
+
+
+# ---------------------------------------------------------------------------------------------- losses
+
+
+def test_geodesic_is_zero_for_identical_and_pi_squared_for_opposite_rotations():
+    g = torch.Generator().manual_seed(2)
+    R = axis_angle_to_matrix(torch.randn(50, 3, generator=g, dtype=torch.float64))
+    assert geodesic_squared(R, R).max() < 1e-12
+    axis = torch.nn.functional.normalize(torch.randn(50, 3, generator=g, dtype=torch.float64), dim=-1)
+    flip = axis_angle_to_matrix(math.pi * axis)  # a rotation by π: the opposite
+    torch.testing.assert_close(geodesic_squared(R, R @ flip), torch.full((50,), math.pi**2, dtype=torch.float64))
+    half = axis_angle_to_matrix(0.5 * axis)
+    torch.testing.assert_close(geodesic_squared(R, R @ half), torch.full((50,), 0.25, dtype=torch.float64))
+
+
+def test_geodesic_gradient_is_finite_at_zero_and_pi():
+    R = torch.eye(3, dtype=torch.float64)
+    d6 = matrix_to_rotation_6d(torch.stack([R, axis_angle_to_matrix(torch.tensor([math.pi, 0, 0.0]))]))
+    d6 = d6.double().requires_grad_(True)
+    geodesic_squared(rotation_6d_to_matrix(d6), R.expand(2, 3, 3)).sum().backward()
+    assert torch.isfinite(d6.grad).all()
+
+
+def test_dance_and_music_losses():
+    g = torch.Generator().manual_seed(3)
+    R = axis_angle_to_matrix(torch.randn(2, 5, 4, 3, generator=g))
+    y = torch.cat([torch.randn(2, 5, 3, generator=g), matrix_to_rotation_6d(R).reshape(2, 5, 24)], -1)
+    assert float(dance_loss(y, y)) < 1e-6
+    shifted = y.clone()
+    shifted[..., 0] += 2.0  # translation: L1
+    assert float(dance_loss(shifted, y)) == pytest.approx(2.0, abs=1e-5)
+    flipped = y.clone()
+    flip = axis_angle_to_matrix(torch.tensor([0.0, 0.0, math.pi]))
+    flipped[..., 3:9] = matrix_to_rotation_6d(R[..., 0, :, :] @ flip)  # one joint of four turned by π
+    assert float(dance_loss(flipped, y)) == pytest.approx(math.pi**2, rel=1e-4)
+    x = torch.rand(2, 5, 13, generator=g)
+    x2 = x.clone()
+    x2[..., :12] += 0.1
+    x2[..., 12] += 0.5
+    assert float(music_loss(x2, x)) == pytest.approx(12 * 0.1 + 0.5, rel=1e-5)
+
+
+def test_chord_token():
+    assert chord_token("C").nonzero().flatten().tolist() == [0, 4, 7]
+    assert chord_token("A", minor=True).nonzero().flatten().tolist() == [0, 4, 9]  # A C E
+    assert chord_token(11)[12] == 0.0 and chord_token(11).shape == (13,)
+
+
+# ---------------------------------------------------------------------------------------------- GW
+
+
+def _points(m, d, *, seed, scale=1.0):
+    return torch.randn(m, d, generator=torch.Generator().manual_seed(seed), dtype=torch.float64) * scale
+
+
+def test_gw_of_a_batch_with_itself_is_zero():
+    """≈ 0 up to the entropic blur of the plan (ε = 0.2 on O(1)-spaced points): 1e-4 of another batch's GW."""
+    x = _points(8, 5, seed=0)
+    other = float(entropic_gromov_wasserstein(x, _points(8, 5, seed=1)))
+    assert other > 1.0
+    assert float(entropic_gromov_wasserstein(x, x)) < 1e-4 * other
+    # costs ≫ ε: L = 30 Sinkhorn iterations do not converge and the plan stalls (a limit of Algorithm 1's
+    # settings); more iterations find the identity
+    assert float(entropic_gromov_wasserstein(3 * x, 3 * x)) > 1.0
+    assert float(entropic_gromov_wasserstein(3 * x, 3 * x, sinkhorn_iters=300)) < 1e-12
+
+
+
+def test_gw_is_invariant_to_permuting_one_batch():
+    x, y = _points(8, 5, seed=2, scale=0.3), _points(8, 3, seed=3, scale=0.3)
+    perm = torch.randperm(8, generator=torch.Generator().manual_seed(4))
+    a = entropic_gromov_wasserstein(x, y)
+    torch.testing.assert_close(entropic_gromov_wasserstein(x, y[perm]), a, rtol=1e-9, atol=1e-12)
+    torch.testing.assert_close(entropic_gromov_wasserstein(x[perm], y), a, rtol=1e-9, atol=1e-12)
+
+
+def test_gw_gradient_matches_finite_differences():
+    x = _points(6, 4, seed=5, scale=0.5).requires_grad_(True)
+    y = _points(6, 3, seed=6, scale=0.5).requires_grad_(True)
+
+    def f(a, b):
+        return entropic_gromov_wasserstein(a, b, sinkhorn_iters=10, projection_iters=5)
+
+    assert torch.autograd.gradcheck(f, (x, y), eps=1e-6, atol=1e-5, rtol=1e-4)
+    gx, = torch.autograd.grad(entropic_gromov_wasserstein(x, y), x)  # the paper's settings: finite
+    assert torch.isfinite(gx).all() and gx.abs().sum() > 0
+
+
+def test_gw_stays_finite_for_large_costs():
+    x, y = _points(16, 512, seed=7, scale=3.0).float(), _points(16, 256, seed=8, scale=3.0).float()
+    x.requires_grad_(True)
+    gw = entropic_gromov_wasserstein(x, y)
+    gw.backward()
+    assert torch.isfinite(gw) and torch.isfinite(x.grad).all()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_gw_agrees_with_pot(seed):
+    """POT runs Sinkhorn on 2·E (its gwggrad has the factor 2), so POT's epsilon = 2 ε. Costs O(1): both
+    converge within the paper's iterations, and the values agree to 1e-9 relative."""
+    ot = pytest.importorskip("ot")
+    m = 8
+    x, y = _points(m, 5, seed=10 + seed, scale=0.2), _points(m, 3, seed=20 + seed, scale=0.2)
+    gw, plan = entropic_gromov_wasserstein(x, y, return_plan=True)
+    C, D, p = l1_cost_matrix(x).numpy(), l1_cost_matrix(y).numpy(), np.full(m, 1.0 / m)
+    T, log = ot.gromov.entropic_gromov_wasserstein(D, C, p, p, "square_loss", epsilon=0.4, max_iter=20, tol=0.0,
+                                                   numItermax=30, stopThr=0.0, log=True)
+    assert float(gw) == pytest.approx(float(log["gw_dist"]), rel=1e-9)
+    np.testing.assert_allclose(plan.numpy(), T, atol=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------- the model
+
+TINY = dict(music_dim=17, music_raw_from=4, pose_dim=3 + 6 * 2, window=8, m2d_d_model=16, m2d_layers=1,
+            m2d_heads=2, m2d_ff=16, d2m_d_model=8, d2m_layers=1, d2m_heads=2, d2m_ff=16, dropout=0.0,
+            gw_sinkhorn_iters=5, gw_projection_iters=3)  # GW itself is tested at the paper's L, M above
+
+
+def _batch(seed=0, B=4, T=8):
+    g = torch.Generator().manual_seed(seed)
+    music = torch.randn(B, T, 17, generator=g)
+    music[..., 4:] = torch.rand(B, T, 13, generator=g)
+    R = axis_angle_to_matrix(torch.randn(B, T, 2, 3, generator=g))
+    dance = torch.cat([torch.randn(B, T, 3, generator=g), matrix_to_rotation_6d(R).reshape(B, T, 12)], -1)
+    return music, dance
+
+
+def _reached(model, loss):
+    """{part: whether any gradient reaches it} for m2d.encoder, m2d.decoder, d2m.encoder, d2m.decoder."""
+    model.zero_grad(set_to_none=True)
+    loss.backward(retain_graph=True)
+    groups = {
+        "m2d.enc": ("m2d.src_embed", "m2d.encoder"),
+        "m2d.dec": ("m2d.tgt_embed", "m2d.decoder", "m2d.head"),
+        "d2m.enc": ("d2m.src_embed", "d2m.encoder"),
+        "d2m.dec": ("d2m.tgt_embed", "d2m.decoder", "d2m.head"),
+    }
+    out = {}
+    for name, prefixes in groups.items():
+        grads = [p.grad for n, p in model.named_parameters() if n.startswith(prefixes)]
+        out[name] = any(g is not None and float(g.abs().sum()) > 0 for g in grads)
+    return out
+
+
+def test_each_loss_reaches_the_networks_the_paper_says():
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY))
+    _, parts = model(*_batch())
+    assert set(parts) == {"dance_rec", "music_rec", "gw", "dance_cycle", "music_cycle"}
+    expect = {  # the paper: GW + dance losses → G_M→D (GW: its encoder only); music losses → G_D→M
+        "gw": {"m2d.enc": True, "m2d.dec": False, "d2m.enc": False, "d2m.dec": False},
+        "dance_rec": {"m2d.enc": True, "m2d.dec": True, "d2m.enc": False, "d2m.dec": False},
+        "dance_cycle": {"m2d.enc": True, "m2d.dec": True, "d2m.enc": False, "d2m.dec": False},
+        "music_rec": {"m2d.enc": False, "m2d.dec": False, "d2m.enc": True, "d2m.dec": True},
+        "music_cycle": {"m2d.enc": False, "m2d.dec": False, "d2m.enc": True, "d2m.dec": True},
+    }
+    for name, reached in expect.items():
+        assert _reached(model, parts[name]) == reached, name
+
+
+@pytest.mark.parametrize("gw,cycle,generators,parts", [
+    (True, True, "both", {"dance_rec", "music_rec", "gw", "dance_cycle", "music_cycle"}),
+    (False, True, "both", {"dance_rec", "music_rec", "dance_cycle", "music_cycle"}),
+    (True, False, "both", {"dance_rec", "music_rec", "gw"}),
+    (False, False, "both", {"dance_rec", "music_rec"}),
+    (False, False, "m2d", {"dance_rec"}),
+    (False, False, "d2m", {"music_rec"}),
+])
+def test_ablation_switches(gw, cycle, generators, parts):
+    model = DualModel(DualConfig(**TINY, gw=gw, cycle=cycle, generators=generators))
+    loss, got = model(*_batch())
+    assert set(got) == parts
+    assert float(loss) == pytest.approx(float(sum(got.values())), rel=1e-6)
+
+
+def test_separate_training_refuses_coupling_losses():
+    from dancekit.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="separate training"):
+        DualConfig(**TINY, generators="m2d")  # gw and cycle default on
+
+
+def test_paper_sizes():
+    c = DualConfig.paper()
+    assert (c.m2d_layers, c.m2d_heads, c.m2d_d_model, c.d2m_layers, c.d2m_heads, c.d2m_d_model) == (6, 8, 512, 6, 8, 256)
+
+
+def test_long_generation_chains_windows_from_the_last_frame():
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY)).eval()
+    music, dance = _batch(B=1, T=20)
+    start = dance[:, 0]
+    out = model.generate_dance(music, start=start)
+    assert out.shape == (1, 20, 15)
+    torch.testing.assert_close(out[:, 0], start)
+    # window 2 covers frames 7..14 and starts from generated frame 7
+    second = model.m2d.generate(music[:, 7:15], out[:, 7])
+    torch.testing.assert_close(out[:, 7:15], second)
+    notes = model.generate_music(dance, start=chord_token("G")[None])
+    assert notes.shape == (1, 20, 13) and float(notes.min()) >= 0.0 and float(notes.max()) <= 1.0
+
+
+def test_start_pose_pool():
+    model = DualModel(DualConfig(**TINY, pool_size=3))
+    empty = model.sample_start_pose()
+    assert torch.equal(empty[3:9], torch.tensor([1.0, 0, 0, 0, 1, 0]))
+    _, dance = _batch(B=4)
+    model.remember_start_poses(dance)
+    assert int(model.pool_count) == 4
+    pose = model.sample_start_pose(torch.Generator().manual_seed(0))
+    assert any(torch.equal(pose, p) for p in model.pose_pool)
+
+
+# ---------------------------------------------------------------------------------------------- pipelines
+
+
+@pytest.fixture(scope="module")
+def tiny_checkpoint(tmp_path_factory):
+    """An untrained tang2018-sized dual model saved as a checkpoint folder (rot6d, the dual preset)."""
+    from dancekit.checkpoints import save_pretrained
+    from dancekit.motion import get_skeleton
+
+    sk = get_skeleton("tang2018")
+    cfg = DualConfig(**{**TINY, "music_dim": 53, "music_raw_from": 40, "pose_dim": 171, "window": 10})
+    torch.manual_seed(0)
+    model = DualModel(cfg)
+    stats = {"music_mean": np.zeros(53, np.float32), "music_std": np.ones(53, np.float32),
+             "dance_mean": np.full(171, 5.0, np.float32), "dance_std": np.full(171, 2.0, np.float32)}
+    folder = tmp_path_factory.mktemp("dual") / "model"
+    save_pretrained(folder, model, cfg, stats=stats, extra={"representation": "rot6d", "preset": "dual", "fps": 25.0,
+                                                           "hop_length": 512, "skeleton": sk.to_dict()})
+    return folder
+
+
+def _motion(T=30):
+    from dancekit.motion import Motion, get_skeleton
+
+    sk = get_skeleton("tang2018")
+    pos = np.random.default_rng(0).normal(0, 10, (T, sk.num_joints, 3)).astype(np.float32)
+    return Motion(skeleton=sk, fps=25.0, positions=pos)
+
+
+def test_compose_pipeline_writes_midi_and_wav(tiny_checkpoint, tmp_path):
+    from dancekit.pipelines.dual import ComposePipeline
+
+    pipe = ComposePipeline.from_pretrained(tiny_checkpoint)
+    a = pipe(_motion(), seed=3, tempo=120)
+    b = pipe(_motion(), seed=3, tempo=120)
+    np.testing.assert_array_equal(a.chroma, b.chroma)  # deterministic under a seed
+    assert a.chroma.shape == (30, 12) and a.beat.shape == (30,) and a.arrangement.tempo == pytest.approx(120.0)
+    given = pipe(_motion(), root="A", minor=True)
+    assert given.start_chord == "A minor"
+    np.testing.assert_array_equal(given.chroma[0], chord_token("A", True)[:12].numpy())  # frame 0 = start token
+    files = a.write(tmp_path, stem="dance")
+    assert files["midi"].stat().st_size > 0 and files["wav"].stat().st_size > 0
+
+
+def test_compose_refuses_another_skeleton(tiny_checkpoint):
+    from dancekit.errors import ParameterError
+    from dancekit.motion import Motion, get_skeleton
+    from dancekit.pipelines.dual import ComposePipeline
+
+    other = get_skeleton("body25")
+    m = Motion(skeleton=other, fps=25.0, positions=np.zeros((10, other.num_joints, other.dims), np.float32))
+    with pytest.raises(ParameterError, match="skeleton"):
+        ComposePipeline.from_pretrained(tiny_checkpoint)(m)
+
+
+def test_dance_pipeline_start_pose_and_denormalisation(tiny_checkpoint):
+    from dancekit.pipelines.dual import DualPipeline
+
+    pipe = DualPipeline.from_pretrained(tiny_checkpoint)
+    motion = _motion(T=5)
+    s = pipe.start_pose(motion, seed=0)
+    # translation normalised with the stats (mean 5, std 2), 6D raw
+    np.testing.assert_allclose(s[:3].numpy(), (motion.with_rotations().root_translation[0] - 5.0) / 2.0, rtol=1e-5)
+    from dancekit.motion.representations import encode_motion
+
+    np.testing.assert_allclose(s[3:].numpy(), encode_motion(motion, "rot6d")[0, 3:], atol=1e-6)
+
+
+def test_compose_cli_writes_midi_and_wav(tiny_checkpoint, tmp_path):
+    from dancekit.cli.main import main
+    from dancekit.motion.formats import write_motion
+
+    write_motion(tmp_path / "dance.npz", _motion())
+    out = tmp_path / "out"
+    assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--checkpoint", str(tiny_checkpoint),
+                 "--tempo", "110", "--render", "builtin", "--quiet"]) == 0
+    assert (out / "dance.mid").stat().st_size > 0 and (out / "dance.wav").stat().st_size > 0
+    assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--checkpoint", str(tiny_checkpoint),
+                 "--tempo", "fast"]) == 2
+
+
+def test_dual_windows_keep_chroma_beat_and_6d_raw():
+    from dancekit.checkpoints import NormStats
+    from dancekit.errors import ParameterError
+    from dancekit.training.datasets import partial_stats, raw_columns
+
+    assert raw_columns(preset="dual", representation="rot6d") == (40, 3)
+    with pytest.raises(ParameterError, match="rot6d"):
+        raw_columns(preset="dual", representation="positions3d")
+    stats = NormStats(music_mean=np.full(53, 2.0, np.float32), music_std=np.full(53, 3.0, np.float32),
+                      dance_mean=np.full(171, 2.0, np.float32), dance_std=np.full(171, 3.0, np.float32))
+    p = partial_stats(stats, music_raw_from=40, dance_raw_from=3)
+    assert (p.music_mean[:40] == 2).all() and (p.music_mean[40:] == 0).all() and (p.music_std[40:] == 1).all()
+    assert (p.dance_std[:3] == 3).all() and (p.dance_mean[3:] == 0).all() and (p.dance_std[3:] == 1).all()
+    assert (stats.music_mean == 2).all()  # the saved statistics are left as they are
+
+
+def test_teacher_forcing_is_causal_and_matches_free_running_generation():
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY)).eval()
+    music, dance = _batch(B=2, T=8)
+    with torch.no_grad():
+        out = model.m2d.teacher_forced(music, dance)
+        changed = dance.clone()
+        changed[:, 5:] += 1.0
+        # ŷ_t depends on frames < t only
+        torch.testing.assert_close(model.m2d.teacher_forced(music, changed)[:, :6], out[:, :6])
+        # feeding the generated frames back reproduces them: training and inference are the same decoder
+        gen = model.m2d.generate(music, dance[:, 0])
+        torch.testing.assert_close(model.m2d.teacher_forced(music, gen), gen, atol=1e-5, rtol=1e-5)

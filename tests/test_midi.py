@@ -1,0 +1,113 @@
+"""audio/midi.py: chroma + beats → chords, bass and drums on the beats → MIDI → audio."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pretty_midi")
+
+from dancekit.audio.midi import arrange, best_triad, pick_beats, render, synthesize  # noqa: E402
+
+FPS = 25.0
+
+
+def _known_piece():
+    """8 s: a beat every 12 frames (125 BPM) from frame 6; C major for 4 s, then A minor."""
+    T = 200
+    chroma = np.full((T, 12), 0.05)
+    chroma[:100, [0, 4, 7]] = 1.0  # C E G
+    chroma[100:, [9, 0, 4]] = 1.0  # A C E
+    beat = np.zeros(T)
+    frames = np.arange(6, T, 12)
+    beat[frames] = 0.9
+    beat[frames + 1] = 0.6  # a shoulder: not a second beat
+    return chroma, beat, frames / FPS
+
+
+def test_best_triad():
+    c = np.zeros(12)
+    c[[7, 11, 2]] = 1.0
+    assert best_triad(c) == (7, False)  # G major
+    c = np.zeros(12)
+    c[[2, 5, 9]] = 1.0
+    assert best_triad(c) == (2, True)  # D minor
+
+
+def test_pick_beats_finds_the_peaks():
+    _, beat, times = _known_piece()
+    np.testing.assert_allclose(pick_beats(beat, fps=FPS), times)
+
+
+def test_known_chroma_and_beats_give_the_expected_chords_and_onsets():
+    chroma, beat, times = _known_piece()
+    arr = arrange(chroma, beat, fps=FPS)
+    np.testing.assert_allclose(arr.beat_times, times)
+    assert arr.tempo == pytest.approx(125.0)
+    names = arr.chord_names()
+    assert len(names) == len(times)
+    for name, t in zip(names, times):
+        if t + 12 / FPS <= 4.0:  # beat interval entirely in the C major half
+            assert name == "C"
+        elif t >= 4.0:
+            assert name == "Am"
+    assert names[0] == "C" and names[-1] == "Am"
+    chords, bass, drums = arr.midi.instruments
+    onsets = sorted({round(n.start, 6) for n in chords.notes})
+    np.testing.assert_allclose(onsets, times)
+    first = sorted(n.pitch for n in chords.notes if abs(n.start - times[0]) < 1e-9)
+    assert first == [60, 64, 67]  # C4 E4 G4
+    last = sorted(n.pitch for n in chords.notes if abs(n.start - times[-1]) < 1e-9)
+    assert last == [69, 72, 76]  # A4 C5 E5
+    assert [n.pitch % 12 for n in bass.notes] == [r for r, _ in arr.chords]
+    assert drums.is_drum
+    kick_snare = [n for n in drums.notes if n.pitch in (36, 38)]
+    np.testing.assert_allclose([n.start for n in kick_snare], times)
+    assert [n.pitch for n in kick_snare[:4]] == [36, 38, 36, 38]
+
+
+def test_fixed_tempo_is_a_grid_phased_on_the_first_beat():
+    chroma, beat, times = _known_piece()
+    arr = arrange(chroma, beat, fps=FPS, tempo=100)
+    assert arr.tempo == pytest.approx(100.0)
+    np.testing.assert_allclose(np.diff(arr.beat_times), 0.6)
+    assert times[0] in arr.beat_times
+
+
+def test_no_beats_fall_back_to_a_grid():
+    chroma, _, _ = _known_piece()
+    arr = arrange(chroma, np.zeros(len(chroma)), fps=FPS)
+    assert arr.tempo == pytest.approx(120.0) and len(arr.beat_times) == 16
+
+
+def test_builtin_synthesiser_is_audible_not_clipped_and_not_a_sine():
+    chroma, beat, times = _known_piece()
+    arr = arrange(chroma, beat, fps=FPS)
+    y, backend = render(arr.midi, sr=16000, backend="builtin")
+    assert backend == "builtin" and y.dtype == np.float32
+    assert len(y) >= int(8.0 * 16000)
+    assert 0.5 < np.abs(y).max() <= 0.9 and np.sqrt(np.mean(y**2)) > 0.03
+    # onsets: the energy right after each beat exceeds the energy just before it
+    for t in times[1:-1]:
+        a = int(t * 16000)
+        assert np.abs(y[a: a + 400]).mean() > np.abs(y[a - 1200: a - 800]).mean()
+    # not a sine: a piano note has energy in several harmonics
+    import pretty_midi
+
+    pm = pretty_midi.PrettyMIDI()
+    inst = pretty_midi.Instrument(program=0)
+    inst.notes.append(pretty_midi.Note(velocity=100, pitch=57, start=0.0, end=1.0))  # A3, 220 Hz
+    pm.instruments.append(inst)
+    spec = np.abs(np.fft.rfft(synthesize(pm, sr=16000)[:16000]))
+    hz = np.fft.rfftfreq(16000, 1 / 16000)
+    band = [spec[(hz > k * 220 * 0.97) & (hz < k * 220 * 1.03)].max() for k in (1, 2, 3, 4)]
+    assert min(band[1:]) > 0.05 * band[0]
+
+
+def test_bad_input_is_a_named_error():
+    from dancekit.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="chroma"):
+        arrange(np.zeros((10, 11)), np.zeros(10), fps=FPS)
+    with pytest.raises(ParameterError, match="tempo"):
+        arrange(np.zeros((10, 12)), np.zeros(10), fps=FPS, tempo="fast")
