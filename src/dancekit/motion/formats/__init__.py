@@ -5,7 +5,8 @@ what                   recognised by                   module
 =====================  ==============================  =======================
 dancekit npz           ``*.npz``                       :mod:`.npz`
 BVH                    ``*.bvh``                       :mod:`.bvh`
-AIST++ SMPL            ``*.pkl``                       :mod:`.aistpp` (read only)
+AIST++ SMPL            ``*.pkl``                       :mod:`.aistpp`
+glTF 2.0 binary        ``*.glb``                       :mod:`.gltf` (write only)
 OpenPose BODY_25       folder of ``*_keypoints.json``  :mod:`.openpose`
                        or ``*.json`` files
 tang2018 dance         folder with ``skeletons.json``  :mod:`.tang2018` (read only)
@@ -94,7 +95,7 @@ def read_motion(path: str | os.PathLike, **kwargs) -> Motion:
 
 
 def write_motion(path: str | os.PathLike, motion: Motion) -> None:
-    """Write ``motion`` by the suffix of ``path``: ``.npz``, ``.bvh``, or a folder (OpenPose JSON).
+    """Write ``motion`` by the suffix of ``path``: ``.npz``, ``.bvh``, ``.glb``, or a folder (OpenPose JSON).
 
     Raises
     ------
@@ -109,8 +110,12 @@ def write_motion(path: str | os.PathLike, motion: Motion) -> None:
         from dancekit.motion.formats.bvh import write_bvh
 
         return write_bvh(path, motion)
+    if suffix == ".glb":
+        from dancekit.motion.formats.gltf import write_glb
+
+        return write_glb(path, motion)
     if suffix == "" or path.is_dir():
         from dancekit.motion.formats.openpose import write_openpose
 
         return write_openpose(path, motion)
-    raise MotionFormatError(f"cannot write motion format {suffix!r} ({path}); use .npz, .bvh or a folder")
+    raise MotionFormatError(f"cannot write motion format {suffix!r} ({path}); use .npz, .bvh, .glb or a folder")
