@@ -56,7 +56,7 @@ def listing(folder: Path) -> list[str]:
         (["npz"], ["s.npz"]),
         ("bvh, npz", ["s.bvh", "s.npz"]),
         (["openpose", "html", "npz", "html"], ["s.html", "s.npz", "s_openpose"]),
-        (list(FORMATS), ["s.bvh", "s.glb", "s.html", "s.mp4", "s.npz", "s_openpose"]),
+        (list(FORMATS), ["s.bvh", "s.glb", "s.html", "s.mp4", "s.npz", "s.pkl", "s_openpose"]),
     ],
 )
 def test_export_writes_exactly_the_requested_files(tmp_path, motion, formats, names):

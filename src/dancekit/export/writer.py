@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from dancekit.motion import Motion
     from dancekit.render import AudioClip, RenderOptions
 
-FORMATS = ("mp4", "html", "npz", "bvh", "openpose", "glb")
+FORMATS = ("mp4", "html", "npz", "bvh", "openpose", "glb", "pkl")
 DEFAULT_FORMATS = ("mp4", "html", "npz", "bvh")
 _STAGE_PREFIX = ".dancekit-"
 
@@ -95,7 +95,9 @@ def export_motion(
         From :data:`FORMATS`: ``mp4`` (video with the song), ``html`` (self-contained
         player), ``npz`` (the motion), ``bvh``, ``openpose`` (a folder of BODY_25 JSON, one
         file per frame; a 3D motion is projected), ``glb`` (glTF 2.0: the rig, the animation
-        and a skinned body, :mod:`dancekit.motion.formats.gltf`). Default :data:`DEFAULT_FORMATS`.
+        and a skinned body, :mod:`dancekit.motion.formats.gltf`), ``pkl`` (AIST++ SMPL at 60 fps,
+        retargeted onto SMPL, :func:`dancekit.motion.formats.aistpp.write_aistpp`).
+        Default :data:`DEFAULT_FORMATS`.
     audio : AudioClip, path-like or None
         The song slice that plays with the dance in the mp4 and html (a plain path: the
         song from 0 s); None: silent.
@@ -109,7 +111,7 @@ def export_motion(
     -------
     list of Path
         The written paths in ``folder``, in the order of ``formats``: ``{stem}.mp4``,
-        ``{stem}.html``, ``{stem}.npz``, ``{stem}.bvh``, ``{stem}_openpose/``, ``{stem}.glb``.
+        ``{stem}.html``, ``{stem}.npz``, ``{stem}.bvh``, ``{stem}_openpose/``, ``{stem}.glb``, ``{stem}.pkl``.
 
     Raises
     ------
@@ -182,7 +184,7 @@ def _write(fmt: str, motion, folder: Path, stem: str, audio, options, progress: 
     from dancekit import render  # looked up per call (tests replace the writers)
     from dancekit.motion.formats import write_motion
 
-    if fmt in ("npz", "bvh", "glb"):
+    if fmt in ("npz", "bvh", "glb", "pkl"):
         path = folder / f"{stem}.{fmt}"
         write_motion(path, motion)
     elif fmt == "openpose":

@@ -95,12 +95,13 @@ def read_motion(path: str | os.PathLike, **kwargs) -> Motion:
 
 
 def write_motion(path: str | os.PathLike, motion: Motion) -> None:
-    """Write ``motion`` by the suffix of ``path``: ``.npz``, ``.bvh``, ``.glb``, or a folder (OpenPose JSON).
+    """Write ``motion`` by the suffix of ``path``: ``.npz``, ``.bvh``, ``.glb``, ``.pkl`` (AIST++ SMPL, retargeted,
+    60 fps), or a folder (OpenPose JSON).
 
     Raises
     ------
     MotionFormatError
-        For a format that cannot be written (``.pkl``, tang2018) or an unknown suffix.
+        For a format that cannot be written (tang2018) or an unknown suffix.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -110,6 +111,11 @@ def write_motion(path: str | os.PathLike, motion: Motion) -> None:
         from dancekit.motion.formats.bvh import write_bvh
 
         return write_bvh(path, motion)
+    if suffix == ".pkl":
+        from dancekit.motion.formats.aistpp import write_aistpp
+
+        write_aistpp(path, motion)
+        return None
     if suffix == ".glb":
         from dancekit.motion.formats.gltf import write_glb
 
@@ -118,4 +124,4 @@ def write_motion(path: str | os.PathLike, motion: Motion) -> None:
         from dancekit.motion.formats.openpose import write_openpose
 
         return write_openpose(path, motion)
-    raise MotionFormatError(f"cannot write motion format {suffix!r} ({path}); use .npz, .bvh, .glb or a folder")
+    raise MotionFormatError(f"cannot write motion format {suffix!r} ({path}); use .npz, .bvh, .glb, .pkl or a folder")
