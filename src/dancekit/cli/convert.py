@@ -27,12 +27,18 @@ def add_parser(subparsers) -> None:
     p.add_argument("motion", metavar="IN", help="motion file or folder (npz, bvh, pkl, OpenPose or tang2018 folder)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output .npz, .bvh, .glb, .pkl or .json")
     p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first (slerp)")
+    p.add_argument("--bvh-rig", choices=("exact", "humanoid"), default="exact",
+                   help="BVH rig: the skeleton's own joints (default) or a standard humanoid (Mixamo-like names)")
+    p.add_argument("--keypoints", choices=("body25", "coco17", "coco18"), default="body25",
+                   help="keypoint layout of .json output (default body25, OpenPose)")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
+    if args.fps is not None and not args.fps > 0:
+        raise ParameterError(f"--fps must be positive, got {args.fps:g}")
     if out.suffix.lower() not in _SUFFIXES:
         raise ParameterError(f"output must end in .npz, .bvh, .glb, .pkl or .json (or be a folder), got {str(out)!r}")
     if str(out.parent) and not out.parent.is_dir():
@@ -44,7 +50,12 @@ def run(args: argparse.Namespace) -> int:
     if args.fps is not None:
         motion = motion.resample(args.fps)
     target = out.with_suffix("") if out.suffix.lower() == ".json" else out
-    write_motion(target, motion)
+    kwargs = {}
+    if target.suffix.lower() == ".bvh":
+        kwargs["rig"] = args.bvh_rig
+    elif target.suffix == "":
+        kwargs["keypoints"] = args.keypoints
+    write_motion(target, motion, **kwargs)
     if not args.quiet:
         print(f"{args.motion} → {target} ({motion.num_frames} frames at {motion.fps:g} fps)")
     return 0

@@ -40,6 +40,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--width", type=int, help="video width in pixels (mp4 only; default 640)")
     p.add_argument("--height", type=int, help="video height in pixels (mp4 only; default 480)")
     p.add_argument("--title", help="page title (html only; default: the output's file name)")
+    p.add_argument("--fps", type=float, help="frame rate of the render (the motion resampled with slerp)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -53,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError("--width / --height apply to .mp4 output only")
     if kind == "mp4" and args.title is not None:
         raise ParameterError("--title applies to .html output only")
+    if args.fps is not None and not args.fps > 0:
+        raise ParameterError(f"--fps must be positive, got {args.fps:g}")
     if not out.parent.is_dir() and str(out.parent):
         raise ParameterError(f"output folder does not exist: {out.parent}")
 
@@ -72,6 +75,8 @@ def run(args: argparse.Namespace) -> int:
             end = song.end if end is None else end
     else:
         motion = read_motion(src)
+    if args.fps is not None and args.fps != motion.fps:
+        motion = motion.resample(args.fps)
     if audio is None and (start is not None or end is not None):
         raise ParameterError("--start / --end need --audio")
 
