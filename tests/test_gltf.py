@@ -115,6 +115,23 @@ def test_glb_joints_equal_the_npz(tmp_path, up):
     assert rig_names <= set(names) and "body" in names
 
 
+def test_glb_keeps_varying_bone_lengths(tmp_path):
+    """Raw capture data: bones change length; translation channels keep every joint where the npz has it."""
+    m = dance(frames=8, seed=3)
+    rng = np.random.default_rng(5)
+    pos = m.positions.astype(np.float64)
+    pos = pos + rng.normal(scale=2.0, size=pos.shape)  # cm of marker noise
+    raw = Motion(m.skeleton, m.fps, positions=pos.astype(np.float32))
+    write_motion(tmp_path / "raw.npz", raw)
+    write_motion(tmp_path / "raw.glb", raw)
+    ref = read_motion(tmp_path / "raw.npz")
+    names, P, _ = glb_joint_positions(tmp_path / "raw.glb")
+    got = P[:, [names.index(n) for n in ref.skeleton.joint_names]] / ref.skeleton.unit_scale
+    err = np.abs(got - ref.positions).max()
+    print(f"glb vs npz with varying bone lengths: max joint error {err:.2e} cm")
+    assert err < 1e-3
+
+
 def test_glb_body_is_skinned_to_the_rig(tmp_path):
     m = dance(frames=3)
     write_motion(tmp_path / "d.glb", m)

@@ -8,15 +8,15 @@
   y up. Lengths are in **metres** (glTF's unit): skeleton units times ``skeleton.unit_scale``.
 - **animation** ``"dance"``: a ``rotation`` channel per joint (the motion's local rotations as
   ``(x, y, z, w)`` quaternions) and a ``translation`` channel on the root, keyed at the frame
-  times ``k / fps`` with ``LINEAR`` interpolation (slerp for rotations).
+  times ``k / fps`` with ``LINEAR`` interpolation (slerp for rotations). When the motion's
+  bone lengths vary (raw capture data), every joint whose bone changes length also gets a
+  ``translation`` channel, so the nodes reproduce the stored positions exactly.
 - **body**: a low-poly mannequin built here, skinned rigidly to the joints: one capsule per
   bone (attached to the joint that turns that bone), a torso from the pelvis to the neck and a
   head, so viewers (Blender, three.js, model-viewer) show a moving body rather than empty nodes.
   The bind pose is the rest pose (identity rotations, root at the origin).
 
-Forward kinematics of the file's nodes gives the motion's joint positions with the skeleton's
-rest bone lengths (:meth:`Motion.with_rotations`), i.e. the npz positions when the dance
-keeps its bone lengths (every dance the toolkit generates, and every BVH it reads).
+Forward kinematics of the file's nodes gives the motion's joint positions (those of the npz).
 """
 
 from __future__ import annotations
@@ -165,6 +165,34 @@ def _quat_xyzw(R: np.ndarray) -> np.ndarray:
     return np.concatenate([q[..., 1:], q[..., :1]], axis=-1).astype(np.float32)
 
 
+def _stretched_bones(m: Motion) -> dict[int, np.ndarray]:
+    """``{rig joint: (T, 3) local translation}`` for the joints whose stored positions leave their rest offset."""
+    if m.positions is None:
+        return {}
+    rig = m.skeleton.rig()
+    J = m.skeleton.num_joints
+    R = np.asarray(m.rotations, np.float64)
+    T = R.shape[0]
+    G = np.zeros_like(R)
+    P = np.zeros((T, rig.num_joints, 3))
+    P[:, :J] = np.asarray(m.positions, np.float64)
+    for j in rig.topological_order:
+        p = rig.parents[j]
+        G[:, j] = R[:, j] if p < 0 else G[:, p] @ R[:, j]
+        if j >= J:  # a branch joint sits on its parent
+            P[:, j] = P[:, p]
+    scale = max(float(np.abs(rig.offsets).max()), 1e-9)
+    out = {}
+    for j in range(rig.num_joints):
+        p = rig.parents[j]
+        if p < 0:
+            continue
+        local = np.einsum("tji,tj->ti", G[:, p], P[:, j] - P[:, p])  # G_p^T (P_j - P_p)
+        if np.abs(local - rig.offsets[j]).max() > 1e-6 * scale:
+            out[j] = local
+    return out
+
+
 def write_glb(path: str | os.PathLike, motion: Motion) -> None:
     """Write a 3D motion as a glTF 2.0 binary (``.glb``) with a skinned body (atomically).
 
@@ -265,6 +293,11 @@ def write_glb(path: str | os.PathLike, motion: Motion) -> None:
         samplers.append(g.AnimationSampler(input=t_acc, output=out, interpolation="LINEAR"))
         channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
                                            target=g.AnimationChannelTarget(node=j, path="rotation")))
+    for j, local in _stretched_bones(m).items():
+        samplers.append(g.AnimationSampler(input=t_acc, output=add((local * s).astype(np.float32), _FLOAT, "VEC3"),
+                                           interpolation="LINEAR"))
+        channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
+                                           target=g.AnimationChannelTarget(node=j, path="translation")))
     tr = np.asarray(m.root_translation, np.float64) * s
     samplers.append(g.AnimationSampler(input=t_acc, output=add(tr.astype(np.float32), _FLOAT, "VEC3"),
                                        interpolation="LINEAR"))
