@@ -37,6 +37,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(Hips/Spine/Neck/Head, Mixamo-like names, for retargeting in Blender or Unity)")
     p.add_argument("--fps", type=float, default=None,
                    help="frame rate of the outputs (resampled with slerp; default: the model's)")
+    p.add_argument("--figure", choices=("stick", "body"), default="stick",
+                   help="how the mp4 draws the dancer: stick (default) or body (shaded volumetric mannequin)")
     p.add_argument("--width", type=int, default=640, help="video width in pixels (default 640)")
     p.add_argument("--height", type=int, default=480, help="video height in pixels (default 480)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if args.fps is not None and not args.fps > 0:
         raise ParameterError(f"--fps must be positive, got {args.fps:g}")
     clip = AudioClip(audio, args.start, args.end)
-    options = RenderOptions(width=args.width, height=args.height)
+    options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
     pipe = load_pipeline(args.model, args.checkpoint)
     result = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=args.genre,
