@@ -347,7 +347,7 @@ class FrameRenderer:
         loc = (uv - [x0, y0]) * _SS
 
         def level(d: float) -> int:
-            return int(np.clip(np.rint((np.clip((zr - d) / 0.6, -1.0, 1.0) + 1) * 0.5 * (_LEVELS - 1)), 0, _LEVELS - 1))
+            return int(round((min(max((zr - d) / 0.6, -1.0), 1.0) + 1) * 0.5 * (_LEVELS - 1)))
 
         items = []  # (depth, kind, index)
         for i in np.flatnonzero(self._limb):
@@ -358,10 +358,11 @@ class FrameRenderer:
             items.append((self._head_depth(z), 2, sc.head))
         items.sort(key=lambda it: -it[0])
 
-        def capsule(a, b, r, fill):
+        def capsule(a, b, r, fill, ends=True):
             draw.line([tuple(a), tuple(b)], fill=fill, width=max(1, int(round(2 * r))))
-            for q in (a, b):
-                draw.ellipse([q[0] - r, q[1] - r, q[0] + r, q[1] + r], fill=fill)
+            if ends:
+                for q in (a, b):
+                    draw.ellipse([q[0] - r, q[1] - r, q[0] + r, q[1] + r], fill=fill)
 
         for d, kind, i in items:
             lv = level(d)
@@ -372,19 +373,16 @@ class FrameRenderer:
                 capsule(loc[c], loc[p], r, _BODY_DARK[sd][lv])
                 capsule(loc[c], loc[p], 0.82 * r, _BODY_PAL[sd][lv])
                 off = np.array([-0.3 * r, -0.3 * r])
-                capsule(loc[c] + off, loc[p] + off, 0.32 * r, _BODY_LIGHT[sd][lv])
+                capsule(loc[c] + off, loc[p] + off, 0.32 * r, _BODY_LIGHT[sd][lv], ends=False)
             elif kind == 1:  # the torso: the outline of its joints, rounded, shaded the same way
                 pts = loc[self._torso]
                 hull = _convex_hull(pts)
                 r = _TORSO_RADIUS * self.k * float(pix[self._torso].mean()) * _SS
+                ring = [tuple(q) for q in hull] + [tuple(hull[0]), tuple(hull[1 % len(hull)])]
                 for fill, grow in ((_BODY_DARK[0][lv], 1.0), (_BODY_PAL[0][lv], 0.82)):
-                    ctr = hull.mean(axis=0)
-                    poly = ctr + (hull - ctr) * (1.0 if grow == 1.0 else 0.97)
-                    draw.polygon([tuple(q) for q in poly], fill=fill)
-                    for a, b in zip(poly, np.roll(poly, -1, axis=0)):
-                        capsule(a, b, grow * r, fill)
-                    if grow != 1.0:
-                        draw.polygon([tuple(q) for q in poly], fill=fill)
+                    # the outline as one wide line with round joints: the hull grown by r, rounded
+                    draw.line(ring, fill=fill, width=max(1, int(round(2 * grow * r))), joint="curve")
+                    draw.polygon(ring[:-2], fill=fill)
             else:  # the head
                 r = rh[i] * _SS
                 q = loc[i]
