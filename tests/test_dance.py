@@ -124,6 +124,20 @@ def test_a_two_second_clip_works(tmp_path, checkpoint, song):
     assert read_motion(out / "ode.npz").num_frames == 51
 
 
+def test_fps_and_the_animator_formats(tmp_path, checkpoint, song):
+    out = tmp_path / "fps"
+    code = main(["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint), "--quiet",
+                 "--start", "1", "--end", "3", "--format", "npz,bvh,glb,pkl,coco17", "--fps", "50",
+                 "--bvh-rig", "humanoid"])
+    assert code == 0
+    m = read_motion(out / "ode.npz")
+    assert m.fps == 50 and m.num_frames == 101  # 51 frames at 25 fps, resampled
+    bvh = read_motion(out / "ode.bvh")
+    assert bvh.fps == 50 and "Hips" in bvh.skeleton.joint_names
+    assert (out / "ode.glb").stat().st_size > 0 and len(list((out / "ode_coco17").glob("*.json"))) == 101
+    assert read_motion(out / "ode.pkl").fps == 60  # AIST++ rate
+
+
 def _fails(capsys, argv, out):
     code = main(argv)
     err = capsys.readouterr().err

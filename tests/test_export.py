@@ -56,7 +56,8 @@ def listing(folder: Path) -> list[str]:
         (["npz"], ["s.npz"]),
         ("bvh, npz", ["s.bvh", "s.npz"]),
         (["openpose", "html", "npz", "html"], ["s.html", "s.npz", "s_openpose"]),
-        (list(FORMATS), ["s.bvh", "s.html", "s.mp4", "s.npz", "s_openpose"]),
+        (list(FORMATS), ["s.bvh", "s.glb", "s.html", "s.mp4", "s.npz", "s.pkl", "s_coco17", "s_coco18",
+                             "s_openpose"]),
     ],
 )
 def test_export_writes_exactly_the_requested_files(tmp_path, motion, formats, names):
@@ -65,7 +66,7 @@ def test_export_writes_exactly_the_requested_files(tmp_path, motion, formats, na
     assert listing(out) == names  # and no staging folder
     assert [p.parent for p in written] == [out] * len(names)
     assert [p.name for p in written] == [
-        f"s_{f}" if f == "openpose" else f"s.{f}" for f in check_formats(formats)
+        f"s_{f}" if f in ("openpose", "coco17", "coco18") else f"s.{f}" for f in check_formats(formats)
     ]
     if "s.npz" in names:
         np.testing.assert_allclose(read_motion(out / "s.npz").positions, motion.positions, atol=1e-5)

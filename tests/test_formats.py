@@ -537,8 +537,8 @@ def test_missing_files_and_unknown_formats(tmp_path):
     (tmp_path / "x.txt").write_text("hi")
     with pytest.raises(MotionFormatError, match="x.txt"):
         read_motion(tmp_path / "x.txt")
-    with pytest.raises(MotionFormatError, match="x.pkl"):
-        write_motion(tmp_path / "x.pkl", _tang_motion(np.random.default_rng(0)))
+    with pytest.raises(MotionFormatError, match="x.abc"):
+        write_motion(tmp_path / "x.abc", _tang_motion(np.random.default_rng(0)))
 
 
 # --------------------------------------------------------------- CLI: info

@@ -6,7 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from dancekit.errors import DancekitError
+from dancekit.errors import DancekitError, ParameterError
 from dancekit.export import DEFAULT_FORMATS, FORMATS
 
 
@@ -32,6 +32,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--end", type=float, default=None, help="end of the song excerpt, seconds")
     p.add_argument("--format", default=",".join(DEFAULT_FORMATS),
                    help=f"comma-separated outputs from {', '.join(FORMATS)}")
+    p.add_argument("--bvh-rig", choices=("exact", "humanoid"), default="exact",
+                   help="BVH rig: the skeleton's own joints (exact, default) or a standard humanoid "
+                        "(Hips/Spine/Neck/Head, Mixamo-like names, for retargeting in Blender or Unity)")
+    p.add_argument("--fps", type=float, default=None,
+                   help="frame rate of the outputs (resampled with slerp; default: the model's)")
+    p.add_argument("--figure", choices=("stick", "body"), default="stick",
+                   help="how the mp4 draws the dancer: stick (default) or body (shaded volumetric mannequin)")
     p.add_argument("--width", type=int, default=640, help="video width in pixels (default 640)")
     p.add_argument("--height", type=int, default=480, help="video height in pixels (default 480)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -48,15 +55,19 @@ def run(args: argparse.Namespace) -> int:
     audio = Path(args.audio)
     if not audio.exists():
         raise DancekitError(f"audio file not found: {audio}")
+    if args.fps is not None and not args.fps > 0:
+        raise ParameterError(f"--fps must be positive, got {args.fps:g}")
     clip = AudioClip(audio, args.start, args.end)
-    options = RenderOptions(width=args.width, height=args.height)
+    options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
     pipe = load_pipeline(args.model, args.checkpoint)
     result = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=args.genre,
                   progress=not args.quiet)
     motion = result.motion
+    if args.fps is not None and args.fps != motion.fps:
+        motion = motion.resample(args.fps)
     written = export_motion(motion, out, stem=audio.stem, formats=formats, audio=clip, options=options,
-                            progress=not args.quiet)
+                            progress=not args.quiet, bvh_rig=args.bvh_rig)
     elapsed = time.perf_counter() - t0
     how = f" {result.summary()}" if result.summary() else ""
     print(

@@ -32,6 +32,7 @@ VERBS: dict[str, str] = {
     "dance": "dancekit.cli.dance",
     "render": "dancekit.cli.render",
     "models": "dancekit.cli.models",
+    "convert": "dancekit.cli.convert",
     "compose": "dancekit.cli.compose",
 }
 

@@ -40,6 +40,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--width", type=int, help="video width in pixels (mp4 only; default 640)")
     p.add_argument("--height", type=int, help="video height in pixels (mp4 only; default 480)")
     p.add_argument("--title", help="page title (html only; default: the output's file name)")
+    p.add_argument("--fps", type=float, help="frame rate of the render (the motion resampled with slerp)")
+    p.add_argument("--figure", choices=("stick", "body"), default=None,
+                   help="mp4 only: stick figure (default) or body (shaded volumetric mannequin)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -51,15 +54,19 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"output must end in .mp4 or .html, got {str(out)!r}")
     if kind == "html" and (args.width is not None or args.height is not None):
         raise ParameterError("--width / --height apply to .mp4 output only")
+    if kind == "html" and args.figure is not None:
+        raise ParameterError("--figure applies to .mp4 output only")
     if kind == "mp4" and args.title is not None:
         raise ParameterError("--title applies to .html output only")
+    if args.fps is not None and not args.fps > 0:
+        raise ParameterError(f"--fps must be positive, got {args.fps:g}")
     if not out.parent.is_dir() and str(out.parent):
         raise ParameterError(f"output folder does not exist: {out.parent}")
 
     from dancekit.motion.formats import detect_format, read_motion, read_tang2018
     from dancekit.render import AudioClip, RenderOptions, render_motion_html, render_motion_mp4
 
-    given = {"width": args.width, "height": args.height, "title": args.title}
+    given = {"width": args.width, "height": args.height, "title": args.title, "figure": args.figure}
     options = RenderOptions(**{k: v for k, v in given.items() if v is not None})  # validated before reading
 
     src = Path(args.motion)
@@ -72,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
             end = song.end if end is None else end
     else:
         motion = read_motion(src)
+    if args.fps is not None and args.fps != motion.fps:
+        motion = motion.resample(args.fps)
     if audio is None and (start is not None or end is not None):
         raise ParameterError("--start / --end need --audio")
 

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from dancekit.motion import Motion
     from dancekit.render import AudioClip, RenderOptions
 
-FORMATS = ("mp4", "html", "npz", "bvh", "openpose")
+FORMATS = ("mp4", "html", "npz", "bvh", "openpose", "glb", "pkl", "coco17", "coco18")
 DEFAULT_FORMATS = ("mp4", "html", "npz", "bvh")
 _STAGE_PREFIX = ".dancekit-"
 
@@ -75,6 +75,7 @@ def export_motion(
     audio: AudioClip | str | os.PathLike | None = None,
     options: RenderOptions | None = None,
     progress: bool = False,
+    bvh_rig: str = "exact",
 ) -> list[Path]:
     """Write ``motion`` into ``folder`` in every requested format, all or nothing.
 
@@ -94,7 +95,10 @@ def export_motion(
     formats : str or iterable of str
         From :data:`FORMATS`: ``mp4`` (video with the song), ``html`` (self-contained
         player), ``npz`` (the motion), ``bvh``, ``openpose`` (a folder of BODY_25 JSON, one
-        file per frame; a 3D motion is projected). Default :data:`DEFAULT_FORMATS`.
+        file per frame; a 3D motion is projected), ``glb`` (glTF 2.0: the rig, the animation
+        and a skinned body, :mod:`dancekit.motion.formats.gltf`), ``pkl`` (AIST++ SMPL at 60 fps,
+        retargeted onto SMPL, :func:`dancekit.motion.formats.aistpp.write_aistpp`), ``coco17`` /
+        ``coco18`` (folders of COCO keypoint JSON, like ``openpose``). Default :data:`DEFAULT_FORMATS`.
     audio : AudioClip, path-like or None
         The song slice that plays with the dance in the mp4 and html (a plain path: the
         song from 0 s); None: silent.
@@ -103,12 +107,15 @@ def export_motion(
         the html title defaults to ``stem``).
     progress : bool
         Show a progress bar while the mp4 renders.
+    bvh_rig : {"exact", "humanoid"}
+        The BVH's rig: the skeleton's own joints (default) or the standard humanoid rig
+        (Mixamo-like names, :func:`dancekit.motion.formats.bvh.humanoid_motion`).
 
     Returns
     -------
     list of Path
         The written paths in ``folder``, in the order of ``formats``: ``{stem}.mp4``,
-        ``{stem}.html``, ``{stem}.npz``, ``{stem}.bvh``, ``{stem}_openpose/``.
+        ``{stem}.html``, ``{stem}.npz``, ``{stem}.bvh``, ``{stem}_openpose/``, ``{stem}.glb``, ``{stem}.pkl``, ``{stem}_coco17/``, ``{stem}_coco18/``.
 
     Raises
     ------
@@ -133,6 +140,8 @@ def export_motion(
     if not isinstance(stem, str) or stem in ("", ".", "..") or any(c in stem for c in ("/", os.sep, "\0")):
         raise ParameterError(f"stem must be a file name without a folder, got {stem!r}")
     audio = AudioClip.of(audio)
+    if bvh_rig not in ("exact", "humanoid"):
+        raise ParameterError(f"bvh_rig must be 'exact' or 'humanoid', got {bvh_rig!r}")
     if options is None:
         options = RenderOptions()
     elif not isinstance(options, RenderOptions):
@@ -155,7 +164,7 @@ def export_motion(
         new, old = stage / "new", stage / "old"
         new.mkdir()
         old.mkdir()
-        written = [_write(fmt, motion, new, stem, audio, options, progress) for fmt in formats]
+        written = [_write(fmt, motion, new, stem, audio, options, progress, bvh_rig) for fmt in formats]
         final = []
         for path in written:
             target = folder / path.name
@@ -176,19 +185,22 @@ def export_motion(
     return final
 
 
-def _write(fmt: str, motion, folder: Path, stem: str, audio, options, progress: bool) -> Path:
+def _write(fmt: str, motion, folder: Path, stem: str, audio, options, progress: bool, bvh_rig: str) -> Path:
     """Write ``motion`` as ``fmt`` into ``folder``; returns the path."""
     from dancekit import render  # looked up per call (tests replace the writers)
     from dancekit.motion.formats import write_motion
 
-    if fmt in ("npz", "bvh"):
+    if fmt in ("npz", "glb", "pkl"):
         path = folder / f"{stem}.{fmt}"
         write_motion(path, motion)
-    elif fmt == "openpose":
+    elif fmt == "bvh":
+        path = folder / f"{stem}.bvh"
+        write_motion(path, motion, rig=bvh_rig)
+    elif fmt in ("openpose", "coco17", "coco18"):
         from dancekit.motion.formats.openpose import write_openpose
 
-        path = folder / f"{stem}_openpose"
-        write_openpose(path, motion if motion.skeleton.dims == 2 else motion.project_2d())
+        path = folder / f"{stem}_{fmt}"
+        write_openpose(path, motion, keypoints="body25" if fmt == "openpose" else fmt)
     elif fmt == "mp4":
         path = folder / f"{stem}.mp4"
         render.render_motion_mp4(path, motion, audio=audio, options=options, progress=progress)

@@ -5,7 +5,8 @@
 - :mod:`dancekit.motion.rotations` (``a_to_b`` torch conversions)
 - :mod:`dancekit.motion.kinematics` (forward / inverse kinematics)
 - :mod:`dancekit.motion.formats` (``read_motion`` / ``write_motion``: npz, BVH,
-  AIST++ pkl, OpenPose JSON folders, tang2018 dance folders)
+  AIST++ pkl, OpenPose JSON folders, tang2018 dance folders; glTF ``.glb`` output)
+- :mod:`dancekit.motion.retarget` (a dance onto the SMPL skeleton)
 """
 
 from dancekit.motion.motion import Motion

@@ -89,6 +89,9 @@ class AudioClip:
         raise ParameterError(f"audio must be an AudioClip, a path or None, got {type(audio).__name__}")
 
 
+FIGURES = ("stick", "body")
+
+
 @dataclass(frozen=True)
 class RenderOptions:
     """How a dance is drawn: image size, camera, quality, page title.
@@ -105,6 +108,9 @@ class RenderOptions:
         x264 quality in 0..51, lower is better and larger (mp4 only).
     title : str or None
         Page title (html only; None: the output file's stem).
+    figure : {"stick", "body"}
+        How the dancer is drawn in the mp4: ``stick`` (thin bones and joint dots, the default) or
+        ``body`` (a mannequin: shaded volumetric limbs, a torso that turns with the body, a head).
 
     Raises
     ------
@@ -122,6 +128,7 @@ class RenderOptions:
     elevation: float = 12.0
     crf: int = 23
     title: str | None = None
+    figure: str = "stick"
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -143,6 +150,8 @@ class RenderOptions:
         object.__setattr__(self, "crf", int(crf))
         if self.title is not None and not isinstance(self.title, str):
             raise ParameterError(f"title must be a string or None, got {self.title!r}")
+        if self.figure not in FIGURES:
+            raise ParameterError(f"figure must be one of {', '.join(FIGURES)}, got {self.figure!r}")
 
 
 # ---------------------------------------------------------------------- the keywords of release 0.1

@@ -56,6 +56,14 @@ _JOINT_PALETTE = {sd: [_shade(rgb, 0.82 * k) for k in _K] for sd, rgb in _BONE.i
 _HEAD_PAL = [_shade((232, 196, 160), k) for k in _K]
 _HEAD_EDGE_PAL = [_shade((150, 112, 84), k) for k in _K]
 
+# the "body" figure: a mannequin with a slight blue / orange tint for the left / right limbs
+_SKIN = {1: (196, 200, 222), -1: (226, 196, 178), 0: (214, 200, 194)}
+_BODY_PAL = {sd: [_shade(rgb, 0.9 * k) for k in _K] for sd, rgb in _SKIN.items()}
+_BODY_DARK = {sd: [_shade(rgb, 0.62 * k) for k in _K] for sd, rgb in _SKIN.items()}
+_BODY_LIGHT = {sd: [_shade(rgb, 1.08 * k) for k in _K] for sd, rgb in _SKIN.items()}
+_LIMB_RADIUS = (0.03, 0.07)  # metres, limb radius = 22 % of the bone length within these bounds
+_TORSO_RADIUS = 0.075  # rounding of the torso outline
+
 
 class FrameRenderer:
     """Draws the frames of one :class:`~dancekit.render._scene.Scene` (RGB, ``height x width``).
@@ -81,8 +89,10 @@ class FrameRenderer:
         azimuth: float | None = None,
         elevation: float = 12.0,
         fov: float = 40.0,
+        figure: str = "stick",
     ):
         self.scene = scene
+        self.figure = figure
         self.W, self.H = int(width), int(height)
         az = default_azimuth(scene) if azimuth is None else float(azimuth)
         self.basis = camera_basis(math.radians(az), math.radians(elevation))
@@ -107,6 +117,34 @@ class FrameRenderer:
         self._head_bones = np.array(
             [i for i, (c, p) in enumerate(bones) if scene.head in (c, p)], dtype=np.int64
         )
+        self._bone_side = bone_side
+        self._build_body()
+
+    def _build_body(self) -> None:
+        """The body figure's parts: the torso's joints and a radius per limb bone (metres)."""
+        sc = self.scene
+        if self.figure != "body" or not len(sc.bones):
+            self._torso = np.zeros(0, np.int64)
+            return
+        mean = sc.positions.mean(axis=0)  # (J, 3)
+        parent = {int(c): int(p) for c, p in sc.bones}
+        root_h = float(np.median(mean[[j for j in range(len(mean)) if j not in parent], 1]))
+        side = sc.sides
+        trunk = {j for j in range(len(mean)) if side[j] == 0 and j != sc.head}
+        # the first joint of each limb (hips, shoulders or collars); above the hips, also the next one
+        first = [c for c, p in parent.items() if side[c] != 0 and side[p] == 0]
+        trunk.update(first)
+        for c, p in parent.items():
+            if p in first and mean[p, 1] > root_h and np.linalg.norm(mean[c] - mean[p]) < 0.16 * sc.height / 1.75:
+                trunk.add(c)
+        if sc.head is not None and sc.head in parent:  # the neck bone is drawn, the head is not torso
+            trunk.discard(sc.head)
+        self._torso = np.array(sorted(trunk), dtype=np.int64)
+        in_torso = set(trunk)
+        length = np.linalg.norm(mean[self._bc] - mean[self._bp], axis=1)
+        self._limb_r = np.clip(0.22 * length, *_LIMB_RADIUS) * self.k
+        # bones inside the torso are covered by it
+        self._limb = np.array([not (c in in_torso and p in in_torso) for c, p in sc.bones], dtype=bool)
 
     def _head_depth(self, z: np.ndarray) -> float:
         """Sort depth of the head disc: just in front of the bones that end at the head."""
@@ -195,7 +233,10 @@ class FrameRenderer:
             frame.paste(self._floor(t), (0, self.row0))
         pos = self.scene.positions[t]
         self._shadow(frame, t, pos)
-        self._figure(frame, t, pos)
+        if self.figure == "body" and len(self.scene.bones):
+            self._body(frame, t, pos)
+        else:
+            self._figure(frame, t, pos)
         return frame
 
     def _shadow(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
@@ -287,6 +328,94 @@ class FrameRenderer:
         frame.paste(crop.reduce(_SS), (x0, y0))
 
 
+    def _body(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
+        """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled."""
+        sc = self.scene
+        uv, z = self.project(t, pos)
+        zr = float(np.median(z))
+        pix = self.f / z  # pixels per metre at each joint
+        rh = 1.15 * _HEAD_RADIUS * self.k * pix
+        reach = float(max((_LIMB_RADIUS[1] * self.k * pix).max(), rh.max() if sc.head is not None else 0.0)) + 3
+        x0 = int(max(math.floor(uv[:, 0].min() - reach), 0))
+        y0 = int(max(math.floor(uv[:, 1].min() - reach), 0))
+        x1 = int(min(math.ceil(uv[:, 0].max() + reach), self.W))
+        y1 = int(min(math.ceil(uv[:, 1].max() + reach), self.H))
+        if x1 - x0 < 2 or y1 - y0 < 2:
+            return
+        crop = frame.crop((x0, y0, x1, y1)).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
+        draw = ImageDraw.Draw(crop)
+        loc = (uv - [x0, y0]) * _SS
+
+        def level(d: float) -> int:
+            return int(round((min(max((zr - d) / 0.6, -1.0), 1.0) + 1) * 0.5 * (_LEVELS - 1)))
+
+        items = []  # (depth, kind, index)
+        for i in np.flatnonzero(self._limb):
+            items.append((0.5 * float(z[self._bc[i]] + z[self._bp[i]]), 0, int(i)))
+        if len(self._torso) >= 3:
+            items.append((float(z[self._torso].mean()), 1, 0))
+        if sc.head is not None:
+            items.append((self._head_depth(z), 2, sc.head))
+        items.sort(key=lambda it: -it[0])
+
+        def capsule(a, b, r, fill, ends=True):
+            draw.line([tuple(a), tuple(b)], fill=fill, width=max(1, int(round(2 * r))))
+            if ends:
+                for q in (a, b):
+                    draw.ellipse([q[0] - r, q[1] - r, q[0] + r, q[1] + r], fill=fill)
+
+        for d, kind, i in items:
+            lv = level(d)
+            if kind == 0:  # a limb: dark rim, body colour, a highlight towards the light (up left)
+                c, p = int(self._bc[i]), int(self._bp[i])
+                sd = self._bone_side[i]
+                r = float(self._limb_r[i]) * 0.5 * float(pix[c] + pix[p]) * _SS
+                capsule(loc[c], loc[p], r, _BODY_DARK[sd][lv])
+                capsule(loc[c], loc[p], 0.82 * r, _BODY_PAL[sd][lv])
+                off = np.array([-0.3 * r, -0.3 * r])
+                capsule(loc[c] + off, loc[p] + off, 0.32 * r, _BODY_LIGHT[sd][lv], ends=False)
+            elif kind == 1:  # the torso: the outline of its joints, rounded, shaded the same way
+                pts = loc[self._torso]
+                hull = _convex_hull(pts)
+                r = _TORSO_RADIUS * self.k * float(pix[self._torso].mean()) * _SS
+                ring = [tuple(q) for q in hull] + [tuple(hull[0]), tuple(hull[1 % len(hull)])]
+                for fill, grow in ((_BODY_DARK[0][lv], 1.0), (_BODY_PAL[0][lv], 0.82)):
+                    # the outline as one wide line with round joints: the hull grown by r, rounded
+                    draw.line(ring, fill=fill, width=max(1, int(round(2 * grow * r))), joint="curve")
+                    draw.polygon(ring[:-2], fill=fill)
+            else:  # the head
+                r = rh[i] * _SS
+                q = loc[i]
+                draw.ellipse([q[0] - r, q[1] - r, q[0] + r, q[1] + r], fill=_BODY_DARK[0][lv])
+                r2 = 0.86 * r
+                draw.ellipse([q[0] - r2, q[1] - r2, q[0] + r2, q[1] + r2], fill=_BODY_PAL[0][lv])
+                r3, o = 0.35 * r, 0.3 * r
+                draw.ellipse([q[0] - o - r3, q[1] - o - r3, q[0] - o + r3, q[1] - o + r3], fill=_BODY_LIGHT[0][lv])
+        frame.paste(crop.reduce(_SS), (x0, y0))
+
+
+def _convex_hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull (K, 2) of 2D points (N, 2), counter-clockwise (Andrew's monotone chain)."""
+    pts = sorted({(float(x), float(y)) for x, y in points})
+    if len(pts) <= 2:
+        return np.asarray(pts)
+
+    def cross(o, a, b) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list = []
+    upper: list = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return np.asarray(lower[:-1] + upper[:-1])
+
+
 def render_mp4(
     path: str | os.PathLike,
     positions: np.ndarray,
@@ -367,7 +496,8 @@ def render_mp4(
     else:
         n_frames = scene.num_frames
     renderer = FrameRenderer(
-        scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation
+        scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
+        figure=options.figure,
     )
     rate = Fraction(scene.fps).limit_denominator(1001)
 

@@ -5,7 +5,8 @@ what                   recognised by                   module
 =====================  ==============================  =======================
 dancekit npz           ``*.npz``                       :mod:`.npz`
 BVH                    ``*.bvh``                       :mod:`.bvh`
-AIST++ SMPL            ``*.pkl``                       :mod:`.aistpp` (read only)
+AIST++ SMPL            ``*.pkl``                       :mod:`.aistpp`
+glTF 2.0 binary        ``*.glb``                       :mod:`.gltf` (write only)
 OpenPose BODY_25       folder of ``*_keypoints.json``  :mod:`.openpose`
                        or ``*.json`` files
 tang2018 dance         folder with ``skeletons.json``  :mod:`.tang2018` (read only)
@@ -93,24 +94,35 @@ def read_motion(path: str | os.PathLike, **kwargs) -> Motion:
     return read_tang2018(path, **kwargs)[0]
 
 
-def write_motion(path: str | os.PathLike, motion: Motion) -> None:
-    """Write ``motion`` by the suffix of ``path``: ``.npz``, ``.bvh``, or a folder (OpenPose JSON).
+def write_motion(path: str | os.PathLike, motion: Motion, **kwargs) -> None:
+    """Write ``motion`` by the suffix of ``path``: ``.npz``, ``.bvh``, ``.glb``, ``.pkl`` (AIST++ SMPL, retargeted,
+    60 fps), or a folder (OpenPose JSON). Keyword arguments go to the format's writer (e.g.
+    ``rig="humanoid"`` for BVH, ``keypoints="coco17"`` for JSON folders).
 
     Raises
     ------
     MotionFormatError
-        For a format that cannot be written (``.pkl``, tang2018) or an unknown suffix.
+        For a format that cannot be written (tang2018) or an unknown suffix.
     """
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".npz":
-        return write_npz(path, motion)
+        return write_npz(path, motion, **kwargs)
     if suffix == ".bvh":
         from dancekit.motion.formats.bvh import write_bvh
 
-        return write_bvh(path, motion)
+        return write_bvh(path, motion, **kwargs)
+    if suffix == ".pkl":
+        from dancekit.motion.formats.aistpp import write_aistpp
+
+        write_aistpp(path, motion, **kwargs)
+        return None
+    if suffix == ".glb":
+        from dancekit.motion.formats.gltf import write_glb
+
+        return write_glb(path, motion, **kwargs)
     if suffix == "" or path.is_dir():
         from dancekit.motion.formats.openpose import write_openpose
 
-        return write_openpose(path, motion)
-    raise MotionFormatError(f"cannot write motion format {suffix!r} ({path}); use .npz, .bvh or a folder")
+        return write_openpose(path, motion, **kwargs)
+    raise MotionFormatError(f"cannot write motion format {suffix!r} ({path}); use .npz, .bvh, .glb, .pkl or a folder")

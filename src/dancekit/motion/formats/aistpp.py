@@ -1,9 +1,14 @@
-"""Reader for AIST++ SMPL motion files (``.pkl``).
+"""AIST++ SMPL motion files (``.pkl``): :func:`read_aistpp` and :func:`write_aistpp`.
 
 An AIST++ motion pickle is a dict with ``smpl_poses`` (T, 72): 24 axis-angle
 rotations per frame in SMPL joint order (root first), ``smpl_trans`` (T, 3)
 and optionally ``smpl_scaling`` (1,) (AIST++ stores the translation
 multiplied by that scale). The motion is at 60 fps in AIST++.
+
+:func:`write_aistpp` retargets any 3D dance onto the SMPL skeleton
+(:func:`dancekit.motion.retarget.retarget_to_smpl`) and writes that dict
+(``smpl_poses`` float32 (T, 72), ``smpl_trans`` float32 (T, 3),
+``smpl_scaling`` float32 (1,)), resampled to 60 fps by default.
 
 The pickle is loaded with a restricted unpickler that only accepts NumPy
 arrays and plain containers, so a malicious file cannot run code.
@@ -19,12 +24,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from dancekit._io import atomic_path
 from dancekit.errors import DancekitError, MotionFormatError
 from dancekit.motion.motion import Motion
 from dancekit.motion.rotations import axis_angle_to_matrix
 from dancekit.motion.skeleton import Skeleton, smpl_skeleton
 
-__all__ = ["AISTPP_FPS", "SMPL_PELVIS_REST", "read_aistpp"]
+__all__ = ["AISTPP_FPS", "SMPL_PELVIS_REST", "read_aistpp", "write_aistpp"]
 
 AISTPP_FPS = 60.0
 # Approximate rest position of the SMPL pelvis joint relative to the model
@@ -112,3 +118,38 @@ def read_aistpp(
     except DancekitError as exc:
         raise MotionFormatError(f"{path}: {exc}") from exc
     return m.with_positions()
+
+
+def write_aistpp(path: str | os.PathLike, motion: Motion, *, fps: float | None = AISTPP_FPS) -> float:
+    """Write a 3D dance as an AIST++ SMPL ``.pkl`` (atomically); returns ``smpl_scaling``.
+
+    The dance is resampled to ``fps`` (None: kept; AIST++ tools assume 60), retargeted onto the
+    SMPL skeleton (:func:`~dancekit.motion.retarget.retarget_to_smpl`: rotations whose forward
+    kinematics with the :func:`~dancekit.motion.skeleton.smpl_skeleton` rest offsets points every
+    limb like the dance's) and stored as ``smpl_poses`` (T, 72) axis-angle, ``smpl_trans`` (T, 3) =
+    ``scaling * (pelvis - SMPL_PELVIS_REST)`` in the dance's units and ``smpl_scaling`` (1,), so
+    that :func:`read_aistpp` gives the dance on the SMPL body (metres) and the AIST++ convention
+    (``joints * scaling``) gives it at the dance's size. No SMPL model file is needed.
+
+    Raises
+    ------
+    MotionFormatError
+        For a 2D motion or a skeleton without the limb roles (names the file).
+    """
+    from dancekit.motion.retarget import retarget_to_smpl, smpl_axis_angle
+
+    path = Path(path)
+    try:
+        m = motion if fps is None or fps == motion.fps else motion.resample(fps)
+        smpl, scaling = retarget_to_smpl(m)
+    except DancekitError as exc:
+        raise MotionFormatError(f"cannot write {path} as AIST++ SMPL: {exc}") from exc
+    assert smpl.rotations is not None and smpl.root_translation is not None
+    obj = {
+        "smpl_poses": smpl_axis_angle(smpl.rotations).astype(np.float32),
+        "smpl_trans": (scaling * (np.asarray(smpl.root_translation, np.float64) - SMPL_PELVIS_REST)).astype(np.float32),
+        "smpl_scaling": np.array([scaling], dtype=np.float32),
+    }
+    with atomic_path(path, suffix=".pkl") as tmp:
+        tmp.write_bytes(pickle.dumps(obj, protocol=4))
+    return scaling

@@ -43,7 +43,8 @@ from dancekit.motion.motion import Motion
 from dancekit.motion.rotations import euler_angles_to_matrix, matrix_to_euler_angles
 from dancekit.motion.skeleton import Skeleton, branch_joint_name
 
-__all__ = ["BvhData", "format_bvh", "guess_roles", "parse_bvh", "read_bvh", "write_bvh"]
+__all__ = ["BVH_RIGS", "HUMANOID_NAMES", "BvhData", "format_bvh", "guess_roles", "humanoid_motion", "parse_bvh",
+           "read_bvh", "write_bvh"]
 
 _ROT = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
 _POS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
@@ -520,8 +521,56 @@ def _find_branch_joints(names: list[str], parents: list[int], offsets: np.ndarra
 
 
 # -------------------------------------------------------------- from Motion
-def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = "ZXY") -> None:
+BVH_RIGS = ("exact", "humanoid")
+
+#: The humanoid rig: SMPL joint → Mixamo-style name (SMPL's hand joints become End Sites).
+HUMANOID_NAMES = {
+    "pelvis": "Hips", "spine1": "Spine", "spine2": "Spine1", "spine3": "Spine2", "neck": "Neck", "head": "Head",
+    **{f"{s}_{a}": f"{S}{b}" for s, S in (("left", "Left"), ("right", "Right")) for a, b in (
+        ("collar", "Shoulder"), ("shoulder", "Arm"), ("elbow", "ForeArm"), ("wrist", "Hand"),
+        ("hip", "UpLeg"), ("knee", "Leg"), ("ankle", "Foot"), ("foot", "ToeBase"))},
+}
+
+
+def humanoid_motion(motion: Motion) -> Motion:
+    """The dance on a standard humanoid rig (Mixamo-like names, T-pose rest, y up, the dance's units).
+
+    ``Hips → Spine → Spine1 → Spine2 → Neck → Head``, ``LeftShoulder → LeftArm → LeftForeArm →
+    LeftHand``, ``LeftUpLeg → LeftLeg → LeftFoot → LeftToeBase`` and the right twins: the SMPL
+    tree retargeted by :func:`dancekit.motion.retarget.retarget_to_smpl` (limb directions exact)
+    with the SMPL rest offsets scaled to the dance's size, so no bone has zero length.
+
+    Raises
+    ------
+    ParameterError
+        For a 2D motion or a skeleton without the limb roles.
+    """
+    from dancekit.motion.retarget import retarget_to_smpl
+
+    smpl, scaling = retarget_to_smpl(motion)
+    keep = [j for j, n in enumerate(smpl.skeleton.joint_names) if n in HUMANOID_NAMES]
+    remap = {old: new for new, old in enumerate(keep)}
+    names = tuple(HUMANOID_NAMES[smpl.skeleton.joint_names[j]] for j in keep)
+    parents = tuple(-1 if smpl.skeleton.parents[j] < 0 else remap[smpl.skeleton.parents[j]] for j in keep)
+    offsets = np.asarray(smpl.skeleton.offsets, np.float64)[keep] * scaling
+    units = motion.skeleton.units
+    roles, pairs = guess_roles(names, parents)
+    sk = Skeleton(name="humanoid", joint_names=names, parents=parents, offsets=offsets, up_axis="y", units=units,
+                  roles=roles, left_right=pairs,
+                  feet=("LeftFoot", "LeftToeBase", "RightFoot", "RightToeBase"),
+                  end_effectors=("Head", "LeftHand", "RightHand", "LeftToeBase", "RightToeBase"))
+    assert smpl.rotations is not None and smpl.root_translation is not None
+    return Motion(sk, motion.fps, rotations=np.asarray(smpl.rotations)[:, keep],
+                  root_translation=np.asarray(smpl.root_translation) * scaling).with_positions()
+
+
+def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = "ZXY", rig: str = "exact") -> None:
     """Write a motion as BVH (atomically).
+
+    ``rig="humanoid"`` writes the standard humanoid rig of :func:`humanoid_motion` instead
+    (Mixamo-like names, spine and neck, no zero-length bones; retargets in Blender, MotionBuilder
+    and Unity's Humanoid importer without hand mapping). The default ``rig="exact"`` writes the
+    skeleton's own joints, as follows.
 
     The joints are those of the skeleton's rig (:meth:`Skeleton.rig`: for
     tang2018, the 23 joints plus the zero-offset branch joints
@@ -544,6 +593,14 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
     sk = motion.skeleton
     if sk.dims != 3:
         raise MotionFormatError(f"cannot write a 2D motion ({sk.name!r}) as BVH: {path}")
+    if rig not in BVH_RIGS:
+        raise MotionFormatError(f"BVH rig must be one of {', '.join(BVH_RIGS)}, got {rig!r}")
+    if rig == "humanoid":
+        try:
+            motion = humanoid_motion(motion)
+        except DancekitError as exc:
+            raise MotionFormatError(f"cannot write {path} on the humanoid rig: {exc}") from exc
+        sk = motion.skeleton
     order = rotation_order.upper()
     if sorted(order) != ["X", "Y", "Z"]:
         raise MotionFormatError(f"rotation_order must be a permutation of XYZ, got {rotation_order!r}")

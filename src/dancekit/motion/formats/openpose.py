@@ -1,8 +1,14 @@
-"""OpenPose BODY_25 JSON folders: one ``*.json`` file per frame.
+"""OpenPose JSON folders: one ``*.json`` file per frame (BODY_25; COCO-17 and COCO-18 on output).
 
 Each file holds ``{"people": [{"pose_keypoints_2d": [x0, y0, c0, x1, y1, c1, ...]}]}``
 (25 keypoints, pixels, image space, c = confidence in [0, 1]). Frames are
 taken in natural sort order of the file names (``..._000000000012_keypoints.json``).
+
+:func:`write_openpose` also writes the COCO layouts that MMPose, AIST++ 2D and ControlNet
+pipelines use, in the same per-frame JSON (``pose_keypoints_2d`` holds 17 or 18 triples, and
+``keypoint_format`` names the layout): ``coco17`` (:data:`COCO17_NAMES`, MMPose order) and
+``coco18`` (:data:`COCO18_NAMES`, OpenPose's COCO model order, with a neck). Points of a 3D
+dance that are not joints of its skeleton get a lower confidence (:func:`keypoint_confidence`).
 
 Missing detections are filled as in Dance Revolution (§4.1): a frame without
 people, or a keypoint with confidence below ``confidence_threshold``, is
@@ -24,7 +30,54 @@ from dancekit.errors import MotionFormatError, ParameterError
 from dancekit.motion.motion import Motion
 from dancekit.motion.skeleton import get_skeleton
 
-__all__ = ["interpolate_missing", "read_openpose", "write_openpose"]
+__all__ = [
+    "COCO17_NAMES",
+    "COCO18_NAMES",
+    "KEYPOINT_FORMATS",
+    "interpolate_missing",
+    "keypoint_confidence",
+    "read_openpose",
+    "write_openpose",
+]
+
+KEYPOINT_FORMATS = ("body25", "coco17", "coco18")
+#: COCO-17 (MMPose, COCO keypoints) in BODY_25 names.
+COCO17_NAMES = ("Nose", "LEye", "REye", "LEar", "REar", "LShoulder", "RShoulder", "LElbow", "RElbow",
+                "LWrist", "RWrist", "LHip", "RHip", "LKnee", "RKnee", "LAnkle", "RAnkle")
+#: COCO-18 (OpenPose's COCO model) in BODY_25 names.
+COCO18_NAMES = ("Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist", "RHip",
+                "RKnee", "RAnkle", "LHip", "LKnee", "LAnkle", "REye", "LEye", "REar", "LEar")
+#: Confidence of a point derived from joints by geometry (a midpoint; the head joint as the nose).
+DERIVED_CONFIDENCE = 0.5
+#: Confidence of an invented point (eyes, ears, small toes, heels placed by fixed offsets).
+INVENTED_CONFIDENCE = 0.2
+
+
+def keypoint_confidence(skeleton) -> np.ndarray:
+    """``(25,)`` confidence of each BODY_25 point projected from a 3D dance on ``skeleton``.
+
+    1.0 for a joint of the skeleton (shoulders, elbows, wrists, hips, knees, ankles, the ``toe``
+    roles as big toes, the ``neck`` and ``heel`` roles when present); :data:`DERIVED_CONFIDENCE`
+    for a point computed from joints (MidHip, a Neck between the shoulders, the head joint as the
+    Nose); :data:`INVENTED_CONFIDENCE` for points placed by fixed offsets (eyes, ears, small
+    toes, heels without heel joints). See :meth:`dancekit.motion.Motion.project_2d`.
+    """
+    b25 = get_skeleton("body25")
+    conf = np.ones(25)
+
+    def set_(name: str, c: float) -> None:
+        conf[b25.index(name)] = c
+
+    for name in ("LEye", "REye", "LEar", "REar", "LSmallToe", "RSmallToe"):
+        set_(name, INVENTED_CONFIDENCE)
+    for side, s in (("left", "L"), ("right", "R")):
+        if not skeleton.has(f"{side}_heel"):
+            set_(f"{s}Heel", INVENTED_CONFIDENCE)
+    set_("MidHip", DERIVED_CONFIDENCE)
+    set_("Nose", DERIVED_CONFIDENCE)
+    if not skeleton.has("neck"):
+        set_("Neck", DERIVED_CONFIDENCE)
+    return conf
 
 
 def _natural_key(p: Path) -> list:
@@ -125,26 +178,45 @@ def read_openpose(
     return Motion(skeleton=get_skeleton("body25"), fps=fps, positions=filled.astype(np.float32))
 
 
-def write_openpose(folder: str | os.PathLike, motion: Motion) -> None:
+def write_openpose(folder: str | os.PathLike, motion: Motion, *, keypoints: str = "body25") -> None:
     """Write a 2D motion as OpenPose JSON, one file per frame (``{i:012d}_keypoints.json``).
 
-    A 3D motion is projected first with :meth:`Motion.project_2d` (default
-    view). Every keypoint gets confidence 1. The folder is created if needed;
-    each file is written atomically.
+    A 3D motion is projected first with :meth:`Motion.project_2d` (default view), and its
+    points get the confidences of :func:`keypoint_confidence` (1 for joints of the skeleton,
+    less for derived and invented points); a 2D BODY_25 motion's keypoints get confidence 1.
+    ``keypoints`` picks the layout: ``body25`` (25 points), ``coco17`` or ``coco18`` (see the
+    module docstring). The folder is created if needed; each file is written atomically.
 
     Raises
     ------
     MotionFormatError
-        If the motion is not on the ``body25`` skeleton (after projection).
+        If the motion is not on the ``body25`` skeleton (after projection), or for an unknown
+        ``keypoints`` layout.
     """
     folder = Path(folder)
-    m = motion.project_2d() if motion.skeleton.dims == 3 else motion
+    if keypoints not in KEYPOINT_FORMATS:
+        raise MotionFormatError(f"keypoints must be one of {', '.join(KEYPOINT_FORMATS)}, got {keypoints!r} ({folder})")
+    conf = np.ones(25)
+    if motion.skeleton.dims == 3:
+        try:
+            conf = keypoint_confidence(motion.skeleton)
+            m = motion.project_2d()
+        except ParameterError as exc:
+            raise MotionFormatError(f"cannot write {folder}: {exc}") from exc
+    else:
+        m = motion
     if m.skeleton.name != "body25" or m.skeleton.num_joints != 25:
         raise MotionFormatError(f"OpenPose output needs a body25 motion, got {m.skeleton.name!r} ({folder})")
-    folder.mkdir(parents=True, exist_ok=True)
     pos = m.to_positions().astype(np.float64)
+    if keypoints != "body25":
+        sel = [m.skeleton.index(n) for n in (COCO17_NAMES if keypoints == "coco17" else COCO18_NAMES)]
+        pos, conf = pos[:, sel], conf[sel]
+    folder.mkdir(parents=True, exist_ok=True)
+    K = pos.shape[1]
     for i, frame in enumerate(pos):
-        flat = np.concatenate([frame, np.ones((25, 1))], axis=1).reshape(-1)
-        obj = {"version": 1.3, "people": [{"person_id": [-1], "pose_keypoints_2d": [round(float(v), 3) for v in flat]}]}
+        flat = np.concatenate([frame, conf[:, None]], axis=1).reshape(-1)
+        obj = {"version": 1.3, "keypoint_format": keypoints,
+               "people": [{"person_id": [-1], "pose_keypoints_2d": [round(float(v), 3) for v in flat]}]}
+        assert len(obj["people"][0]["pose_keypoints_2d"]) == 3 * K
         with atomic_path(folder / f"{i:012d}_keypoints.json") as tmp:
             tmp.write_text(json.dumps(obj))

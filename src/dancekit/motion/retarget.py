@@ -1,0 +1,207 @@
+"""Retargeting a dance onto the 24-joint SMPL skeleton (no SMPL model files: the public tree and a rest pose).
+
+:func:`retarget_to_smpl` solves SMPL local rotations so that forward kinematics with the documented
+rest offsets of :func:`~dancekit.motion.skeleton.smpl_skeleton` (T-pose, facing +z, left = +x, y up,
+metres) points every SMPL bone the way the dance's matching bone points. The joint roles of the
+source skeleton say which joints match:
+
+========================  =====================================================================
+SMPL                      taken from the dance
+========================  =====================================================================
+hip → knee, knee → ankle  the same bones (``*_hip``, ``*_knee``, ``*_ankle`` roles)
+ankle → foot              ankle → ``*_toe`` (rigid with the shin when there is no toe)
+shoulder → elbow → wrist  the same bones; the hand stays rigid with the forearm
+neck → head               neck → head (the midpoint of ``head_left``/``head_right`` when present)
+pelvis orientation        x = left hip − right hip, y = the trunk (hips' midpoint → neck)
+spine3 orientation        x = left shoulder − right shoulder, y = the trunk; spine1, spine2 and
+                          spine3 share the turn from the pelvis equally (a smooth spine)
+collars                   rigid with spine3, so the shoulder line is the dance's
+========================  =====================================================================
+
+The neck is the ``neck`` role, or the shoulders' midpoint. Each limb joint gets the smallest
+rotation, from its parent's frame, that takes its rest bone onto the dance's direction, so those
+directions are reproduced exactly; the body frames are measured against the same frames of the
+SMPL rest pose, so a dance in SMPL's rest pose retargets to zero rotations. A z-up dance is
+turned to y up.
+
+The body size goes into ``scaling`` as in AIST++: the dance's world positions are ``scaling ×``
+the SMPL joints, i.e. the SMPL root sits at ``translation / scaling`` (metres of the SMPL body),
+with ``scaling`` = (dance thigh + shin + trunk length) / (the same on the SMPL rest skeleton).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from dancekit.errors import ParameterError
+from dancekit.motion.motion import Motion
+from dancekit.motion.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from dancekit.motion.skeleton import SMPL_JOINT_NAMES, Skeleton, smpl_skeleton
+
+__all__ = ["SMPL_BONE_SOURCES", "retarget_to_smpl", "smpl_axis_angle", "smpl_bone_directions",
+           "source_bone_directions"]
+
+_REQUIRED = tuple(f"{s}_{p}" for s in ("left", "right") for p in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist"))
+
+#: What the SMPL output follows, as (SMPL from, SMPL to) → (dance from, dance to) points (names of
+#: :func:`_landmarks`): the limb bones, the neck, and the hip, shoulder and trunk lines. Tests measure
+#: the angle between the two directions; the limbs, the neck and the two lines are exact by construction.
+SMPL_BONE_SOURCES: dict[tuple[str, str], tuple[str, str]] = {
+    **{(f"{s}_hip", f"{s}_knee"): (f"{s}_hip", f"{s}_knee") for s in ("left", "right")},
+    **{(f"{s}_knee", f"{s}_ankle"): (f"{s}_knee", f"{s}_ankle") for s in ("left", "right")},
+    **{(f"{s}_ankle", f"{s}_foot"): (f"{s}_ankle", f"{s}_toe") for s in ("left", "right")},
+    **{(f"{s}_shoulder", f"{s}_elbow"): (f"{s}_shoulder", f"{s}_elbow") for s in ("left", "right")},
+    **{(f"{s}_elbow", f"{s}_wrist"): (f"{s}_elbow", f"{s}_wrist") for s in ("left", "right")},
+    ("neck", "head"): ("neck", "head"),
+    ("right_hip", "left_hip"): ("right_hip", "left_hip"),
+    ("right_shoulder", "left_shoulder"): ("right_shoulder", "left_shoulder"),
+}
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def _min_rot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Smallest rotations (T, 3, 3) taking unit vectors a onto unit vectors b (T, 3)."""
+    c = np.sum(a * b, axis=-1)
+    q = np.concatenate([(1.0 + c)[:, None], np.cross(a, b)], axis=-1)
+    opposite = 1.0 + c < 1e-9
+    if opposite.any():  # half turn about an axis perpendicular to a
+        helper = np.where(np.abs(a[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+        q[opposite] = np.concatenate([np.zeros((opposite.sum(), 1)), _unit(np.cross(a, helper))[opposite]], -1)
+    w, x, y, z = _unit(q).T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def _frame(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Rotations (T, 3, 3) with columns x, y (orthogonalised against x) and x × y."""
+    x = _unit(x)
+    y = _unit(y - np.sum(y * x, axis=-1, keepdims=True) * x)
+    return np.stack([x, y, np.cross(x, y)], axis=-1)
+
+
+def _landmarks(motion: Motion) -> dict[str, np.ndarray]:
+    """The dance's points used by the retargeting, (T, 3) float64 each, y up, in the skeleton's units."""
+    sk = motion.skeleton
+    if sk.dims != 3:
+        raise ParameterError(f"SMPL retargeting needs a 3D motion, got {sk.name!r}")
+    missing = [r for r in _REQUIRED if not sk.has(r)]
+    if missing:
+        raise ParameterError(f"skeleton {sk.name!r} has no {', '.join(missing)} role(s), needed for SMPL retargeting")
+    pos = np.asarray(motion.to_positions(), np.float64)
+    if sk.up_axis == "z":
+        pos = np.stack([pos[..., 0], pos[..., 2], -pos[..., 1]], axis=-1)
+    pt = {r: pos[:, sk.index(r)] for r in _REQUIRED}
+    for s in ("left", "right"):
+        pt[f"{s}_toe"] = pos[:, sk.index(f"{s}_toe")] if sk.has(f"{s}_toe") else None
+    pt["mid_hip"] = 0.5 * (pt["left_hip"] + pt["right_hip"])
+    pt["neck"] = pos[:, sk.index("neck")] if sk.has("neck") else 0.5 * (pt["left_shoulder"] + pt["right_shoulder"])
+    if sk.has("head_left") and sk.has("head_right"):
+        pt["head"] = 0.5 * (pos[:, sk.index("head_left")] + pos[:, sk.index("head_right")])
+    else:
+        pt["head"] = pos[:, sk.index("head")] if sk.has("head") else None
+    return pt
+
+
+def source_bone_directions(motion: Motion) -> dict[tuple[str, str], np.ndarray]:
+    """The dance's unit direction (T, 3) (y up) for every SMPL bone in :data:`SMPL_BONE_SOURCES` it defines."""
+    pt = _landmarks(motion)
+    return {bone: _unit(pt[b] - pt[a]) for bone, (a, b) in SMPL_BONE_SOURCES.items()
+            if pt.get(a) is not None and pt.get(b) is not None}
+
+
+def smpl_bone_directions(positions: np.ndarray) -> dict[tuple[str, str], np.ndarray]:
+    """Unit directions (T, 3) of the SMPL bones of :data:`SMPL_BONE_SOURCES` from SMPL joint positions (T, 24, 3)."""
+    i = {n: k for k, n in enumerate(SMPL_JOINT_NAMES)}
+    return {(a, b): _unit(positions[:, i[b]] - positions[:, i[a]]) for a, b in SMPL_BONE_SOURCES}
+
+
+def retarget_to_smpl(motion: Motion, skeleton: Skeleton | None = None) -> tuple[Motion, float]:
+    """The dance on the SMPL skeleton, and its AIST++ ``scaling`` (see the module docstring).
+
+    Parameters
+    ----------
+    motion : Motion
+        A 3D dance whose skeleton has the hip, knee, ankle, shoulder, elbow and wrist roles.
+    skeleton : Skeleton or None
+        The SMPL rest skeleton to solve for (default :func:`smpl_skeleton`, the documented one).
+
+    Returns
+    -------
+    smpl_motion : Motion
+        On ``skeleton`` (metres, y up): ``rotations`` (T, 24, 3, 3) float64 and ``root_translation``
+        (T, 3) = the dance's pelvis / ``scaling``; positions by forward kinematics.
+    scaling : float
+        Dance units per SMPL metre (dance size / SMPL size).
+
+    Raises
+    ------
+    ParameterError
+        For a 2D motion or a skeleton lacking the limb roles.
+    """
+    smpl = skeleton if skeleton is not None else smpl_skeleton()
+    pt = _landmarks(motion)
+    T = motion.num_frames
+    idx = {n: k for k, n in enumerate(smpl.joint_names)}
+    off = np.asarray(smpl.offsets, np.float64)
+
+    def length(a: str, b: str) -> float:
+        return float(np.mean(np.linalg.norm(pt[b] - pt[a], axis=-1)))
+
+    src_size = sum(length(f"{s}_hip", f"{s}_knee") + length(f"{s}_knee", f"{s}_ankle") for s in ("left", "right"))
+    src_size = 0.5 * src_size + length("mid_hip", "neck")
+    rest = np.zeros_like(off)
+    for j in smpl.topological_order:
+        if smpl.parents[j] >= 0:
+            rest[j] = rest[smpl.parents[j]] + off[j]
+    leg = sum(np.linalg.norm(off[idx[f"{s}_knee"]]) + np.linalg.norm(off[idx[f"{s}_ankle"]]) for s in ("left", "right"))
+    mid_hip_rest = 0.5 * (rest[idx["left_hip"]] + rest[idx["right_hip"]])
+    smpl_size = 0.5 * leg + np.linalg.norm(rest[idx["neck"]] - mid_hip_rest)
+    scaling = float(src_size / smpl_size)
+
+    targets = source_bone_directions(motion)
+    r = {n: rest[None, idx[n]] for n in ("left_hip", "right_hip", "left_shoulder", "right_shoulder", "neck")}
+    trunk, trunk_rest = pt["neck"] - pt["mid_hip"], r["neck"] - mid_hip_rest[None]
+    # body frames, relative to the same frames of the SMPL rest pose
+    pelvis_rot = _frame(pt["left_hip"] - pt["right_hip"], trunk) @ _frame(
+        r["left_hip"] - r["right_hip"], trunk_rest)[0].T
+    chest_rot = _frame(pt["left_shoulder"] - pt["right_shoulder"], trunk) @ _frame(
+        r["left_shoulder"] - r["right_shoulder"], trunk_rest)[0].T
+    # spine1..spine3 share the turn from the pelvis to the chest: a third each
+    turn = matrix_to_axis_angle(torch.from_numpy(np.swapaxes(pelvis_rot, -1, -2) @ chest_rot)).numpy()
+    third = axis_angle_to_matrix(torch.from_numpy(turn / 3.0)).numpy()
+    G = np.zeros((T, smpl.num_joints, 3, 3))
+    for j in smpl.topological_order:
+        name, p = smpl.joint_names[j], smpl.parents[j]
+        if name == "pelvis":
+            G[:, j] = pelvis_rot
+            continue
+        if name in ("spine1", "spine2", "spine3"):
+            G[:, j] = G[:, p] @ third
+            continue
+        G[:, j] = G[:, p]  # a leaf, or a joint without a target, keeps its parent's frame
+        kids = smpl.children(j)
+        if len(kids) == 1 and (name, smpl.joint_names[kids[0]]) in targets:
+            d_rest = _unit(np.einsum("tij,j->ti", G[:, p], off[kids[0]]))
+            G[:, j] = _min_rot(d_rest, targets[(name, smpl.joint_names[kids[0]])]) @ G[:, p]
+    R = G.copy()
+    for j in range(smpl.num_joints):
+        p = smpl.parents[j]
+        if p >= 0:
+            R[:, j] = np.swapaxes(G[:, p], -1, -2) @ G[:, j]
+    # the SMPL pelvis sits above the hips' midpoint: place it from the solved pelvis frame
+    pelvis_world = pt["mid_hip"] - scaling * np.einsum("tij,j->ti", G[:, idx["pelvis"]], mid_hip_rest)
+    m = Motion(smpl, motion.fps, rotations=R, root_translation=pelvis_world / scaling)
+    return m.with_positions(), scaling
+
+
+def smpl_axis_angle(rotations: np.ndarray) -> np.ndarray:
+    """(T, 24, 3, 3) local rotations → (T, 72) axis-angle, the ``smpl_poses`` layout."""
+    aa = matrix_to_axis_angle(torch.from_numpy(np.asarray(rotations, np.float64))).numpy()
+    return aa.reshape(aa.shape[0], -1)
