@@ -15,6 +15,15 @@ from dancekit.motion.rotations import axis_angle_to_matrix, euler_angles_to_matr
 SK = get_skeleton("tang2018")
 
 
+@pytest.fixture(autouse=True)
+def _one_thread():
+    """Tiny models: one torch thread is faster than several on a shared machine."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
 def _random_motion(rng: np.random.Generator, T: int = 120) -> Motion:
     """Random rig rotations (up to ~70° per joint), a wandering root that turns through ±π, tilts up to ~30°."""
     Jr = SK.rig().num_joints
@@ -103,3 +112,108 @@ def test_contacts_on_real_dances_match_the_hand_checked_fixture(tang2018_dir):
             if d == dance:
                 got = contacts[start:end, foot]
                 assert (got == expected).all(), f"{dance} foot {foot} frames {start}-{end}: {got}"
+
+
+# ---------------------------------------------------------------------------------------------- the model
+
+from dancekit.models.music2dance import (  # noqa: E402
+    Music2DanceConfig,
+    Music2DanceModel,
+    gmm_nll,
+    shift_right,
+    split_params,
+)
+
+
+def _tiny(**kw) -> Music2DanceModel:
+    cfg = dict(music_dim=5, pose_dim=12, n_genres=3, n_layers=7, channels=8, skip_channels=8, genre_dim=4,
+               fmap_channels=(4, 4, 4), fmap_lstm_hidden=4, lstm_hidden=8, lstm_layers=2, n_mixtures=3)
+    torch.manual_seed(0)
+    return Music2DanceModel(Music2DanceConfig(**{**cfg, **kw})).double().eval()
+
+
+@pytest.mark.parametrize("kw", [{}, {"music_condition": "raw"}, {"generator": "lstm"}])
+def test_generator_is_causal_in_the_motion(kw):
+    """Changing input frame t+1 never changes the outputs of frames <= t."""
+    model = _tiny(**kw)
+    g = torch.Generator().manual_seed(1)
+    music, prev = torch.randn(2, 40, 5, generator=g, dtype=torch.float64), torch.randn(2, 40, 12, generator=g,
+                                                                                       dtype=torch.float64)
+    out = model(music, prev, torch.tensor([0, -1]))
+    for t in (0, 9, 25, 38):
+        changed = prev.clone()
+        changed[:, t + 1 :] += torch.randn(2, 39 - t, 12, generator=g, dtype=torch.float64)
+        again = model(music, changed, torch.tensor([0, -1]))
+        torch.testing.assert_close(again[:, : t + 1], out[:, : t + 1], rtol=0, atol=0)
+        assert (again[:, t + 1] - out[:, t + 1]).abs().max() > 1e-6  # ... and frame t+1 does see it
+
+
+def test_wavenet_receptive_field_matches_the_dilations():
+    model = _tiny()  # 7 layers: dilations 1 2 4 8 16 1 2
+    assert model.config.dilations == (1, 2, 4, 8, 16, 1, 2)
+    rf = model.config.receptive_field
+    assert rf == 1 + 34
+    music, prev = torch.zeros(1, 60, 5, dtype=torch.float64), torch.zeros(1, 60, 12, dtype=torch.float64)
+    base = model(music, prev)
+    poked = prev.clone()
+    poked[0, 59 - rf] += 1.0  # just outside the receptive field of frame 59
+    assert torch.equal(model(music, poked)[0, 59], base[0, 59])
+    poked[0, 59 - rf + 1] += 1.0  # its oldest frame
+    assert not torch.equal(model(music, poked)[0, 59], base[0, 59])
+
+
+def test_gmm_nll_equals_torch_distributions():
+    g = torch.Generator().manual_seed(2)
+    B, T, N, D = 3, 5, 4, 7
+    logit_w = torch.randn(B, T, N, generator=g, dtype=torch.float64)
+    mu = torch.randn(B, T, N, D, generator=g, dtype=torch.float64)
+    log_var = torch.randn(B, T, N, D, generator=g, dtype=torch.float64)
+    x = torch.randn(B, T, D, generator=g, dtype=torch.float64) * 2
+    D_ = torch.distributions
+    mix = D_.MixtureSameFamily(D_.Categorical(logits=logit_w),
+                               D_.Independent(D_.Normal(mu, torch.exp(0.5 * log_var)), 1))  # Σ = exp(σ̂)
+    torch.testing.assert_close(gmm_nll(logit_w, mu, log_var, x), -mix.log_prob(x), rtol=1e-10, atol=1e-10)
+
+
+def test_model_loss_is_the_gmm_nll_plus_weighted_bce():
+    model = _tiny(n_mixtures=2)
+    g = torch.Generator().manual_seed(3)
+    params = torch.randn(2, 6, model.config.out_dim, generator=g, dtype=torch.float64)
+    target = torch.randn(2, 6, 12, generator=g, dtype=torch.float64)
+    target[..., -2:] = (target[..., -2:] > 0).double()
+    logit_w, mu, log_var, logits = split_params(params, model.config)
+    loss, logs = model.loss(params, target)
+    nll = gmm_nll(logit_w, mu, log_var, target[..., :10]).mean()
+    bce = torch.nn.functional.binary_cross_entropy_with_logits(logits, target[..., 10:])
+    torch.testing.assert_close(loss, (nll + 0.1 * bce) / 10)
+
+
+@pytest.mark.parametrize("kw", [{}, {"kernel": 3}, {"generator": "lstm"}])
+def test_incremental_generation_equals_the_full_sequence(kw):
+    """Per-layer activation queues (one frame at a time) give the full-sequence outputs to 1e-5."""
+    model = _tiny(**kw)
+    g = torch.Generator().manual_seed(4)
+    music, prev = torch.randn(2, 70, 5, generator=g, dtype=torch.float64), torch.randn(2, 70, 12, generator=g,
+                                                                                       dtype=torch.float64)
+    genre = torch.tensor([2, -1])
+    full = model(music, prev, genre)
+    torch.testing.assert_close(model.forward_incremental(music, prev, genre), full, rtol=0, atol=1e-5)
+    if model.config.generator == "wavenet":
+        sizes = [len(q) for q in model.init_state(1)]  # a queue of (k-1)·d inputs per layer: O(layers) a frame
+        assert sizes == [(model.config.kernel - 1) * d for d in model.config.dilations]
+
+
+def test_generate_feeds_its_own_samples_back_and_seeds_differ():
+    model = _tiny()
+    music = torch.randn(1, 30, 5, dtype=torch.float64)
+    a = model.generate(music, torch.tensor([1]), generator=torch.Generator().manual_seed(0))
+    b = model.generate(music, torch.tensor([1]), generator=torch.Generator().manual_seed(0))
+    c = model.generate(music, torch.tensor([1]), generator=torch.Generator().manual_seed(1))
+    assert a.shape == (1, 30, 12) and torch.equal(a, b) and not torch.allclose(a, c)
+    assert set(a[..., -2:].unique().tolist()) <= {0.0, 1.0}
+    # the frames are the model's own predictions: replaying them as inputs reproduces the same means
+    params = model(music, shift_right(a), torch.tensor([1]))
+    mean = model.generate(music, torch.tensor([1]), temperature=0.0)
+    torch.testing.assert_close(model.predict(model(music, shift_right(mean), torch.tensor([1])), temperature=0.0),
+                               mean)
+    assert params.shape == (1, 30, model.config.out_dim)
