@@ -217,3 +217,139 @@ def test_generate_feeds_its_own_samples_back_and_seeds_differ():
     torch.testing.assert_close(model.predict(model(music, shift_right(mean), torch.tensor([1])), temperature=0.0),
                                mean)
     assert params.shape == (1, 30, model.config.out_dim)
+
+
+# ---------------------------------------------------------------------------------------------- training
+
+def _ctx(training: bool, **train):
+    from dancekit.training import StepContext, TrainConfig
+
+    return StepContext(step=0, epoch=0, training=training, generator=torch.Generator().manual_seed(0),
+                       config=TrainConfig(**train))
+
+
+def _batch(model, B=2, T=24, seed=5):
+    g = torch.Generator().manual_seed(seed)
+    c = model.config
+    dance = torch.randn(B, T, c.pose_dim, generator=g, dtype=torch.float64)
+    dance[..., -2:] = (dance[..., -2:] > 0).double()
+    return {"music": torch.randn(B, T, c.music_dim, generator=g, dtype=torch.float64), "dance": dance,
+            "genre": torch.tensor([0, 2])[:B], "weight": torch.tensor([0.5, 2.0], dtype=torch.float64)[:B]}
+
+
+def test_objective_phase_two_feeds_the_first_pass_predictions_back():
+    from dancekit.training.m2d import music2dance_step
+
+    model = _tiny(phase=2, input_noise=0.0, target_noise=0.0)
+    calls = []
+    forward = model.forward
+
+    def spy(music, prev, genre=None):
+        calls.append(prev.clone())
+        return forward(music, prev, genre)
+
+    model.forward = spy
+    batch = _batch(model)
+    loss, _ = music2dance_step(model, batch, _ctx(False))
+    assert len(calls) == 2
+    torch.testing.assert_close(calls[0], shift_right(batch["dance"]))  # pass 1: the ground truth
+    first = model.predict(forward(batch["music"], calls[0], batch["genre"]), temperature=0.0)
+    torch.testing.assert_close(calls[1], shift_right(first))  # pass 2: its own predictions
+    params = forward(batch["music"], shift_right(first), batch["genre"])
+    torch.testing.assert_close(loss, model.loss(params, batch["dance"])[0])
+
+
+def test_objective_noise_and_cluster_weights_apply_in_training_only():
+    from dancekit.training.m2d import music2dance_step
+
+    model = _tiny(input_dropout=0.0)
+    batch = _batch(model)
+    val1, _ = music2dance_step(model, batch, _ctx(False))
+    val2, _ = music2dance_step(model, batch, _ctx(False))
+    assert float(val1.detach()) == float(val2.detach())  # validation: no noise, unweighted
+    params = model(batch["music"], shift_right(batch["dance"]), batch["genre"])
+    torch.testing.assert_close(val1, model.loss(params, batch["dance"])[0])
+    quiet = _tiny(input_dropout=0.0, input_noise=0.0, target_noise=0.0)
+    weighted, _ = music2dance_step(quiet, batch, _ctx(True, genre_dropout=0.0))
+    params = quiet(batch["music"], shift_right(batch["dance"]), batch["genre"])
+    torch.testing.assert_close(weighted, quiet.loss(params, batch["dance"], weights=batch["weight"])[0])
+    noisy, _ = music2dance_step(model, batch, _ctx(True, genre_dropout=0.0))
+    assert float(noisy.detach()) != float(val1.detach())
+
+
+def test_cluster_weights_balance_the_clusters(rng):
+    from dancekit.training.m2d import cluster_weights
+
+    feats = np.concatenate([rng.normal(0, 1, (30, 6)), rng.normal(50, 1, (10, 6))]).astype(np.float32)
+    labels, weights = cluster_weights(feats, k=2)
+    assert len(set(labels[:30])) == 1 and len(set(labels[30:])) == 1 and labels[0] != labels[30]
+    np.testing.assert_allclose(weights[:30], 40 / (2 * 30), rtol=1e-6)
+    np.testing.assert_allclose(weights[30:], 40 / (2 * 10), rtol=1e-6)
+    assert weights.mean() == pytest.approx(1.0)
+
+
+# ---------------------------------------------------------------------------------------------- pipeline
+
+@pytest.fixture(scope="module")
+def m2d_folder(tmp_path_factory):
+    """A tiny untrained music2dance checkpoint on the tang2018 skeleton (stats: realistic rootdelta scales)."""
+    from dancekit.checkpoints import NormStats, save_pretrained
+
+    lay = rootdelta_layout(SK)
+    torch.manual_seed(0)
+    cfg = Music2DanceConfig(music_dim=15, pose_dim=lay.dim, n_genres=2, n_layers=4, channels=8, skip_channels=8,
+                            genre_dim=4, fmap_channels=(4, 4, 4), fmap_lstm_hidden=4)
+    model = Music2DanceModel(cfg)
+    with torch.no_grad():  # a small output variance, so samples stay near the mean pose
+        model.out2.bias[cfg.n_mixtures * (1 + cfg.gmm_dim):cfg.n_mixtures * (1 + 2 * cfg.gmm_dim)] = -4.0
+    mean = encode_rootdelta(_random_motion(np.random.default_rng(0), T=50)).mean(0)
+    std = np.full(lay.dim, 0.05)
+    std[[1]] = 2.0  # root height, cm
+    mean[list(lay.contact_cols)], std[list(lay.contact_cols)] = 0.0, 1.0
+    stats = NormStats(music_mean=np.zeros(15, np.float32), music_std=np.ones(15, np.float32),
+                      dance_mean=mean.astype(np.float32), dance_std=std.astype(np.float32))
+    folder = tmp_path_factory.mktemp("m2d") / "model"
+    save_pretrained(folder, model, cfg, stats=stats,
+                    extra={"representation": "rotations_rootdelta", "preset": "music2dance", "fps": 25.0,
+                           "hop_length": 512, "skeleton": SK.to_dict(), "genres": ["waltz", "rumba"]})
+    return folder
+
+
+@pytest.fixture(scope="module")
+def song8(tmp_path_factory):
+    from dancekit.audio import save_wav, synth
+
+    path = tmp_path_factory.mktemp("song") / "tune.wav"
+    save_wav(path, synth.ode_to_joy(sr=22050, repeats=2)[: 8 * 22050], sr=22050)
+    return path
+
+
+def test_pipeline_samples_different_dances_for_different_seeds_on_the_floor(m2d_folder, song8):
+    from dancekit.motion.analysis import floor_curve
+    from dancekit.pipelines.base import DanceResult, load_pipeline
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    pipe = Music2DancePipeline.from_pretrained(m2d_folder)
+    assert type(load_pipeline(m2d_folder)) is Music2DancePipeline
+    a = pipe(song8, seed=0, genre="waltz")
+    b = pipe(song8, seed=0, genre="waltz")
+    c = pipe(song8, seed=1, genre="waltz")
+    assert isinstance(a, DanceResult) and a.genre == "waltz" and a.seed == 0
+    assert a.motion.num_frames == 1 + 8 * 25 and a.motion.rotations is not None
+    pa, pc = a.motion.to_positions(), c.motion.to_positions()
+    np.testing.assert_array_equal(pa, b.motion.to_positions())
+    assert np.abs(pa - pc).max() > 1.0  # another seed, another dance (cm)
+    floor = floor_curve(pa, SK, fps=25.0)
+    assert np.abs(floor).max() < 0.5  # feet on the floor all along
+    assert pipe(song8, seed=0, genre="none").genre is None and pipe(song8, seed=0).genre is None  # no reader
+
+
+def test_pipeline_rejects_unknown_genres_and_negative_temperatures(m2d_folder, song8):
+    from dancekit.errors import ParameterError
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    pipe = Music2DancePipeline.from_pretrained(m2d_folder)
+    with pytest.raises(ParameterError, match="unknown genre 'tango'.*waltz, rumba"):
+        pipe(song8, genre="tango")
+    with pytest.raises(ParameterError, match="temperature"):
+        pipe(song8, temperature=-1)

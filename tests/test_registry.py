@@ -24,6 +24,8 @@ TINY: dict[str, list[str]] = {
     "revolution": ["d_model=16", "n_heads=2", "d_ff=32", "decoder_hidden=16", "window=6"],
     "music_attributes": ["channels=4,4,4", "lstm_hidden=4"],
     "style": ["channels=8", "feature_dim=8"],
+    "music2dance": ["n_layers=3", "channels=4", "skip_channels=4", "genre_dim=4", "fmap_channels=4,4,4",
+                    "fmap_lstm_hidden=4"],
 }
 TRAIN = ["steps=2", "batch_size=2", "seq_len=32", "stride=16", "val_every=2", "ckpt_every=2", "log_every=1",
          "warmup_steps=0", "threads=1"]

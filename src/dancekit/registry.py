@@ -160,3 +160,19 @@ register(Family(
                 "(style accuracy, style diversity, multimodality)",
     data_fields=("n_joints", "n_classes"),
 ))
+
+register(Family(
+    name="music2dance",
+    config="dancekit.models.music2dance:Music2DanceConfig",
+    module="dancekit.models.music2dance:Music2DanceModel",
+    objective="dancekit.training.m2d:music2dance_step",
+    dataset="dancekit.training.m2d:music2dance_windows",
+    pipeline="dancekit.pipelines.music2dance:Music2DancePipeline",
+    preset="music2dance",
+    description="Music2Dance (§4.4): WaveNet with F_map music and dance-type conditions, GMM output, foot "
+                "contacts, motion clustering (rotations_rootdelta motion)",
+    # supplement §1.2: phase 1 at lr 4e-4 (phase 2: --init RUN/model --set phase=2 lr=1e-4); 240-frame windows
+    train_defaults={"representation": "rotations_rootdelta", "seq_len": 240, "stride": 30, "lr": 4e-4,
+                    "warmup_steps": 50},
+    data_fields=("music_dim", "pose_dim", "n_genres"),
+))

@@ -88,6 +88,7 @@ class Music2DanceConfig:
     contact_weight: float = 0.1  # λ of Eq. 11
     min_log_var: float = -9.0  # floor of σ̂ (log variance), for stability
     phase: int = 1  # training phase: 1 ground-truth inputs; 2 the model's first-pass predictions as inputs
+    cluster_balance: bool = True  # weight training windows by their motion cluster (supplement §1.2.2)
 
     def __post_init__(self) -> None:
         self.fmap_channels = tuple(int(c) for c in self.fmap_channels)
@@ -316,17 +317,24 @@ class Music2DanceModel(nn.Module):
         out = self.out2(F.relu(self.out1(F.relu(skips))))  # (B, out_dim, T)
         return out.transpose(1, 2)
 
-    def loss(self, params: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, dict[str, float]]:
+    def loss(self, params: torch.Tensor, target: torch.Tensor,
+             weights: torch.Tensor | None = None) -> tuple[torch.Tensor, dict[str, float]]:
         """``(L_gmm + λ · BCE) / D`` (Eq. 11) of ``params (B, T, out_dim)`` against ``target (B, T, P)``
-        (its last ``contact_dim`` columns 0/1)."""
+        (its last ``contact_dim`` columns 0/1), averaged over frames; ``weights (B,)``: per-window weights
+        (the motion clusters' balance; mean 1 over the data)."""
         c = self.config
         logit_w, mu, log_var, contact_logits = split_params(params, c)
-        nll = gmm_nll(logit_w, mu, log_var, target[..., : c.gmm_dim]).mean()
-        bce = (F.binary_cross_entropy_with_logits(contact_logits, target[..., c.gmm_dim :])
-               if c.contact_dim else nll.new_zeros(()))
-        loss = (nll + c.contact_weight * bce) / c.gmm_dim
+        nll = gmm_nll(logit_w, mu, log_var, target[..., : c.gmm_dim]).mean(-1)  # (B,)
+        if c.contact_dim:
+            bce = F.binary_cross_entropy_with_logits(contact_logits, target[..., c.gmm_dim :],
+                                                     reduction="none").mean((-1, -2))  # (B,)
+        else:
+            bce = torch.zeros_like(nll)
+        per_window = (nll + c.contact_weight * bce) / c.gmm_dim
+        loss = (per_window * weights.to(per_window)).mean() if weights is not None else per_window.mean()
         acc = ((contact_logits > 0).float() == target[..., c.gmm_dim :]).float().mean().item() if c.contact_dim else 1.0
-        return loss, {"nll_per_dim": float(nll.detach()) / c.gmm_dim, "bce": float(bce.detach()), "contact_acc": acc}
+        return loss, {"nll_per_dim": float(nll.mean().detach()) / c.gmm_dim, "bce": float(bce.mean().detach()),
+                      "contact_acc": acc}
 
     def predict(self, params: torch.Tensor, *, temperature: float = 1.0,
                 generator: torch.Generator | None = None) -> torch.Tensor:
