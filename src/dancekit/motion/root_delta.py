@@ -61,6 +61,7 @@ __all__ = [
     "decode_rootdelta",
     "encode_rootdelta",
     "foot_contacts",
+    "lower_body_cols",
     "rootdelta_layout",
 ]
 
@@ -108,6 +109,35 @@ class RootDeltaLayout:
     @property
     def contact_cols(self) -> tuple[int, int]:
         return (self.dim - 2, self.dim - 1)
+
+    @property
+    def toe_cols(self) -> tuple[int, ...]:
+        """The end-effector columns of the two toes (the contact joints)."""
+        return tuple(c for j in self.contact_joints if j in self.end_effectors for c in self.end_effector_col(j))
+
+
+def lower_body_cols(skeleton: Skeleton) -> tuple[int, ...]:
+    """Columns of the lower body's motion (§4.5): the root's six and the 6D rotations of every rig joint in
+    the legs (the hips and everything below them, and the branch joints the hips hang from)."""
+    lay = rootdelta_layout(skeleton)
+    rig = skeleton.rig()
+    hips = {skeleton.index("left_hip"), skeleton.index("right_hip")}
+
+    def in_leg(j: int) -> bool:
+        kids = rig.children(j)
+        if len(kids) == 1 and kids[0] in hips:  # the branch joint above a hip
+            return True
+        while j >= 0:
+            if j in hips:
+                return True
+            j = rig.parents[j]
+        return False
+
+    cols = list(lay.root_cols)
+    for j in lay.rot_joints:
+        if in_leg(j):
+            cols.extend(lay.rot_cols(j))
+    return tuple(cols)
 
 
 def _check_skeleton(skeleton: Skeleton) -> None:

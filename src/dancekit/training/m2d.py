@@ -30,14 +30,16 @@ from collections.abc import Mapping
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch import nn
 from torch.utils.data import Dataset
 
 from dancekit.checkpoints.stats import NormStats
 from dancekit.data import PreparedData, WindowDataset
 from dancekit.errors import CheckpointError, ParameterError
+from dancekit.models.foot_constraint import gaussian_smooth
 from dancekit.models.music2dance import Music2DanceModel, shift_right
-from dancekit.motion.root_delta import rootdelta_layout
+from dancekit.motion.root_delta import lower_body_cols, rootdelta_layout
 from dancekit.training.loop import StepContext, TrainConfig
 
 CLUSTERS = 8  # k of the motion clustering
@@ -48,11 +50,15 @@ REPRESENTATION = "rotations_rootdelta"
 class Music2DanceWindows(Dataset):
     """A :class:`~dancekit.data.WindowDataset` whose items also carry ``"weight"`` (the cluster weight).
 
-    Attributes the trainer reads as model-config fields: ``music_dim``, ``pose_dim``, ``n_genres``.
+    Attributes the trainer reads as model-config fields: ``music_dim``, ``pose_dim``, ``n_genres`` (the
+    WaveNet) and ``lower_idx``, ``foot_idx``, ``contact_idx`` (the Foot Constraint Model).
     """
 
     def __init__(self, windows: WindowDataset, weights: np.ndarray, n_genres: int, clusters: np.ndarray):
         self.windows, self.weights, self.n_genres, self.clusters = windows, weights, int(n_genres), clusters
+        skeleton = windows.data.skeleton
+        lay = rootdelta_layout(skeleton)
+        self.lower_idx, self.foot_idx, self.contact_idx = lower_body_cols(skeleton), lay.toe_cols, lay.contact_cols
 
     music_dim = property(lambda self: self.windows.music_dim)
     pose_dim = property(lambda self: self.windows.pose_dim)
@@ -102,10 +108,8 @@ def cluster_weights(features: np.ndarray, *, k: int = CLUSTERS, seed: int = 0) -
     return labels.astype(np.int64), weights.astype(np.float32)
 
 
-def music2dance_windows(data: PreparedData, config: TrainConfig, stats: NormStats, *,
-                        preset: str) -> tuple[Music2DanceWindows, Music2DanceWindows]:
-    """(train, val) windows of ``config.seq_len`` frames in ``rotations_rootdelta``, raw 0/1 contacts,
-    cluster weights on the training windows (validation windows weigh 1)."""
+def _rootdelta_windows(data: PreparedData, config: TrainConfig, stats: NormStats, *,
+                       preset: str) -> tuple[WindowDataset, WindowDataset]:
     if config.representation != REPRESENTATION:
         raise ParameterError(f"music2dance trains on the {REPRESENTATION!r} representation, not "
                              f"{config.representation!r} (leave TrainConfig.representation at the family default)")
@@ -119,11 +123,29 @@ def music2dance_windows(data: PreparedData, config: TrainConfig, stats: NormStat
                   representation=config.representation, genres=config.genres)
     train = WindowDataset(data, "train", random_offset=config.random_offset, seed=config.seed,
                           balance_genres=config.balance_genres, **common)
-    val = WindowDataset(data, "val", **common)
+    return train, WindowDataset(data, "val", **common)
+
+
+def _plain(windows: WindowDataset, n_genres: int) -> Music2DanceWindows:
+    return Music2DanceWindows(windows, np.ones(len(windows), np.float32), n_genres, np.zeros(len(windows), np.int64))
+
+
+def music2dance_windows(data: PreparedData, config: TrainConfig, stats: NormStats, *,
+                        preset: str) -> tuple[Music2DanceWindows, Music2DanceWindows]:
+    """(train, val) windows of ``config.seq_len`` frames in ``rotations_rootdelta``, raw 0/1 contacts,
+    cluster weights on the training windows (validation windows weigh 1)."""
+    train, val = _rootdelta_windows(data, config, stats, preset=preset)
     labels, weights = cluster_weights(_window_features(data, train), seed=config.seed)
     n_genres = len(data.genres)
-    return (Music2DanceWindows(train, weights, n_genres, labels),
-            Music2DanceWindows(val, np.ones(len(val), np.float32), n_genres, np.zeros(len(val), np.int64)))
+    return Music2DanceWindows(train, weights, n_genres, labels), _plain(val, n_genres)
+
+
+def foot_constraint_windows(data: PreparedData, config: TrainConfig, stats: NormStats, *,
+                            preset: str) -> tuple[Music2DanceWindows, Music2DanceWindows]:
+    """(train, val) ground-truth windows for the Foot Constraint Model (as :func:`music2dance_windows`,
+    without clustering; the music is not used)."""
+    train, val = _rootdelta_windows(data, config, stats, preset=preset)
+    return _plain(train, len(data.genres)), _plain(val, len(data.genres))
 
 
 def load_fmap(model: Music2DanceModel, folder: str) -> None:
@@ -173,3 +195,27 @@ def music2dance_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
     params = model(music, prev, genre)
     loss, logs = model.loss(params, target, weights=weights if ctx.training else None)
     return loss, logs
+
+
+def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
+                         ctx: StepContext) -> tuple[torch.Tensor, dict[str, float]]:
+    """MSE + ``smooth_weight`` x acceleration² of the Foot Constraint Model correcting simulated foot sliding.
+
+    The lower-body and toe columns of the ground-truth windows are smoothed (Gaussian, ``smooth_sigma``
+    frames) and get Gaussian noise (``noise_std``; validation draws it from the trainer's fixed-seed
+    generator, so validation losses compare); the target is the clean lower body. Logs ``mse`` (the
+    corrected lower body) and ``mse_input`` (the corrupted one: what the model starts from).
+    """
+    c = model.config
+    x = batch["dance"]
+    lower, cols = list(c.lower_idx), list(c.lower_idx) + list(c.foot_idx)
+    g = ctx.generator
+    noise = torch.randn(x[..., cols].shape, generator=g, device=g.device).to(x)
+    corrupted = x.clone()
+    corrupted[..., cols] = gaussian_smooth(x[..., cols], c.smooth_sigma) + c.noise_std * noise
+    pred = model(corrupted)[..., lower]  # (B, T, lower)
+    target = x[..., lower]
+    mse = F.mse_loss(pred, target)
+    accel = pred[:, 2:] - 2 * pred[:, 1:-1] + pred[:, :-2]
+    loss = mse + c.smooth_weight * accel.pow(2).mean()
+    return loss, {"mse": float(mse.detach()), "mse_input": float(F.mse_loss(corrupted[..., lower], target))}
