@@ -176,3 +176,21 @@ register(Family(
                     "warmup_steps": 50},
     data_fields=("music_dim", "pose_dim", "n_genres"),
 ))
+
+register(Family(
+    name="foot_constraint",
+    config="dancekit.models.foot_constraint:FootConstraintConfig",
+    module="dancekit.models.foot_constraint:FootConstraintModel",
+    objective="dancekit.training.m2d:foot_constraint_step",
+    dataset="dancekit.training.m2d:foot_constraint_windows",
+    pipeline="dancekit.pipelines.foot_constraint:FootConstraintPipeline",
+    preset="music2dance",  # the windows carry music (the CLI computes its statistics); the model ignores it
+    kind="postprocess",  # motion → motion (a new kind: tests/test_registry.py checks its pipeline returns a Motion)
+    input="motion",
+    description="Music2Dance §4.5 Foot Constraint Model: three dilated temporal convolutions correcting the lower "
+                "body of a rotations_rootdelta dance against foot sliding (arch=lstm: the FC+LSTM+FC baseline)",
+    # supplement §1.3: 480-frame windows, stride 3, Adam at 5e-4 (here 240-frame windows, stride 30)
+    train_defaults={"representation": "rotations_rootdelta", "seq_len": 240, "stride": 30, "lr": 5e-4,
+                    "warmup_steps": 20},
+    data_fields=("pose_dim", "lower_idx", "foot_idx", "contact_idx"),
+))
