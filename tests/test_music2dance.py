@@ -353,3 +353,14 @@ def test_pipeline_rejects_unknown_genres_and_negative_temperatures(m2d_folder, s
         pipe(song8, genre="tango")
     with pytest.raises(ParameterError, match="temperature"):
         pipe(song8, temperature=-1)
+
+
+def test_fmap_on_windows_matches_the_windows_where_it_reads_them():
+    model = _tiny()
+    music = torch.randn(1, 100, 5, dtype=torch.float64)
+    torch.testing.assert_close(model.music_condition(music, window=200), model.music_condition(music))
+    chunked = model.music_condition(music, window=40)  # windows at 0, 20, 40, 60 (flush); hop 20, margin 10
+    assert chunked.shape == (1, 100, 8)
+    torch.testing.assert_close(chunked[:, :30], model.music_condition(music[:, :40])[:, :30])
+    torch.testing.assert_close(chunked[:, 30:50], model.music_condition(music[:, 20:60])[:, 10:30])
+    torch.testing.assert_close(chunked[:, 70:], model.music_condition(music[:, 60:])[:, 10:])

@@ -266,12 +266,34 @@ class Music2DanceModel(nn.Module):
         return self
 
     # ---------------------------------------------------------------- conditions
-    def music_condition(self, music: torch.Tensor) -> torch.Tensor:
-        """``h_m (B, T, H)``: F_map of the music, or the music itself (``music_condition="raw"``)."""
+    def music_condition(self, music: torch.Tensor, *, window: int | None = None) -> torch.Tensor:
+        """``h_m (B, T, H)``: F_map of the music, or the music itself (``music_condition="raw"``).
+
+        ``window``: compute F_map on windows of this many frames (hop ``window // 2``, each frame taken from
+        the window where it is farthest from the edges), as in training on windows, instead of running its
+        BiLSTM over the whole song (None, or a song no longer than a window).
+        """
         c = self.config
         if music.dim() != 3 or music.shape[-1] != c.music_dim:
             raise ParameterError(f"music must be (B, T, {c.music_dim}), got {tuple(music.shape)}")
-        return self.fmap(music) if self.fmap is not None else music
+        if self.fmap is None:
+            return music
+        T = music.shape[1]
+        if window is None or T <= window:
+            return self.fmap(music)
+        if window < 4:
+            raise ParameterError(f"the F_map window must be at least 4 frames, got {window}")
+        hop, q = window // 2, window // 4
+        starts = list(range(0, T - window + 1, hop))
+        if starts[-1] != T - window:
+            starts.append(T - window)
+        out = music.new_zeros(music.shape[0], T, self.fmap.out_dim)
+        for k, s in enumerate(starts):
+            h = self.fmap(music[:, s : s + window])  # (B, window, H)
+            lo = s if k == 0 else s + q
+            hi = s + window if k == len(starts) - 1 else s + window - q
+            out[:, lo:hi] = h[:, lo - s : hi - s]
+        return out
 
     def genre_vector(self, genre: torch.Tensor | None, batch: int, device: torch.device) -> torch.Tensor:
         """The dance-type embedding ``(B, genre_dim)``; ``None`` or ``-1``: the "no type" embedding."""
@@ -283,9 +305,10 @@ class Music2DanceModel(nn.Module):
             raise ParameterError(f"genre indices must be in [-1, {n - 1}], got {genre.tolist()}")
         return self.genre_embedding(torch.where(genre < 0, torch.full_like(genre, n), genre))
 
-    def _conditions(self, music: torch.Tensor, genre: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
+    def _conditions(self, music: torch.Tensor, genre: torch.Tensor | None, *,
+                    window: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """WaveNet: per-block condition ``(B, T, L, 2C)``; LSTM: (music condition, genre vector)."""
-        h_m = self.music_condition(music)  # (B, T, H)
+        h_m = self.music_condition(music, window=window)  # (B, T, H)
         g = self.genre_vector(genre, music.shape[0], music.device)  # (B, G)
         if self.config.generator != "wavenet":
             return h_m, g
@@ -389,15 +412,16 @@ class Music2DanceModel(nn.Module):
     @torch.no_grad()
     def generate(self, music: torch.Tensor, genre: torch.Tensor | None = None, *, temperature: float = 1.0,
                  generator: torch.Generator | None = None, first: torch.Tensor | None = None,
-                 progress: bool = False) -> torch.Tensor:
+                 progress: bool = False, fmap_window: int | None = None) -> torch.Tensor:
         """A dance ``(B, T, P)`` for ``music (B, T, D_m)``, frame by frame, sampling the mixture.
 
-        ``first (B, P)``: the input of frame 0 (default zeros: the mean pose, no contacts). Call in eval mode.
+        ``first (B, P)``: the input of frame 0 (default zeros: the mean pose, no contacts); ``fmap_window``:
+        see :meth:`music_condition` (the pipeline passes the training window). Call in eval mode.
         """
         from tqdm import tqdm
 
         B, T = music.shape[:2]
-        cond, g = self._conditions(music, genre)
+        cond, g = self._conditions(music, genre, window=fmap_window)
         state = self.init_state(B, device=music.device, dtype=music.dtype)
         x = first if first is not None else music.new_zeros(B, self.config.pose_dim)
         frames = []

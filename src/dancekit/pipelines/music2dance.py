@@ -9,7 +9,9 @@ statistics (the contact columns have mean 0 and std 1: they are 0/1 flags). A fo
 music attribute classifier (``"components": {"genre_reader": "music_attributes"}``) that reads the dance
 type from the music for ``genre="auto"``.
 
-Generation samples the mixture frame by frame (each frame O(layers), :meth:`Music2DanceModel.generate`), so
+F_map (its BiLSTM) runs on windows as long as the training windows (``train.seq_len`` of the checkpoint),
+each frame's music condition taken from the window where it is farthest from the edges, so a 10-minute
+song is conditioned as the training windows were. Generation samples the mixture frame by frame (each frame O(layers), :meth:`Music2DanceModel.generate`), so
 different seeds give different dances; the motion is decoded from ``rotations_rootdelta`` (integrated root
 deltas + forward kinematics of the rotations) and put on the floor: the running floor of the feet
 (:func:`~dancekit.motion.analysis.floor_curve`) is moved to height 0 at every frame, so the dancer
@@ -154,8 +156,9 @@ class Music2DancePipeline:
         x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, D)
         index = torch.tensor([self.genres.index(danced) if danced is not None else -1])
         gen = torch.Generator().manual_seed(int(seed))
+        window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
         y = self.model.generate(x.to(self.model.genre_embedding.weight.device), index, temperature=temperature,
-                                generator=gen, progress=progress)  # (1, T, P)
+                                generator=gen, progress=progress, fmap_window=window)  # (1, T, P)
         poses = self.stats.denormalize_dance(y[0].cpu().numpy().astype(np.float64))
         motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
         return DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
