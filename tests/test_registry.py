@@ -26,6 +26,9 @@ TINY: dict[str, list[str]] = {
     "style": ["channels=8", "feature_dim=8"],
     "dual": ["m2d_d_model=8", "m2d_heads=2", "m2d_ff=8", "m2d_layers=1", "d2m_d_model=8", "d2m_heads=2", "d2m_ff=8",
              "d2m_layers=1", "gw_sinkhorn_iters=3", "gw_projection_iters=2"],
+    "music2dance": ["n_layers=3", "channels=4", "skip_channels=4", "genre_dim=4", "fmap_channels=4,4,4",
+                    "fmap_lstm_hidden=4"],
+    "foot_constraint": ["channels=4", "lstm_hidden=4"],
 }
 TRAIN = ["steps=2", "batch_size=2", "seq_len=32", "stride=16", "val_every=2", "ckpt_every=2", "log_every=1",
          "warmup_steps=0", "threads=1"]
@@ -39,7 +42,7 @@ def test_every_family_is_declared_completely():
         assert issubclass(fam.module_class, torch.nn.Module), name
         assert callable(fam.load("objective")) and callable(fam.load("dataset")), name
         assert hasattr(fam.load("pipeline"), "from_pretrained"), name
-        assert fam.kind in ("dance", "classifier") and fam.input in ("audio", "motion"), name
+        assert fam.kind in ("dance", "classifier", "postprocess") and fam.input in ("audio", "motion"), name
         assert set(fam.data_fields) <= {f.name for f in dataclasses.fields(fam.config_class)}, name
 
 
@@ -143,7 +146,9 @@ def test_pipeline_runs_on_a_short_synthetic_input(trained, song):
         positions = (skel.rest_positions()[None] if hasattr(skel, "rest_positions") else
                      np.zeros((1, skel.num_joints, 3))) + 5 * np.sin(t) * np.ones((1, skel.num_joints, 3))
         out = pipe(Motion(skeleton=skel, fps=25.0, positions=positions.astype(np.float32)))
-    if fam.kind == "dance":
+    if fam.kind == "postprocess":  # motion → motion (the Foot Constraint Model)
+        assert isinstance(out, Motion) and out.num_frames == 120 and np.isfinite(out.to_positions()).all()
+    elif fam.kind == "dance":
         assert isinstance(out, DanceResult) and out.seed == 1
         assert out.motion.num_frames == 1 + (3 * 22050 * 25 * 512 // 22050) // 512
         assert np.isfinite(out.motion.to_positions()).all()

@@ -48,7 +48,7 @@ class Family:
     dataset: str
     pipeline: str
     preset: str | None = None
-    kind: str = "dance"  # dance (music → motion) | classifier (music or motion → labels)
+    kind: str = "dance"  # dance (music → motion) | classifier (→ labels) | postprocess (motion → motion)
     input: str = "audio"  # what the pipeline is called on: audio (a path) | motion (a Motion)
     description: str = ""
     train_defaults: Mapping[str, Any] = field(default_factory=dict)
@@ -182,4 +182,38 @@ register(Family(
     train_defaults={"representation": "rot6d", "seq_len": 75, "stride": 25, "batch_size": 16, "lr": 5e-4,
                     "warmup_steps": 100, "steps": 3000},
     data_fields=("music_dim", "pose_dim", "window", "music_raw_from", "dance_raw_from"),
+))
+
+register(Family(
+    name="music2dance",
+    config="dancekit.models.music2dance:Music2DanceConfig",
+    module="dancekit.models.music2dance:Music2DanceModel",
+    objective="dancekit.training.m2d:music2dance_step",
+    dataset="dancekit.training.m2d:music2dance_windows",
+    pipeline="dancekit.pipelines.music2dance:Music2DancePipeline",
+    preset="music2dance",
+    description="Music2Dance (§4.4): WaveNet with F_map music and dance-type conditions, GMM output, foot "
+                "contacts, motion clustering (rotations_rootdelta motion)",
+    # supplement §1.2: phase 1 at lr 4e-4 (phase 2: --init RUN/model --set phase=2 lr=1e-4); 240-frame windows
+    train_defaults={"representation": "rotations_rootdelta", "seq_len": 240, "stride": 30, "lr": 4e-4,
+                    "warmup_steps": 50},
+    data_fields=("music_dim", "pose_dim", "n_genres"),
+))
+
+register(Family(
+    name="foot_constraint",
+    config="dancekit.models.foot_constraint:FootConstraintConfig",
+    module="dancekit.models.foot_constraint:FootConstraintModel",
+    objective="dancekit.training.m2d:foot_constraint_step",
+    dataset="dancekit.training.m2d:foot_constraint_windows",
+    pipeline="dancekit.pipelines.foot_constraint:FootConstraintPipeline",
+    preset="music2dance",  # the windows carry music (the CLI computes its statistics); the model ignores it
+    kind="postprocess",  # motion → motion (a new kind: tests/test_registry.py checks its pipeline returns a Motion)
+    input="motion",
+    description="Music2Dance §4.5 Foot Constraint Model: three dilated temporal convolutions correcting the lower "
+                "body of a rotations_rootdelta dance against foot sliding (arch=lstm: the FC+LSTM+FC baseline)",
+    # supplement §1.3: 480-frame windows, stride 3, Adam at 5e-4 (here 240-frame windows, stride 30)
+    train_defaults={"representation": "rotations_rootdelta", "seq_len": 240, "stride": 30, "lr": 5e-4,
+                    "warmup_steps": 20},
+    data_fields=("pose_dim", "lower_idx", "foot_idx", "contact_idx"),
 ))

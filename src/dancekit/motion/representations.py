@@ -201,3 +201,29 @@ def decode_rot6d(x: np.ndarray, skeleton: Skeleton, fps: float) -> Motion:
 register_representation(Representation(
     "rot6d", dim=lambda sk: ROT6D_TRANSLATION + 6 * sk.rig().num_joints, encode=encode_rot6d, decode=decode_rot6d,
     description="root translation (3) + 6D rotation (first two matrix columns) of each rig joint (6 J_rig)"))
+
+
+# ---- rotations_rootdelta (Music2Dance §4.4.1; dancekit.motion.root_delta, imported on use: it needs torch)
+
+def _rootdelta_dim(skeleton: Skeleton) -> int:
+    from dancekit.motion.root_delta import rootdelta_layout
+
+    return rootdelta_layout(skeleton).dim
+
+
+def _encode_rootdelta(motion: Motion) -> np.ndarray:
+    from dancekit.motion.root_delta import encode_rootdelta
+
+    return encode_rootdelta(motion).astype(np.float32)
+
+
+def _decode_rootdelta(x: np.ndarray, skeleton: Skeleton, fps: float) -> Motion:
+    from dancekit.motion.root_delta import decode_rootdelta
+
+    return decode_rootdelta(x, skeleton, fps)
+
+
+register_representation(Representation(
+    "rotations_rootdelta", dim=_rootdelta_dim, encode=_encode_rootdelta, decode=_decode_rootdelta,
+    description="Music2Dance: root (Δt_x, t_y, Δt_z, Δr_y, r_x, r_z) + 6D rig rotations + end effectors "
+                "relative to the root + 2 toe contacts (155 for tang2018)"))

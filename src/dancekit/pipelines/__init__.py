@@ -17,10 +17,13 @@ _LAZY = {
     "DanceResult": "dancekit.pipelines.base",
     "DualPipeline": "dancekit.pipelines.dual",
     "ComposePipeline": "dancekit.pipelines.dual",
+    "Music2DancePipeline": "dancekit.pipelines.music2dance",
+    "FootConstraintPipeline": "dancekit.pipelines.foot_constraint",
     "load_pipeline": "dancekit.pipelines.base",
 }
 
-__all__ = ["ComposePipeline", "DanceResult", "DualPipeline", "MusicAttributePipeline", "RevolutionPipeline", "StylePipeline", "load_pipeline"]
+__all__ = ["ComposePipeline", "DanceResult", "DualPipeline", "FootConstraintPipeline", "Music2DancePipeline",
+           "MusicAttributePipeline", "RevolutionPipeline", "StylePipeline", "load_pipeline"]
 
 
 def __getattr__(name: str) -> Any:

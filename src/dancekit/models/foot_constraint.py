@@ -1,0 +1,153 @@
+"""The Foot Constraint Model of Music2Dance (§4.5, supplement §1.3): a post-process against foot sliding.
+
+One file, one model: :class:`FootConstraintConfig` and :class:`FootConstraintModel`.
+
+Architecture
+    The input per frame is the lower body's motion ``x'_lrot`` (the root's six columns and the 6D rotations
+    of the legs, :func:`~dancekit.motion.root_delta.lower_body_cols`), the toe end-effector positions
+    ``p'_fend`` and the foot contacts ``c'_foot`` of a ``rotations_rootdelta`` vector (normalised columns,
+    contacts 0/1). Three temporal convolutions (kernel 3, dilations 1, 3, 9, "same" padding, ReLU between;
+    a receptive field of 27 frames, centred) predict an increment of the lower body (Eq. 14):
+    ``x̂'_lrot = x'_lrot + F_post(x'_lrot, p'_fend, c'_foot)``. Every other column (the upper body, the end
+    effectors, the contacts) is passed through unchanged. The last convolution starts at zero, so an
+    untrained model is the identity.
+    The paper's baseline (Table 2, ``arch="lstm"``): one fully connected layer, an LSTM, one fully connected
+    layer, predicting the same increment.
+Training (``dancekit.training.m2d.foot_constraint_step``)
+    Ground-truth windows with simulated foot sliding: the lower body and toe columns are smoothed with a
+    Gaussian (``smooth_sigma`` frames) and get Gaussian noise (``noise_std``); the target is the clean lower
+    body. Loss: MSE + ``smooth_weight`` (0.1) x the mean squared second difference (acceleration) of the
+    corrected lower body.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from dancekit.errors import ParameterError
+
+ARCHS = ("conv", "lstm")
+
+
+def _tang2018_columns() -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
+    from dancekit.motion import get_skeleton
+    from dancekit.motion.root_delta import lower_body_cols, rootdelta_layout
+
+    sk = get_skeleton("tang2018")
+    lay = rootdelta_layout(sk)
+    return lower_body_cols(sk), lay.toe_cols, lay.contact_cols
+
+
+@dataclass
+class FootConstraintConfig:
+    """Hyper-parameters of :class:`FootConstraintModel`; the column indices come from the data (defaults:
+    ``rotations_rootdelta`` of tang2018, P = 155: 66 lower-body, 6 toe and 2 contact columns)."""
+
+    pose_dim: int = 155
+    lower_idx: tuple[int, ...] = ()  # columns corrected (root + legs); () : tang2018's
+    foot_idx: tuple[int, ...] = ()  # toe end-effector columns (read only)
+    contact_idx: tuple[int, ...] = ()  # contact columns (read only)
+    arch: str = "conv"  # conv (the paper's model) | lstm (its FC + LSTM + FC baseline)
+    channels: int = 64
+    kernel: int = 3
+    dilations: tuple[int, ...] = (1, 3, 9)
+    lstm_hidden: int = 64
+    noise_std: float = 0.1  # simulated sliding: Gaussian noise (normalised units) ...
+    smooth_sigma: float = 2.0  # ... after Gaussian smoothing (frames)
+    smooth_weight: float = 0.1  # the smoothness loss factor
+
+    def __post_init__(self) -> None:
+        if not self.lower_idx and not self.foot_idx and not self.contact_idx:
+            self.lower_idx, self.foot_idx, self.contact_idx = _tang2018_columns()
+        self.lower_idx, self.foot_idx, self.contact_idx, self.dilations = (
+            tuple(int(i) for i in v) for v in (self.lower_idx, self.foot_idx, self.contact_idx, self.dilations))
+        for name in ("pose_dim", "channels", "kernel", "lstm_hidden"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ParameterError(f"FootConstraintConfig.{name} must be a positive integer, got {value!r}")
+        cols = self.lower_idx + self.foot_idx + self.contact_idx
+        if not self.lower_idx or len(set(cols)) != len(cols) or min(cols) < 0 or max(cols) >= self.pose_dim:
+            raise ParameterError(f"FootConstraintConfig: lower_idx, foot_idx and contact_idx must be distinct columns "
+                                 f"in [0, {self.pose_dim}) with lower_idx non-empty")
+        if self.arch not in ARCHS:
+            raise ParameterError(f"FootConstraintConfig.arch must be one of {ARCHS}, got {self.arch!r}")
+        if self.kernel % 2 == 0 or not self.dilations or min(self.dilations) < 1:
+            raise ParameterError("FootConstraintConfig: kernel must be odd and dilations positive")
+        if min(self.noise_std, self.smooth_sigma, self.smooth_weight) < 0:
+            raise ParameterError("FootConstraintConfig.noise_std, smooth_sigma and smooth_weight must be >= 0")
+
+    @property
+    def in_dim(self) -> int:
+        return len(self.lower_idx) + len(self.foot_idx) + len(self.contact_idx)
+
+
+class FootConstraintModel(nn.Module):
+    """Motion ``(B, T, P)`` → the same motion with its lower body corrected ``(B, T, P)``.
+
+    Examples
+    --------
+    >>> model = FootConstraintModel(FootConstraintConfig())
+    >>> model(torch.randn(2, 50, 155)).shape
+    torch.Size([2, 50, 155])
+    """
+
+    family: ClassVar[str] = "foot_constraint"
+
+    def __init__(self, config: FootConstraintConfig):
+        super().__init__()
+        self.config = c = config
+        self.register_buffer("inputs", torch.tensor(c.lower_idx + c.foot_idx + c.contact_idx), persistent=False)
+        self.register_buffer("lower", torch.tensor(c.lower_idx), persistent=False)
+        out = len(c.lower_idx)
+        if c.arch == "conv":
+            widths = [c.in_dim] + [c.channels] * (len(c.dilations) - 1) + [out]
+            self.convs = nn.ModuleList(
+                nn.Conv1d(widths[i], widths[i + 1], c.kernel, dilation=d, padding=d * (c.kernel // 2))
+                for i, d in enumerate(c.dilations))
+            last = self.convs[-1]
+        else:
+            self.fc_in = nn.Linear(c.in_dim, c.lstm_hidden)
+            self.lstm = nn.LSTM(c.lstm_hidden, c.lstm_hidden, batch_first=True)
+            self.fc_out = nn.Linear(c.lstm_hidden, out)
+            last = self.fc_out
+        nn.init.zeros_(last.weight)
+        nn.init.zeros_(last.bias)
+
+    def increment(self, x: torch.Tensor) -> torch.Tensor:
+        """``F_post``: the lower-body increment ``(B, T, len(lower_idx))`` for motion ``x (B, T, P)``."""
+        c = self.config
+        if x.dim() != 3 or x.shape[-1] != c.pose_dim:
+            raise ParameterError(f"motion must be (B, T, {c.pose_dim}), got {tuple(x.shape)}")
+        h = x[..., self.inputs]  # (B, T, in_dim)
+        if c.arch == "lstm":
+            h, _ = self.lstm(self.fc_in(h))
+            return self.fc_out(h)
+        h = h.transpose(1, 2)  # (B, in_dim, T)
+        for i, conv in enumerate(self.convs):
+            h = conv(h)
+            if i < len(self.convs) - 1:
+                h = F.relu(h)
+        return h.transpose(1, 2)  # (B, T, lower)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Eq. 14: ``x`` with ``x[..., lower_idx] + F_post(...)``; every other column unchanged."""
+        out = x.clone()
+        out[..., self.lower] = x[..., self.lower] + self.increment(x)
+        return out
+
+
+def gaussian_smooth(x: torch.Tensor, sigma: float) -> torch.Tensor:
+    """``x (B, T, C)`` smoothed along time with a Gaussian of ``sigma`` frames (edges replicated)."""
+    if sigma <= 0:
+        return x
+    r = max(1, int(round(3 * sigma)))
+    t = torch.arange(-r, r + 1, dtype=x.dtype, device=x.device)
+    w = torch.exp(-0.5 * (t / sigma) ** 2)
+    w = (w / w.sum()).expand(x.shape[-1], 1, -1)  # (C, 1, 2r+1)
+    h = F.pad(x.transpose(1, 2), (r, r), mode="replicate")
+    return F.conv1d(h, w, groups=x.shape[-1]).transpose(1, 2)

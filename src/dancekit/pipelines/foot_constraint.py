@@ -1,0 +1,80 @@
+"""The Foot Constraint Model as a post-process: a :class:`Motion` in, the motion with less foot sliding out.
+
+    >>> fix = FootConstraintPipeline.from_pretrained("runs/foot/model")      # doctest: +SKIP
+    >>> fixed = fix(result.motion)                                           # doctest: +SKIP
+
+Any dance on the checkpoint's skeleton works (Music2Dance's and Dance Revolution's alike): the motion is
+encoded as ``rotations_rootdelta`` (its IK rotations when it has only positions), normalised with the
+checkpoint's statistics, corrected by the model (lower body only), and decoded from the motion's own
+start (position and heading of frame 0), so the corrected dance stays where it was.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from dancekit.checkpoints import NormStats, load_pretrained, resolve_model
+from dancekit.errors import CheckpointError, ParameterError
+from dancekit.models.foot_constraint import FootConstraintModel
+from dancekit.motion import Motion, Skeleton
+from dancekit.motion.root_delta import decode_rootdelta, encode_rootdelta
+
+
+class FootConstraintPipeline:
+    """Correct the lower body of a dance with a trained :class:`FootConstraintModel`."""
+
+    def __init__(self, model: FootConstraintModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?"):
+        if not isinstance(model, FootConstraintModel):
+            raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a Foot Constraint Model")
+        if "skeleton" not in meta:
+            raise CheckpointError(f"checkpoint {folder}: config.json has no 'skeleton' entry")
+        self.model, self.meta, self.stats, self.folder = model.eval(), meta, stats, str(folder)
+        self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        if len(stats.dance_mean) != model.config.pose_dim:
+            raise CheckpointError(f"checkpoint {folder}: statistics of {len(stats.dance_mean)} columns for a model "
+                                  f"of {model.config.pose_dim}")
+
+    @classmethod
+    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> FootConstraintPipeline:
+        """Load a checkpoint folder (``dancekit train foot_constraint``) or a model name."""
+        folder = resolve_model(folder)
+        model, meta, arrays = load_pretrained(folder, device=device)
+        keys = ("music_mean", "music_std", "dance_mean", "dance_std")
+        if any(k not in arrays for k in keys):
+            raise CheckpointError(f"checkpoint {folder}: stats.npz lacks some of {keys}")
+        stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in keys})
+        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)))
+
+    @torch.no_grad()
+    def __call__(self, motion: Motion) -> Motion:
+        """The motion with its lower body corrected (rotations on the rig, FK positions, same fps and start).
+
+        Raises
+        ------
+        ParameterError
+            For a motion on another skeleton.
+        """
+        if not isinstance(motion, Motion):
+            raise ParameterError(f"the Foot Constraint Model post-processes a Motion, got {type(motion).__name__}")
+        if motion.skeleton.joint_names != self.skeleton.joint_names:
+            raise ParameterError(f"this Foot Constraint Model was trained on the {self.skeleton.name!r} skeleton, "
+                                 f"the motion is on {motion.skeleton.name!r}")
+        x = encode_rootdelta(motion)  # (T, P) float64
+        z = torch.from_numpy(self.stats.normalize_dance(x))[None]  # (1, T, P)
+        y = self.model(z.to(next(self.model.parameters()).device))[0].cpu().numpy()
+        fixed = self.stats.denormalize_dance(y).astype(np.float64)
+        R0 = motion.rotations if motion.rotations is not None else None
+        if R0 is None:
+            from dancekit.motion.kinematics import inverse_kinematics
+
+            R0, _ = inverse_kinematics(np.asarray(motion.positions[:1], np.float64), motion.skeleton)
+        root = motion.skeleton.root
+        heading0 = float(np.arctan2(R0[0, root, 0, 2], R0[0, root, 2, 2]))
+        tr0 = np.asarray(motion.root_translation if motion.root_translation is not None
+                         else motion.positions[:, root], np.float64)[0]
+        return decode_rootdelta(fixed, motion.skeleton, motion.fps, origin=(tr0[0], tr0[2], heading0))

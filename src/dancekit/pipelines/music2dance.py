@@ -1,0 +1,177 @@
+"""Music2Dance inference: a song → a dance with the WaveNet of §4.4 (inference only).
+
+    >>> pipe = Music2DancePipeline.from_pretrained("runs/m2d/model")          # doctest: +SKIP
+    >>> result = pipe("song.ogg", seed=0, genre="waltz", temperature=1.0)      # doctest: +SKIP
+
+The checkpoint folder carries the model (with its F_map), the feature preset, fps and hop length, the
+skeleton, the genres (dance types, in the order of the model's genre condition) and the normalisation
+statistics (the contact columns have mean 0 and std 1: they are 0/1 flags). A folder may also declare a
+music attribute classifier (``"components": {"genre_reader": "music_attributes"}``) that reads the dance
+type from the music for ``genre="auto"``.
+
+F_map (its BiLSTM) runs on windows as long as the training windows (``train.seq_len`` of the checkpoint),
+each frame's music condition taken from the window where it is farthest from the edges, so a 10-minute
+song is conditioned as the training windows were. Generation samples the mixture frame by frame (each frame O(layers), :meth:`Music2DanceModel.generate`), so
+different seeds give different dances; the motion is decoded from ``rotations_rootdelta`` (integrated root
+deltas + forward kinematics of the rotations) and put on the floor: the running floor of the feet
+(:func:`~dancekit.motion.analysis.floor_curve`) is moved to height 0 at every frame, so the dancer
+neither sinks nor floats away however long the song.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
+from dancekit.errors import CheckpointError, ParameterError
+from dancekit.models.music2dance import Music2DanceModel
+from dancekit.motion import Motion, Skeleton
+from dancekit.motion.analysis import floor_curve
+from dancekit.motion.root_delta import decode_rootdelta
+from dancekit.pipelines.base import DanceResult
+from dancekit.pipelines.music_attributes import MusicAttributePipeline
+
+
+class Music2DancePipeline:
+    """Generate a dance for a whole song with a trained :class:`Music2DanceModel`.
+
+    Parameters
+    ----------
+    model : the trained model
+    meta : the checkpoint's ``config.json`` (needs ``fps``, ``skeleton``; ``genres`` for a genre condition)
+    stats : the normalisation statistics
+    genre_reader : a music attribute classifier for ``genre="auto"`` (or None)
+    """
+
+    def __init__(self, model: Music2DanceModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
+                 genre_reader: MusicAttributePipeline | None = None):
+        if not isinstance(model, Music2DanceModel):
+            raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a Music2Dance model")
+        for key in ("fps", "skeleton"):
+            if key not in meta:
+                raise CheckpointError(f"checkpoint {folder}: config.json has no {key!r} entry")
+        if meta.get("representation", "rotations_rootdelta") != "rotations_rootdelta":
+            raise CheckpointError(f"checkpoint {folder}: a Music2Dance model needs the rotations_rootdelta "
+                                  f"representation, not {meta.get('representation')!r}")
+        self.model = model.eval()
+        self.meta, self.folder, self.stats = meta, str(folder), stats
+        self.fps = float(meta["fps"])
+        self.preset = str(meta.get("preset", "music2dance"))
+        self.hop_length = int(meta.get("hop_length", 512))
+        self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        self.genres = tuple(meta.get("genres", ()))[: model.config.n_genres]
+        self.genre_reader = genre_reader
+        if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
+            raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
+                                  f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
+
+    @classmethod
+    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> Music2DancePipeline:
+        """Load a checkpoint folder (``dancekit train music2dance``) or a model name (:func:`resolve_model`).
+
+        Raises
+        ------
+        CheckpointError
+            For a missing or corrupt folder, or one that holds another model family.
+        """
+        folder = resolve_model(folder)
+        model, meta, arrays = load_pretrained(folder, device=device)
+        keys = ("music_mean", "music_std", "dance_mean", "dance_std")
+        missing = [k for k in keys if k not in arrays]
+        if missing:
+            raise CheckpointError(f"checkpoint {folder}: stats.npz lacks {missing}")
+        stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in keys})
+        parts = components(folder, meta)
+        unknown = sorted(set(parts) - {"genre_reader"})
+        if unknown:
+            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a Music2Dance model")
+        reader = parts.get("genre_reader")
+        reader = None if reader is None else MusicAttributePipeline.from_pretrained(reader, device=device)
+        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_reader=reader)
+
+    def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
+                 end: float | None = None) -> np.ndarray:
+        """Normalised music features (T, music_dim) of the song (excerpt) at the checkpoint's fps."""
+        from dancekit.features import extract_file
+
+        fs = extract_file(audio_path, fps=self.fps, preset=self.preset, start=start, end=end,
+                          hop_length=self.hop_length)
+        feats = np.asarray(fs.features, np.float32)
+        if feats.ndim != 2 or feats.shape[1] != self.model.config.music_dim:
+            raise CheckpointError(f"the {self.preset!r} features of {audio_path} have shape {feats.shape}, but the "
+                                  f"model expects {self.model.config.music_dim} columns")
+        return self.stats.normalize_music(feats)
+
+    def _genre(self, genre: str | None, audio_path, start, end) -> tuple[str, str | None, dict[str, float]]:
+        requested = "auto" if genre is None else str(genre)
+        if requested == "none":
+            return requested, None, {}
+        if requested == "auto":
+            if self.genre_reader is None or not self.genres:
+                return requested, None, {}
+            probs = self.genre_reader(audio_path, start=start, end=end)
+            probs = {g: probs[g] for g in self.genres if g in probs}
+            total = sum(probs.values())
+            if total <= 0:
+                return requested, None, {}
+            probs = {g: p / total for g, p in probs.items()}
+            return requested, max(probs, key=probs.get), probs
+        if requested not in self.genres:
+            known = ", ".join(self.genres) or "none (the model has no dance-type condition)"
+            raise ParameterError(f"unknown genre {requested!r} for this model; choose from {known}, auto or none")
+        return requested, requested, {}
+
+    @torch.no_grad()
+    def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, genre: str | None = None,
+                 temperature: float = 1.0, start: float | None = None, end: float | None = None,
+                 progress: bool = False) -> DanceResult:
+        """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
+
+        Parameters
+        ----------
+        seed : seeds the mixture sampling; the same seed gives the same dance
+        genre : a dance type of :attr:`genres`; "auto"/None: read from the music by the folder's classifier when
+            it has one (else "none"); "none": no dance type (the model's own learned "none" condition)
+        temperature : scales the sampled variances (and sharpens the mixture weights); 0 takes the means
+        start, end : excerpt in seconds
+
+        Returns
+        -------
+        :class:`DanceResult` whose ``.motion`` has one frame per feature frame, rotations on the skeleton's
+        rig and world positions (skeleton units), feet on the floor.
+
+        Raises
+        ------
+        ParameterError
+            For an unknown genre or a negative temperature.
+        """
+        if not temperature >= 0:
+            raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
+        requested, danced, probs = self._genre(genre, audio_path, start, end)
+        x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, D)
+        index = torch.tensor([self.genres.index(danced) if danced is not None else -1])
+        gen = torch.Generator().manual_seed(int(seed))
+        window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
+        y = self.model.generate(x.to(self.model.genre_embedding.weight.device), index, temperature=temperature,
+                                generator=gen, progress=progress, fmap_window=window)  # (1, T, P)
+        poses = self.stats.denormalize_dance(y[0].cpu().numpy().astype(np.float64))
+        motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
+        return DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
+                           genre=danced, genre_probs=probs, danced_by=self.folder)
+
+
+def on_the_floor(motion: Motion) -> Motion:
+    """The motion moved vertically so that its running floor (:func:`floor_curve`) is at 0 at every frame."""
+    sk = motion.skeleton
+    pos = np.asarray(motion.to_positions(), np.float64)
+    floor = floor_curve(pos, sk, fps=motion.fps)  # (T,)
+    pos[..., sk.up_index] -= floor[:, None]
+    tr = np.asarray(motion.root_translation, np.float64).copy()
+    tr[:, sk.up_index] -= floor
+    return Motion(skeleton=sk, fps=motion.fps, positions=pos.astype(np.float32),
+                  rotations=np.asarray(motion.rotations, np.float32), root_translation=tr.astype(np.float32))

@@ -1,0 +1,123 @@
+"""The Foot Constraint Model (Music2Dance §4.5): shapes, the upper body untouched, the objective, the pipeline."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from dancekit.models.foot_constraint import FootConstraintConfig, FootConstraintModel, gaussian_smooth
+from dancekit.motion import Motion, get_skeleton
+from dancekit.motion.root_delta import lower_body_cols, rootdelta_layout
+
+SK = get_skeleton("tang2018")
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def _model(**kw) -> FootConstraintModel:
+    torch.manual_seed(0)
+    model = FootConstraintModel(FootConstraintConfig(channels=8, lstm_hidden=8, **kw)).double()
+    with torch.no_grad():  # the last layer starts at zero (identity): give it weights so the test can see a change
+        for p in model.parameters():
+            if not p.abs().sum():
+                p.normal_(0, 0.1)
+    return model
+
+
+def test_default_columns_are_the_tang2018_lower_body():
+    c = FootConstraintConfig()
+    lay = rootdelta_layout(SK)
+    assert c.lower_idx == lower_body_cols(SK) and len(c.lower_idx) == 6 + 6 * 10
+    assert c.foot_idx == lay.toe_cols and c.contact_idx == (153, 154) and c.in_dim == 66 + 6 + 2
+    names = {SK.rig().joint_names[j] for j in lay.rot_joints if lay.rot_cols(j)[0] in c.lower_idx}
+    assert "left_knee" in names and "pelvis_to_right_hip" in names and not any("shoulder" in n for n in names)
+
+
+@pytest.mark.parametrize("arch", ["conv", "lstm"])
+def test_output_shape_and_upper_body_untouched(arch):
+    model = _model(arch=arch)
+    x = torch.randn(2, 40, 155, dtype=torch.float64)
+    y = model(x)
+    assert y.shape == x.shape
+    lower = list(model.config.lower_idx)
+    others = [i for i in range(155) if i not in set(lower)]
+    torch.testing.assert_close(y[..., others], x[..., others], rtol=0, atol=0)  # upper body, effectors, contacts
+    assert (y[..., lower] - x[..., lower]).abs().max() > 1e-3  # the lower body is corrected
+    assert model.increment(x).shape == (2, 40, len(lower))
+
+
+def test_untrained_model_is_the_identity():
+    model = FootConstraintModel(FootConstraintConfig(channels=8))
+    x = torch.randn(1, 30, 155)
+    assert torch.equal(model(x), x)
+
+
+def test_conv_receptive_field_is_27_frames_centred():
+    model = _model()
+    x = torch.zeros(1, 60, 155, dtype=torch.float64)
+    base = model.increment(x)
+    x[0, 30, list(model.config.lower_idx)] = 1.0
+    changed = (model.increment(x) - base).abs().sum(-1)[0] > 0  # (T,)
+    assert changed.nonzero().flatten().tolist() == list(range(30 - 13, 30 + 14))  # 1 + 2·(1 + 3 + 9)
+
+
+def test_gaussian_smooth_keeps_constants_and_lowers_noise(rng):
+    x = torch.from_numpy(rng.normal(size=(1, 200, 3)))
+    torch.testing.assert_close(gaussian_smooth(torch.ones(1, 50, 2), 2.0), torch.ones(1, 50, 2))
+    assert gaussian_smooth(x, 2.0).std() < 0.5 * x.std()
+
+
+def test_objective_corrupts_the_lower_body_and_the_model_can_undo_it():
+    from dancekit.training import StepContext, TrainConfig
+    from dancekit.training.m2d import foot_constraint_step
+
+    t = torch.linspace(0, 6, 48, dtype=torch.float64)
+    x = torch.sin(t[None, :, None] * torch.linspace(0.5, 3, 155, dtype=torch.float64)).repeat(2, 1, 1)
+    ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0), config=TrainConfig())
+    identity = FootConstraintModel(FootConstraintConfig(channels=8)).double()
+    loss, logs = foot_constraint_step(identity, {"dance": x}, ctx)
+    assert logs["mse_input"] > 0.005 and logs["mse"] == pytest.approx(logs["mse_input"])  # identity: no fix
+    model = FootConstraintModel(FootConstraintConfig(channels=16)).double()
+    opt = torch.optim.Adam(model.parameters(), lr=3e-3)
+    first = None
+    for _ in range(60):
+        loss, logs = foot_constraint_step(model, {"dance": x}, ctx)
+        first = first if first is not None else logs["mse"]
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert logs["mse"] < 0.75 * first and logs["mse"] < logs["mse_input"]
+
+
+def test_pipeline_post_processes_a_motion_in_place(tmp_path, rng):
+    from dancekit.checkpoints import NormStats, save_pretrained
+    from dancekit.motion.kinematics import rig_forward_kinematics
+    from dancekit.motion.root_delta import encode_rootdelta
+    from dancekit.pipelines.foot_constraint import FootConstraintPipeline
+
+    T = 50
+    R = np.broadcast_to(np.eye(3), (T, SK.rig().num_joints, 3, 3)).copy()
+    tr = np.stack([np.linspace(0, 50, T), np.full(T, 90.0), np.zeros(T)], -1)
+    pos = rig_forward_kinematics(R, tr, SK).numpy()
+    motion = Motion(skeleton=SK, fps=25.0, positions=pos.astype(np.float32))
+    std = np.full(155, 0.05, np.float32)
+    std[-2:] = 1.0
+    mean = encode_rootdelta(motion).mean(0).astype(np.float32)
+    mean[-2:] = 0.0
+    model = _model().float()
+    stats = NormStats(music_mean=np.zeros(15, np.float32), music_std=np.ones(15, np.float32),
+                      dance_mean=mean, dance_std=std)
+    save_pretrained(tmp_path / "fc", model, model.config, stats=stats, extra={"skeleton": SK.to_dict(), "fps": 25.0})
+    pipe = FootConstraintPipeline.from_pretrained(tmp_path / "fc")
+    out = pipe(motion)
+    assert out.num_frames == T and out.fps == 25.0
+    np.testing.assert_allclose(out.root_translation[0, [0, 2]], pos[0, SK.root, [0, 2]], atol=1e-3)  # in place
+    assert np.abs(out.to_positions() - pos).max() > 1e-3  # the model did correct something
+    assert np.abs(out.to_positions() - pos).max() < 20.0

@@ -1,0 +1,366 @@
+"""Music2Dance (paper §4.4): the rotations_rootdelta representation, the WaveNet generator, its GMM head,
+incremental generation, the training objective and the pipeline. Tiny configurations, CPU, float64 maths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from dancekit.motion import Motion, get_skeleton
+from dancekit.motion.representations import decode_motion, encode_motion, pose_dim
+from dancekit.motion.root_delta import decode_rootdelta, encode_rootdelta, rootdelta_layout
+from dancekit.motion.rotations import axis_angle_to_matrix, euler_angles_to_matrix
+
+SK = get_skeleton("tang2018")
+
+
+@pytest.fixture(autouse=True)
+def _one_thread():
+    """Tiny models: one torch thread is faster than several on a shared machine."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def _random_motion(rng: np.random.Generator, T: int = 120) -> Motion:
+    """Random rig rotations (up to ~70° per joint), a wandering root that turns through ±π, tilts up to ~30°."""
+    Jr = SK.rig().num_joints
+    R = axis_angle_to_matrix(torch.from_numpy(rng.normal(0, 0.7, (T, Jr, 3)))).numpy()
+    heading = np.cumsum(rng.normal(0.15, 0.3, T)) + 3.0  # crosses ±π several times
+    tilt = rng.normal(0, 0.25, (T, 2))
+    R[:, SK.root] = euler_angles_to_matrix(torch.from_numpy(np.stack([heading, tilt[:, 0], tilt[:, 1]], -1)),
+                                           "YXZ").numpy()
+    tr = np.cumsum(rng.normal(0, 3.0, (T, 3)), axis=0)
+    tr[:, 1] = 90 + rng.normal(0, 2, T)
+    return Motion(skeleton=SK, fps=25.0, rotations=R, root_translation=tr)
+
+
+def test_rootdelta_layout_of_tang2018():
+    lay = rootdelta_layout(SK)
+    assert lay.dim == pose_dim(SK, "rotations_rootdelta") == 6 + 6 * 22 + 3 * 5 + 2 == 155
+    assert lay.contact_cols == (153, 154)
+    assert [SK.joint_names[j] for j in lay.end_effectors] == ["head_left", "left_toe", "right_toe", "left_aux",
+                                                              "right_aux"]
+    assert SK.root not in lay.rot_joints and all(SK.rig().children(j) for j in lay.rot_joints)
+
+
+def test_rootdelta_round_trip_is_exact(rng):
+    """Deltas integrate back to the trajectory and rotations give the positions, to 1e-4 cm (float64)."""
+    m = _random_motion(rng)
+    x = encode_rootdelta(m)
+    heading0 = float(np.arctan2(m.rotations[0, SK.root, 0, 2], m.rotations[0, SK.root, 2, 2]))  # YXZ: atan2(R02, R22)
+    back = decode_rootdelta(x, SK, 25.0, origin=(m.root_translation[0, 0], m.root_translation[0, 2], heading0))
+    np.testing.assert_allclose(back.root_translation, m.root_translation, atol=1e-4)
+    np.testing.assert_allclose(back.to_positions(), m.to_positions(), atol=1e-4)
+    lay = rootdelta_layout(SK)
+    np.testing.assert_allclose(back.rotations[:, list(lay.rot_joints)], m.rotations[:, list(lay.rot_joints)],
+                               atol=1e-9)
+    # heading deltas are wrapped: no 2π jumps although the heading crosses ±π
+    assert np.abs(x[:, 3]).max() < 2.0
+
+
+def test_rootdelta_decodes_from_the_origin_facing_forward(rng):
+    """Default decoding = the dance moved to the origin and turned to face +z at frame 0 (a rigid motion)."""
+    m = _random_motion(rng, T=60)
+    back = decode_motion(encode_motion(m, "rotations_rootdelta"), SK, 25.0, "rotations_rootdelta")  # float32 path
+    p, q = m.to_positions().astype(np.float64), back.to_positions().astype(np.float64)
+    a = np.arctan2(m.rotations[0, SK.root, 0, 2], m.rotations[0, SK.root, 2, 2])
+    c, s = np.cos(-a), np.sin(-a)
+    Ry = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    shift = np.array([m.root_translation[0, 0], 0.0, m.root_translation[0, 2]])
+    np.testing.assert_allclose(q, (p - shift) @ Ry.T, atol=2e-3)  # float32 features: ~1e-5 relative
+
+
+def test_rootdelta_end_effectors_are_root_relative_in_the_heading_frame(rng):
+    m = _random_motion(rng, T=10)
+    x = encode_rootdelta(m)
+    lay = rootdelta_layout(SK)
+    toe = SK.index("left_toe")
+    pos = m.to_positions()
+    a = np.arctan2(m.rotations[:, SK.root, 0, 2], m.rotations[:, SK.root, 2, 2])
+    rel = pos[:, toe] - m.root_translation
+    local_x = np.cos(a) * rel[:, 0] - np.sin(a) * rel[:, 2]  # R_Y(a)ᵀ rel, x component
+    np.testing.assert_allclose(x[:, list(lay.end_effector_col(toe))][:, 0], local_x, atol=1e-9)
+    np.testing.assert_allclose(x[:, list(lay.end_effector_col(toe))][:, 1], rel[:, 1], atol=1e-9)
+
+
+# Hand-checked from the printed toe heights (cm above the running floor) and speeds (cm/s) of the raw
+# tang2018 markers (commit message of this test): (dance, foot, first frame, end frame, in contact?)
+CONTACT_FIXTURE = [
+    ("DANCE_R_4", 0, 464, 485, 1),  # left toe 0.7-1.8 cm up, 0.6-15 cm/s: planted
+    ("DANCE_R_4", 0, 405, 413, 0),  # left toe gliding at 190-460 cm/s, 0.2-3.6 cm up: a step, not a contact
+    ("DANCE_R_4", 0, 487, 496, 0),  # 90-400 cm/s
+    ("DANCE_R_4", 0, 499, 520, 1),  # 0.3-1.0 cm up, 3-11 cm/s
+    ("DANCE_R_4", 1, 442, 467, 1),  # right toe 0.6-2.5 cm up, 2-10 cm/s
+    ("DANCE_R_4", 1, 425, 433, 0),  # 77-440 cm/s
+    ("DANCE_R_4", 1, 506, 519, 0),  # 66-263 cm/s
+    ("DANCE_W_10", 0, 1000, 1004, 0),  # left toe 147-152 cm up (a kick); slow (17 cm/s) at the top: height rules
+]
+
+
+def test_contacts_on_real_dances_match_the_hand_checked_fixture(tang2018_dir):
+    from dancekit.motion.formats import read_tang2018
+
+    for dance in sorted({d for d, *_ in CONTACT_FIXTURE}):
+        motion, _ = read_tang2018(tang2018_dir / dance)
+        contacts = encode_motion(motion, "rotations_rootdelta")[:, -2:]
+        assert set(np.unique(contacts)) <= {0.0, 1.0}
+        assert 0.1 < contacts.mean() < 0.8  # the thresholds flag a plausible share of frames
+        for d, foot, start, end, expected in CONTACT_FIXTURE:
+            if d == dance:
+                got = contacts[start:end, foot]
+                assert (got == expected).all(), f"{dance} foot {foot} frames {start}-{end}: {got}"
+
+
+# ---------------------------------------------------------------------------------------------- the model
+
+from dancekit.models.music2dance import (  # noqa: E402
+    Music2DanceConfig,
+    Music2DanceModel,
+    gmm_nll,
+    shift_right,
+    split_params,
+)
+
+
+def _tiny(**kw) -> Music2DanceModel:
+    cfg = dict(music_dim=5, pose_dim=12, n_genres=3, n_layers=7, channels=8, skip_channels=8, genre_dim=4,
+               fmap_channels=(4, 4, 4), fmap_lstm_hidden=4, lstm_hidden=8, lstm_layers=2, n_mixtures=3)
+    torch.manual_seed(0)
+    return Music2DanceModel(Music2DanceConfig(**{**cfg, **kw})).double().eval()
+
+
+@pytest.mark.parametrize("kw", [{}, {"music_condition": "raw"}, {"generator": "lstm"}])
+def test_generator_is_causal_in_the_motion(kw):
+    """Changing input frame t+1 never changes the outputs of frames <= t."""
+    model = _tiny(**kw)
+    g = torch.Generator().manual_seed(1)
+    music, prev = torch.randn(2, 40, 5, generator=g, dtype=torch.float64), torch.randn(2, 40, 12, generator=g,
+                                                                                       dtype=torch.float64)
+    out = model(music, prev, torch.tensor([0, -1]))
+    for t in (0, 9, 25, 38):
+        changed = prev.clone()
+        changed[:, t + 1 :] += torch.randn(2, 39 - t, 12, generator=g, dtype=torch.float64)
+        again = model(music, changed, torch.tensor([0, -1]))
+        torch.testing.assert_close(again[:, : t + 1], out[:, : t + 1], rtol=0, atol=0)
+        assert (again[:, t + 1] - out[:, t + 1]).abs().max() > 1e-6  # ... and frame t+1 does see it
+
+
+def test_wavenet_receptive_field_matches_the_dilations():
+    model = _tiny()  # 7 layers: dilations 1 2 4 8 16 1 2
+    assert model.config.dilations == (1, 2, 4, 8, 16, 1, 2)
+    rf = model.config.receptive_field
+    assert rf == 1 + 34
+    music, prev = torch.zeros(1, 60, 5, dtype=torch.float64), torch.zeros(1, 60, 12, dtype=torch.float64)
+    base = model(music, prev)
+    poked = prev.clone()
+    poked[0, 59 - rf] += 1.0  # just outside the receptive field of frame 59
+    assert torch.equal(model(music, poked)[0, 59], base[0, 59])
+    poked[0, 59 - rf + 1] += 1.0  # its oldest frame
+    assert not torch.equal(model(music, poked)[0, 59], base[0, 59])
+
+
+def test_gmm_nll_equals_torch_distributions():
+    g = torch.Generator().manual_seed(2)
+    B, T, N, D = 3, 5, 4, 7
+    logit_w = torch.randn(B, T, N, generator=g, dtype=torch.float64)
+    mu = torch.randn(B, T, N, D, generator=g, dtype=torch.float64)
+    log_var = torch.randn(B, T, N, D, generator=g, dtype=torch.float64)
+    x = torch.randn(B, T, D, generator=g, dtype=torch.float64) * 2
+    D_ = torch.distributions
+    mix = D_.MixtureSameFamily(D_.Categorical(logits=logit_w),
+                               D_.Independent(D_.Normal(mu, torch.exp(0.5 * log_var)), 1))  # Σ = exp(σ̂)
+    torch.testing.assert_close(gmm_nll(logit_w, mu, log_var, x), -mix.log_prob(x), rtol=1e-10, atol=1e-10)
+
+
+def test_model_loss_is_the_gmm_nll_plus_weighted_bce():
+    model = _tiny(n_mixtures=2)
+    g = torch.Generator().manual_seed(3)
+    params = torch.randn(2, 6, model.config.out_dim, generator=g, dtype=torch.float64)
+    target = torch.randn(2, 6, 12, generator=g, dtype=torch.float64)
+    target[..., -2:] = (target[..., -2:] > 0).double()
+    logit_w, mu, log_var, logits = split_params(params, model.config)
+    loss, logs = model.loss(params, target)
+    nll = gmm_nll(logit_w, mu, log_var, target[..., :10]).mean()
+    bce = torch.nn.functional.binary_cross_entropy_with_logits(logits, target[..., 10:])
+    torch.testing.assert_close(loss, (nll + 0.1 * bce) / 10)
+
+
+@pytest.mark.parametrize("kw", [{}, {"kernel": 3}, {"generator": "lstm"}])
+def test_incremental_generation_equals_the_full_sequence(kw):
+    """Per-layer activation queues (one frame at a time) give the full-sequence outputs to 1e-5."""
+    model = _tiny(**kw)
+    g = torch.Generator().manual_seed(4)
+    music, prev = torch.randn(2, 70, 5, generator=g, dtype=torch.float64), torch.randn(2, 70, 12, generator=g,
+                                                                                       dtype=torch.float64)
+    genre = torch.tensor([2, -1])
+    full = model(music, prev, genre)
+    torch.testing.assert_close(model.forward_incremental(music, prev, genre), full, rtol=0, atol=1e-5)
+    if model.config.generator == "wavenet":
+        sizes = [len(q) for q in model.init_state(1)]  # a queue of (k-1)·d inputs per layer: O(layers) a frame
+        assert sizes == [(model.config.kernel - 1) * d for d in model.config.dilations]
+
+
+def test_generate_feeds_its_own_samples_back_and_seeds_differ():
+    model = _tiny()
+    music = torch.randn(1, 30, 5, dtype=torch.float64)
+    a = model.generate(music, torch.tensor([1]), generator=torch.Generator().manual_seed(0))
+    b = model.generate(music, torch.tensor([1]), generator=torch.Generator().manual_seed(0))
+    c = model.generate(music, torch.tensor([1]), generator=torch.Generator().manual_seed(1))
+    assert a.shape == (1, 30, 12) and torch.equal(a, b) and not torch.allclose(a, c)
+    assert set(a[..., -2:].unique().tolist()) <= {0.0, 1.0}
+    # the frames are the model's own predictions: replaying them as inputs reproduces the same means
+    params = model(music, shift_right(a), torch.tensor([1]))
+    mean = model.generate(music, torch.tensor([1]), temperature=0.0)
+    torch.testing.assert_close(model.predict(model(music, shift_right(mean), torch.tensor([1])), temperature=0.0),
+                               mean)
+    assert params.shape == (1, 30, model.config.out_dim)
+
+
+# ---------------------------------------------------------------------------------------------- training
+
+def _ctx(training: bool, **train):
+    from dancekit.training import StepContext, TrainConfig
+
+    return StepContext(step=0, epoch=0, training=training, generator=torch.Generator().manual_seed(0),
+                       config=TrainConfig(**train))
+
+
+def _batch(model, B=2, T=24, seed=5):
+    g = torch.Generator().manual_seed(seed)
+    c = model.config
+    dance = torch.randn(B, T, c.pose_dim, generator=g, dtype=torch.float64)
+    dance[..., -2:] = (dance[..., -2:] > 0).double()
+    return {"music": torch.randn(B, T, c.music_dim, generator=g, dtype=torch.float64), "dance": dance,
+            "genre": torch.tensor([0, 2])[:B], "weight": torch.tensor([0.5, 2.0], dtype=torch.float64)[:B]}
+
+
+def test_objective_phase_two_feeds_the_first_pass_predictions_back():
+    from dancekit.training.m2d import music2dance_step
+
+    model = _tiny(phase=2, input_noise=0.0, target_noise=0.0)
+    calls = []
+    forward = model.forward
+
+    def spy(music, prev, genre=None):
+        calls.append(prev.clone())
+        return forward(music, prev, genre)
+
+    model.forward = spy
+    batch = _batch(model)
+    loss, _ = music2dance_step(model, batch, _ctx(False))
+    assert len(calls) == 2
+    torch.testing.assert_close(calls[0], shift_right(batch["dance"]))  # pass 1: the ground truth
+    first = model.predict(forward(batch["music"], calls[0], batch["genre"]), temperature=0.0)
+    torch.testing.assert_close(calls[1], shift_right(first))  # pass 2: its own predictions
+    params = forward(batch["music"], shift_right(first), batch["genre"])
+    torch.testing.assert_close(loss, model.loss(params, batch["dance"])[0])
+
+
+def test_objective_noise_and_cluster_weights_apply_in_training_only():
+    from dancekit.training.m2d import music2dance_step
+
+    model = _tiny(input_dropout=0.0)
+    batch = _batch(model)
+    val1, _ = music2dance_step(model, batch, _ctx(False))
+    val2, _ = music2dance_step(model, batch, _ctx(False))
+    assert float(val1.detach()) == float(val2.detach())  # validation: no noise, unweighted
+    params = model(batch["music"], shift_right(batch["dance"]), batch["genre"])
+    torch.testing.assert_close(val1, model.loss(params, batch["dance"])[0])
+    quiet = _tiny(input_dropout=0.0, input_noise=0.0, target_noise=0.0)
+    weighted, _ = music2dance_step(quiet, batch, _ctx(True, genre_dropout=0.0))
+    params = quiet(batch["music"], shift_right(batch["dance"]), batch["genre"])
+    torch.testing.assert_close(weighted, quiet.loss(params, batch["dance"], weights=batch["weight"])[0])
+    noisy, _ = music2dance_step(model, batch, _ctx(True, genre_dropout=0.0))
+    assert float(noisy.detach()) != float(val1.detach())
+
+
+def test_cluster_weights_balance_the_clusters(rng):
+    from dancekit.training.m2d import cluster_weights
+
+    feats = np.concatenate([rng.normal(0, 1, (30, 6)), rng.normal(50, 1, (10, 6))]).astype(np.float32)
+    labels, weights = cluster_weights(feats, k=2)
+    assert len(set(labels[:30])) == 1 and len(set(labels[30:])) == 1 and labels[0] != labels[30]
+    np.testing.assert_allclose(weights[:30], 40 / (2 * 30), rtol=1e-6)
+    np.testing.assert_allclose(weights[30:], 40 / (2 * 10), rtol=1e-6)
+    assert weights.mean() == pytest.approx(1.0)
+
+
+# ---------------------------------------------------------------------------------------------- pipeline
+
+@pytest.fixture(scope="module")
+def m2d_folder(tmp_path_factory):
+    """A tiny untrained music2dance checkpoint on the tang2018 skeleton (stats: realistic rootdelta scales)."""
+    from dancekit.checkpoints import NormStats, save_pretrained
+
+    lay = rootdelta_layout(SK)
+    torch.manual_seed(0)
+    cfg = Music2DanceConfig(music_dim=15, pose_dim=lay.dim, n_genres=2, n_layers=4, channels=8, skip_channels=8,
+                            genre_dim=4, fmap_channels=(4, 4, 4), fmap_lstm_hidden=4)
+    model = Music2DanceModel(cfg)
+    with torch.no_grad():  # a small output variance, so samples stay near the mean pose
+        model.out2.bias[cfg.n_mixtures * (1 + cfg.gmm_dim):cfg.n_mixtures * (1 + 2 * cfg.gmm_dim)] = -4.0
+    mean = encode_rootdelta(_random_motion(np.random.default_rng(0), T=50)).mean(0)
+    std = np.full(lay.dim, 0.05)
+    std[[1]] = 2.0  # root height, cm
+    mean[list(lay.contact_cols)], std[list(lay.contact_cols)] = 0.0, 1.0
+    stats = NormStats(music_mean=np.zeros(15, np.float32), music_std=np.ones(15, np.float32),
+                      dance_mean=mean.astype(np.float32), dance_std=std.astype(np.float32))
+    folder = tmp_path_factory.mktemp("m2d") / "model"
+    save_pretrained(folder, model, cfg, stats=stats,
+                    extra={"representation": "rotations_rootdelta", "preset": "music2dance", "fps": 25.0,
+                           "hop_length": 512, "skeleton": SK.to_dict(), "genres": ["waltz", "rumba"]})
+    return folder
+
+
+@pytest.fixture(scope="module")
+def song8(tmp_path_factory):
+    from dancekit.audio import save_wav, synth
+
+    path = tmp_path_factory.mktemp("song") / "tune.wav"
+    save_wav(path, synth.ode_to_joy(sr=22050, repeats=2)[: 8 * 22050], sr=22050)
+    return path
+
+
+def test_pipeline_samples_different_dances_for_different_seeds_on_the_floor(m2d_folder, song8):
+    from dancekit.motion.analysis import floor_curve
+    from dancekit.pipelines.base import DanceResult, load_pipeline
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    pipe = Music2DancePipeline.from_pretrained(m2d_folder)
+    assert type(load_pipeline(m2d_folder)) is Music2DancePipeline
+    a = pipe(song8, seed=0, genre="waltz")
+    b = pipe(song8, seed=0, genre="waltz")
+    c = pipe(song8, seed=1, genre="waltz")
+    assert isinstance(a, DanceResult) and a.genre == "waltz" and a.seed == 0
+    assert a.motion.num_frames == 1 + 8 * 25 and a.motion.rotations is not None
+    pa, pc = a.motion.to_positions(), c.motion.to_positions()
+    np.testing.assert_array_equal(pa, b.motion.to_positions())
+    assert np.abs(pa - pc).max() > 1.0  # another seed, another dance (cm)
+    floor = floor_curve(pa, SK, fps=25.0)
+    assert np.abs(floor).max() < 0.5  # feet on the floor all along
+    assert pipe(song8, seed=0, genre="none").genre is None and pipe(song8, seed=0).genre is None  # no reader
+
+
+def test_pipeline_rejects_unknown_genres_and_negative_temperatures(m2d_folder, song8):
+    from dancekit.errors import ParameterError
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    pipe = Music2DancePipeline.from_pretrained(m2d_folder)
+    with pytest.raises(ParameterError, match="unknown genre 'tango'.*waltz, rumba"):
+        pipe(song8, genre="tango")
+    with pytest.raises(ParameterError, match="temperature"):
+        pipe(song8, temperature=-1)
+
+
+def test_fmap_on_windows_matches_the_windows_where_it_reads_them():
+    model = _tiny()
+    music = torch.randn(1, 100, 5, dtype=torch.float64)
+    torch.testing.assert_close(model.music_condition(music, window=200), model.music_condition(music))
+    chunked = model.music_condition(music, window=40)  # windows at 0, 20, 40, 60 (flush); hop 20, margin 10
+    assert chunked.shape == (1, 100, 8)
+    torch.testing.assert_close(chunked[:, :30], model.music_condition(music[:, :40])[:, :30])
+    torch.testing.assert_close(chunked[:, 30:50], model.music_condition(music[:, 20:60])[:, 10:30])
+    torch.testing.assert_close(chunked[:, 70:], model.music_condition(music[:, 60:])[:, 10:])
