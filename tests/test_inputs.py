@@ -54,6 +54,7 @@ CASES = [
     ("huge_seed", lambda d: _wav(d / "seed.wav", 3.0), ["--seed", "18446744073709551616"], "dance"),
     ("negative_seed", lambda d: _wav(d / "neg.wav", 3.0), ["--seed", "-5"], "dance"),
     ("start_beyond_end", lambda d: _wav(d / "s.wav", 3.0), ["--start", "100"], "beyond the end"),
+    ("wav_named_mp3", lambda d: _wav(d / "really_a_wav.mp3", 3.0), [], "dance"),
     ("start_after_end", lambda d: _wav(d / "s.wav", 3.0), ["--start", "2", "--end", "1"], "start"),
 ]
 
@@ -77,6 +78,15 @@ def test_dance_input(tmp_path, capfd, make, extra, expect):
         lines = stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("dancekit dance: error:") and expect in lines[0], stderr
         assert not out.exists() or not any(out.iterdir())  # nothing partial
+
+
+def test_output_path_that_is_a_file(tmp_path, capfd):
+    song = _wav(tmp_path / "song.wav", 3.0)
+    (tmp_path / "taken").write_text("mine")
+    code = main(["dance", str(song), "-o", str(tmp_path / "taken"), "--format", "npz", "--quiet"])
+    lines = capfd.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "taken" in lines[0]
+    assert (tmp_path / "taken").read_text() == "mine"
 
 
 def test_huge_seeds_reduce_to_64_bits_and_keep_small_ones():

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import json
+import multiprocessing
 import os
 import shutil
 from collections import Counter
@@ -226,7 +227,8 @@ def prepare_pairs(
                 results[j["name"]] = _prepare_one(j)
                 bar.update(1)
         else:
-            with ProcessPoolExecutor(max_workers=workers) as pool:
+            # spawned, not forked: a fork of a process whose BLAS / OpenMP / numba threads are running can deadlock
+            with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
                 for j, r in zip(jobs, pool.map(_prepare_one, jobs), strict=True):
                     results[j["name"]] = r
                     bar.update(1)
