@@ -10,6 +10,28 @@ import numpy as np
 from dancekit.errors import ParameterError
 
 
+def reduce_seed(seed: int) -> int:
+    """A seed of any size (negative or beyond 64 bits) as one torch and NumPy accept, in ``[0, 2**63)``.
+
+    Seeds already in ``[0, 2**63)`` are returned unchanged (so existing seeds give the same dances); any
+    other integer maps to the first 63 bits of the SHA-256 of its decimal digits (distinct seeds stay
+    distinct with overwhelming probability).
+
+    Examples
+    --------
+    >>> reduce_seed(7), reduce_seed(2**64) == reduce_seed(2**64), 0 <= reduce_seed(-1) < 2**63
+    (7, True, True)
+    """
+    import hashlib
+
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+        raise ParameterError(f"seed must be an integer, got {seed!r}")
+    seed = int(seed)
+    if 0 <= seed < 2**63:
+        return seed
+    return int.from_bytes(hashlib.sha256(str(seed).encode()).digest()[:8], "big") >> 1
+
+
 def check_fps(fps: float, *, name: str = "fps") -> float:
     """``fps`` (frames per second) as a positive finite float, else :class:`ParameterError`.
 

@@ -13,10 +13,12 @@ checked.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import struct
 import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -158,6 +160,24 @@ def _check_truncated(path: Path, fmt: str) -> None:
 
 # ---------------------------------------------------------------------------------------------
 # decoders
+
+
+@contextlib.contextmanager
+def _quiet_c_stderr() -> Iterator[None]:
+    """Silence what C libraries write to file descriptor 2 (libsndfile's mpg123 prints "Note: Illegal
+    Audio-MPEG-Header ..." for a corrupt mp3 before we raise our own one-line error)."""
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to silence
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def _read_soundfile(
@@ -310,19 +330,20 @@ def load(
     _validate_range(start, end)
     check_audio_path(path)
 
-    try:
-        f = sf.SoundFile(path)
-    except (sf.LibsndfileError, RuntimeError):
-        f = None
-    if f is not None:
-        with f:
-            _check_truncated(path, f.format)
-            try:
-                y = _read_soundfile(f, path, start, end, mono)
-            except sf.LibsndfileError as exc:
-                raise AudioError(f"cannot decode audio file {str(path)!r}: corrupt data ({exc})") from None
-            native_sr = f.samplerate
-    else:
+    with _quiet_c_stderr():
+        try:
+            f = sf.SoundFile(path)
+        except (sf.LibsndfileError, RuntimeError):
+            f = None
+        if f is not None:
+            with f:
+                _check_truncated(path, f.format)
+                try:
+                    y = _read_soundfile(f, path, start, end, mono)
+                except sf.LibsndfileError as exc:
+                    raise AudioError(f"cannot decode audio file {str(path)!r}: corrupt data ({exc})") from None
+                native_sr = f.samplerate
+    if f is None:
         y, native_sr = _read_ffmpeg(path, mono)
         duration = y.shape[-1] / native_sr
         if duration == 0:

@@ -10,6 +10,15 @@ from dancekit.errors import DancekitError, ParameterError
 from dancekit.export import DEFAULT_FORMATS, FORMATS
 
 
+def _seed(text: str) -> int:
+    from dancekit._checks import reduce_seed
+
+    try:
+        return reduce_seed(int(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "dance",
@@ -27,7 +36,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="dance genre: auto, none or one of the model's genres (`dancekit models` lists them; the "
                         "default model: waltz, rumba, chacha, tango); auto (default): read from the music when the "
                         "model has a music attribute classifier, else as none; none: the model alone")
-    p.add_argument("--seed", type=int, default=0, help="random seed: another seed, another dance (default 0)")
+    p.add_argument("--seed", type=_seed, default=0,
+                   help="random seed: another seed, another dance (default 0); any integer (seeds outside "
+                        "[0, 2**63) are hashed to 63 bits)")
     p.add_argument("--start", type=float, default=None, help="start of the song excerpt, seconds")
     p.add_argument("--end", type=float, default=None, help="end of the song excerpt, seconds")
     p.add_argument("--format", default=",".join(DEFAULT_FORMATS),

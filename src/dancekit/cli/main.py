@@ -4,7 +4,8 @@ Each verb lives in its own module ``dancekit.cli.<verb>`` exposing
 ``add_parser(subparsers)`` (which registers the sub-command and sets
 ``func``). Known errors (:class:`~dancekit.errors.DancekitError`) are printed
 as one line on stderr with exit code 2; a traceback is shown only when
-``DANCEKIT_DEBUG=1``.
+``DANCEKIT_DEBUG=1``. SIGTERM and SIGHUP stop a verb like Ctrl-C does: the cleanup of
+staging folders and temporary files runs, then the exit code is 128 + the signal number.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 
 from dancekit import __version__
@@ -49,12 +51,41 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP arrived: raised in the main thread so that every ``finally`` / ``except
+    BaseException`` cleanup runs (staging folders, temporary files) before the process exits."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated(signum)
+
+
+def _handle_signals() -> dict[int, object]:
+    """Turn SIGTERM and SIGHUP (where they have their default action) into :class:`Terminated`; returns the
+    handlers replaced, for :func:`main` to put back."""
+    import threading
+
+    replaced: dict[int, object] = {}
+    if threading.current_thread() is not threading.main_thread():
+        return replaced
+    for name in ("SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is not None and signal.getsignal(sig) in (signal.SIG_DFL, None):
+            replaced[sig] = signal.signal(sig, _raise_terminated)
+    return replaced
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    replaced = _handle_signals()
     try:
         result = args.func(args)
     except DancekitError as exc:
@@ -65,6 +96,13 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"dancekit {args.verb}: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        print(f"dancekit {args.verb}: stopped by {signal.Signals(exc.signum).name}; nothing partial was left",
+              file=sys.stderr)
+        return 128 + exc.signum
+    finally:
+        for sig, handler in replaced.items():
+            signal.signal(sig, handler)
     return int(result or 0)
 
 

@@ -3,7 +3,8 @@
 MOTION is anything :func:`dancekit.motion.formats.read_motion` reads (npz, BVH, AIST++
 pkl, OpenPose folder, tang2018 dance folder). A tang2018 folder brings its own song
 slice; otherwise give ``--audio`` (and optionally ``--start`` / ``--end``, seconds
-into the song, where frame 0 plays at ``--start``).
+into the song, where frame 0 plays at ``--start``). A song shorter than the dance is refused
+(one error line) unless ``--end`` says which part to render: the video is never silently cut.
 """
 
 from __future__ import annotations
@@ -84,6 +85,15 @@ def run(args: argparse.Namespace) -> int:
     if audio is None and (start is not None or end is not None):
         raise ParameterError("--start / --end need --audio")
 
+    if audio is not None and end is None:
+        # refused rather than cut (ffmpeg would end the video with the song) or padded with silence
+        from dancekit.render._ffmpeg import audio_duration
+
+        left = audio_duration(audio) - (start or 0.0)
+        if 0 < left and left + 0.5 / motion.fps < motion.duration:
+            raise ParameterError(f"the song {str(audio)!r} holds {max(left, 0):.2f} s from --start "
+                                 f"{start or 0:g} s, shorter than the dance ({motion.duration:.2f} s): give a "
+                                 "longer song, or --end to render only the part of the dance the song covers")
     clip = None if audio is None else AudioClip(audio, start, end)
     if kind == "mp4":
         render_motion_mp4(out, motion, audio=clip, options=options, progress=not args.quiet)

@@ -3,6 +3,8 @@
 ``--set`` takes any field of the family's model configuration (e.g. ``d_model=256``,
 ``encoder=global``) or of :class:`~dancekit.training.TrainConfig` (e.g. ``steps=3000``,
 ``batch_size=32``, ``curriculum=quadratic``); prefix ``model.`` or ``train.`` to be explicit.
+Under ``torchrun --nproc_per_node=N`` the same command trains with distributed data parallelism
+(:mod:`dancekit.training.distributed`); rank 0 alone prints and writes.
 With ``--resume`` the configurations are read back from the newest checkpoint in RUN and the
 ``--set`` values applied on top (e.g. ``--set steps=5000`` to train longer).
 
@@ -48,13 +50,17 @@ def __getattr__(name: str) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dancekit.training.distributed import is_main_process
     from dancekit.training.runs import assemble_run
 
     t0 = time.perf_counter()
     train_run = assemble_run(args.family, args.data, args.out, sets=args.sets, resume=args.resume, init=args.init)
-    if not args.quiet:
+    main = is_main_process()  # under torchrun: rank 0 alone prints
+    if not args.quiet and main:
         print("\n".join(train_run.summary_lines()))
     result = train_run.fit(progress=not args.quiet)
+    if not main:
+        return 0
     val = f", val loss {result.val_loss:.4f} (best {result.best_val_loss:.4f})" if result.val_loss is not None else ""
     loss = f"{result.train_loss:.4f}" if result.train_loss is not None else "n/a"
     print(f"trained {args.family} to step {result.step} (epoch {result.epoch}): train loss {loss}{val} "

@@ -13,6 +13,7 @@ from dancekit.data.prepared import (
     split_by_genre,
     tang2018_genre,
 )
+from dancekit.data.pairs import prepare_pairs
 from dancekit.data.windows import WindowDataset, compute_stats, load_pairs
 
 __all__ = [
@@ -23,6 +24,7 @@ __all__ = [
     "WindowDataset",
     "compute_stats",
     "load_pairs",
+    "prepare_pairs",
     "prepare_tang2018",
     "split_by_genre",
     "tang2018_genre",

@@ -20,7 +20,9 @@ on frame ``round(t * fps)``. See ``docs/FEATURES.md``.
 
 from __future__ import annotations
 
+import functools
 import numbers
+import warnings
 
 import numpy as np
 
@@ -85,6 +87,20 @@ def _check_choice(name: str, value: str, choices) -> None:
         raise ParameterError(f"unknown {name} {value!r}; choose one of {sorted(choices)}")
 
 
+def _quiet_short_input(fn):
+    """Run ``fn`` without librosa's "n_fft=... is too large for input signal" warnings: a 1-2 s clip is
+    valid input (its first and last frames are zero-padded), not something to warn a user about."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=r"n_fft=\d+ is too large", category=UserWarning)
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+@_quiet_short_input
 def extract(
     y: np.ndarray, *, sr: int, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa"
 ) -> FeatureSet:

@@ -23,6 +23,8 @@ from typing import Any
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.training.schedules import CURRICULA, LR_SCHEDULES
 
+PRECISIONS = ("fp32", "bf16", "fp16")
+
 
 def _positive_int(config: object, names: tuple[str, ...], *, optional: bool = False) -> None:
     cls = type(config).__name__
@@ -41,7 +43,9 @@ class OptimConfig:
 
     Length: ``steps`` optimisation steps, or ``epochs`` passes over the training set when set.
     AdamW with ``lr`` (linear warm-up over ``warmup_steps``, then ``lr_schedule``: cosine down to
-    ``min_lr`` at the last step, or constant), gradient clipping at ``grad_clip``.
+    ``min_lr`` at the last step, or constant), gradient clipping at ``grad_clip``. On GPUs:
+    ``grad_accum_steps`` micro-batches per step and mixed ``precision`` (bf16 / fp16 autocast).
+    ``batch_size`` is the global batch: under torchrun each of N processes takes ``batch_size / N`` items.
     """
 
     steps: int = 3000
@@ -61,10 +65,17 @@ class OptimConfig:
     keep_checkpoints: int = 3  # resumable step folders to keep
     num_workers: int = 0
     threads: int | None = 2  # torch.set_num_threads (None: leave as is)
-    device: str = "cpu"
+    device: str = "cpu"  # cpu | cuda (under torchrun: cuda:LOCAL_RANK) | cuda:N | mps
+    # a global batch in this many micro-batches (memory), one optimiser step; the same batches and updates
+    grad_accum_steps: int = 1
+    precision: str = "fp32"  # fp32 | bf16 | fp16 (autocast; fp16 with a gradient scaler, CUDA only)
+    find_unused_parameters: bool = False  # DistributedDataParallel: parameters may get no gradient in a step
 
     def __post_init__(self) -> None:
-        _positive_int(self, ("steps", "batch_size", "log_every", "val_every", "ckpt_every", "keep_checkpoints"))
+        _positive_int(self, ("steps", "batch_size", "log_every", "val_every", "ckpt_every", "keep_checkpoints",
+                             "grad_accum_steps"))
+        if self.precision not in PRECISIONS:
+            raise ParameterError(f"{type(self).__name__}.precision must be one of {PRECISIONS}, got {self.precision!r}")
         _positive_int(self, ("epochs", "val_batches", "threads"), optional=True)
         if not self.lr > 0:
             raise ParameterError(f"{type(self).__name__}.lr must be positive, got {self.lr!r}")

@@ -24,12 +24,20 @@ is a pure function of (seed, epoch): the shuffled batches (:func:`epoch_batches`
 randomness through its ``set_epoch(epoch)`` (:class:`~dancekit.data.WindowDataset`'s window offsets).
 
 Data parallelism: a subclass can override the hooks :meth:`Trainer.shard_batch` (this process's share of a
-global batch), :attr:`Trainer.is_main_process` (only the main process writes files and shows progress) and
-:meth:`Trainer.unwrap` (the bare model to save, e.g. ``DistributedDataParallel.module``).
+global batch), :attr:`Trainer.is_main_process` (only the main process writes files and shows progress),
+:meth:`Trainer.unwrap` (the bare model to save, e.g. ``DistributedDataParallel.module``), :meth:`Trainer.wrap`,
+:meth:`Trainer.seed`, :meth:`Trainer.reduce_mean`, :meth:`Trainer.gather_objects` and :meth:`Trainer.barrier`.
+:class:`dancekit.training.distributed.DistributedTrainer` is that subclass for torchrun, and :func:`train` uses it
+when started by torchrun.
+
+GPUs: ``grad_accum_steps`` splits each (per-process) batch into micro-batches whose gradients add up to the
+batch's (one optimiser step); ``precision="bf16"`` / ``"fp16"`` runs the step function under autocast (fp16
+with a gradient scaler, saved with the optimiser). The CUDA random states are saved and restored too.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -94,12 +102,15 @@ def seed_everything(seed: int) -> None:
 
 def _rng_state(generator: torch.Generator) -> dict[str, Any]:
     np_state = np.random.get_state()
-    return {
+    state = {
         "torch": torch.get_rng_state(),
         "numpy": [np_state[0], torch.from_numpy(np_state[1].astype(np.int64)), *np_state[2:]],
         "python": _to_lists(random.getstate()),
         "generator": generator.get_state(),
     }
+    if torch.cuda.is_available() and torch.cuda.is_initialized():
+        state["cuda"] = torch.cuda.get_rng_state_all()
+    return state
 
 
 def _to_lists(x: Any) -> Any:
@@ -115,7 +126,9 @@ def _set_rng_state(state: Mapping[str, Any], generator: torch.Generator) -> None
     name, keys, *rest = state["numpy"]
     np.random.set_state((name, keys.numpy().astype(np.uint32), *rest))
     random.setstate(_to_tuples(state["python"]))
-    generator.set_state(state["generator"])
+    generator.set_state(state["generator"].cpu())
+    if "cuda" in state and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all([s.cpu() for s in state["cuda"]])
 
 
 def epoch_batches(n: int, batch_size: int, *, seed: int, epoch: int) -> list[list[int]]:
@@ -186,6 +199,20 @@ def evaluate(
     finally:
         model.train(was_training)
     return total / count if count else float("nan")
+
+
+def _split(batch: Any, n: int) -> list[Any]:
+    """``batch`` (tensors, mappings, sequences of them) in ``n`` micro-batches along the first dimension (fewer
+    when it holds fewer items)."""
+    n = max(1, min(n, _batch_size(batch)))
+    if isinstance(batch, torch.Tensor):
+        return list(torch.tensor_split(batch, n))
+    if isinstance(batch, Mapping):
+        parts = {k: _split(v, n) if isinstance(v, torch.Tensor | Mapping | list | tuple) else [v] * n
+                 for k, v in batch.items()}
+        return [{k: v[i] for k, v in parts.items()} for i in range(n)]
+    columns = [_split(v, n) for v in batch]
+    return [type(batch)(c[i] for c in columns) for i in range(n)]
 
 
 def _batch_size(batch: Any) -> int:
@@ -262,6 +289,10 @@ class Trainer:
         self.best_val: float | None = None
         self.optimizer: torch.optim.Optimizer | None = None
         self.generator: torch.Generator | None = None  # the step functions' (ctx.generator)
+        self.autocast_dtype: torch.dtype | None = None  # mixed precision (build)
+        self.scaler: torch.amp.GradScaler | None = None  # fp16
+        self.rank, self.world_size = 0, 1  # this process among the data-parallel ones
+        self.writes = 0  # files and folders this process wrote (log.jsonl, checkpoints, best/)
 
     # ---- hooks for data parallelism (a single process: the identity) ------------------------------------
 
@@ -278,6 +309,25 @@ class Trainer:
         """This process's items of a global batch (all of them; under DDP e.g. ``indices[rank::world_size]``)."""
         return indices
 
+    def seed(self) -> int:
+        """The seed of this process's random generators (under DDP: ``seed + rank``)."""
+        return self.config.seed
+
+    def wrap(self, model: nn.Module) -> nn.Module:
+        """The model the steps run (e.g. a ``DistributedDataParallel`` wrapper); :meth:`unwrap` gives it back."""
+        return model
+
+    def reduce_mean(self, value: float) -> float:
+        """``value`` averaged over the processes (one process: itself)."""
+        return value
+
+    def gather_objects(self, obj: Any) -> list[Any]:
+        """Every process's ``obj``, in rank order (one process: ``[obj]``)."""
+        return [obj]
+
+    def barrier(self) -> None:
+        """Wait for every process (one process: nothing to wait for)."""
+
     # ---- build -----------------------------------------------------------------------------------------
 
     def build(self) -> None:
@@ -290,9 +340,15 @@ class Trainer:
         if self.config.threads:
             torch.set_num_threads(self.config.threads)
         self.model.to(self.device)
-        seed_everything(self.config.seed)
-        self.generator = torch.Generator(device=self.device).manual_seed(self.config.seed)
+        seed_everything(self.seed())
+        self.generator = torch.Generator(device=self.device).manual_seed(self.seed())
+        self.model = self.wrap(self.model)
         self.optimizer = self.configure_optimizer()
+        precision = self.config.precision
+        if precision == "fp16" and self.device.type != "cuda":
+            raise ParameterError(f"precision fp16 needs a CUDA device (this run's is {self.device}); use bf16")
+        self.autocast_dtype = {"bf16": torch.bfloat16, "fp16": torch.float16}.get(precision)
+        self.scaler = torch.amp.GradScaler("cuda") if precision == "fp16" else None
 
     def configure_optimizer(self) -> torch.optim.Optimizer:
         """AdamW over every parameter (the rate is set each step from the schedule)."""
@@ -335,15 +391,34 @@ class Trainer:
             group["lr"] = lr
         ctx = StepContext(step=self.global_step, epoch=epoch, training=True, generator=self.generator,
                           config=self.config)
-        loss, logs = self.step_fn(self.model, _to_device(batch, self.device), ctx)
-        loss_value = float(loss.detach())
+        batch = _to_device(batch, self.device)
+        parts = _split(batch, self.config.grad_accum_steps) if self.config.grad_accum_steps > 1 else [batch]
+        total = _batch_size(batch)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss_value, logs = 0.0, {}
+        for i, part in enumerate(parts):
+            last = i == len(parts) - 1
+            # DDP: gradients are averaged over the processes once, after the last micro-batch
+            sync = contextlib.nullcontext() if last or not hasattr(self.model, "no_sync") else self.model.no_sync()
+            with sync:
+                with torch.autocast(self.device.type, dtype=self.autocast_dtype,
+                                    enabled=self.autocast_dtype is not None):
+                    loss, logs = self.step_fn(self.model, part, ctx)
+                loss = loss.float() * (_batch_size(part) / total)
+                loss_value += float(loss.detach())
+                (self.scaler.scale(loss) if self.scaler is not None else loss).backward()
+        loss_value = self.reduce_mean(loss_value)
         if not math.isfinite(loss_value):
             raise FloatingPointError(f"the training loss became {loss_value} at step {self.global_step}")
-        self.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
+        if self.scaler is not None:
+            self.scaler.unscale_(self.optimizer)
         if self.config.grad_clip is not None:
             torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
-        self.optimizer.step()
+        if self.scaler is not None:
+            self.scaler.step(self.optimizer)
+            self.scaler.update()
+        else:
+            self.optimizer.step()
         self.global_step += 1
         return {**logs, "loss": loss_value, "lr": lr}
 
@@ -360,6 +435,7 @@ class Trainer:
         if self.is_main_process:
             with atomic_path(self.out_dir / "log.jsonl") as tmp:
                 tmp.write_text("".join(json.dumps(r) + "\n" for r in self.history))
+            self.writes += 1
         for cb in self.callbacks:
             cb(record)
 
@@ -370,25 +446,32 @@ class Trainer:
 
         Returns the checkpoint folder (None outside the main process, which writes nothing).
         """
-        if not self.is_main_process:
-            return None
         assert self.optimizer is not None and self.generator is not None, "call build() first"
+        rng_all = self.gather_objects(_rng_state(self.generator))  # every process's generators
+        if not self.is_main_process:
+            self.barrier()  # until the main process has written it
+            return None
         model, step = self.unwrap(), self.global_step
         state = {
             "step": step,
             "optimizer": self.optimizer.state_dict(),
-            "rng": _rng_state(self.generator),
+            "rng": rng_all[0],
+            "rng_ranks": rng_all,
             "history": json.dumps(self.history),
             "best_val": self.best_val,
         }
+        if self.scaler is not None:
+            state["scaler"] = self.scaler.state_dict()
         folder = self.out_dir / "checkpoints" / f"step_{step:07d}"
         with atomic_dir(folder) as tmp:
             write_pretrained(tmp, model, model.config, stats=self.stats, extra=self.extra)
             torch.save(state, tmp / STATE_FILE)
         with atomic_dir(self.out_dir / "model") as tmp:
             write_pretrained(tmp, model, model.config, stats=self.stats, extra={**self.extra, "step": step})
+        self.writes += 2
         for old in checkpoints(self.out_dir)[: -self.config.keep_checkpoints]:
             shutil.rmtree(old, ignore_errors=True)
+        self.barrier()
         return folder
 
     def save_best(self, val_loss: float) -> None:
@@ -399,6 +482,7 @@ class Trainer:
         with atomic_dir(self.out_dir / "best") as tmp:
             write_pretrained(tmp, model, model.config, stats=self.stats,
                              extra={**self.extra, "step": self.global_step, "val_loss": val_loss})
+        self.writes += 1
 
     def resume(self) -> Path | None:
         """Continue from the newest complete checkpoint in ``out_dir``; returns it (None: there is none).
@@ -433,9 +517,13 @@ class Trainer:
             raise CheckpointError(f"cannot resume from {folder}: the model configuration differs in {diff}")
         try:
             model.load_state_dict(load_file(str(folder / WEIGHTS_FILE), device=str(self.device)))
-            state = torch.load(folder / STATE_FILE, map_location=self.device, weights_only=True)
-            self.optimizer.load_state_dict(state["optimizer"])
-            _set_rng_state(state["rng"], self.generator)
+            state = torch.load(folder / STATE_FILE, map_location="cpu", weights_only=True)
+            self.optimizer.load_state_dict(state["optimizer"])  # moved to the parameters' device
+            # each process its own generators when resumed with as many processes as saved them
+            ranks = state.get("rng_ranks") or [state["rng"]]
+            _set_rng_state(ranks[self.rank] if len(ranks) == self.world_size else ranks[0], self.generator)
+            if self.scaler is not None and "scaler" in state:
+                self.scaler.load_state_dict(state["scaler"])
         except (RuntimeError, OSError, KeyError, ValueError) as exc:
             raise CheckpointError(f"cannot resume from {folder}: {exc}") from exc
         self.global_step = int(state["step"])
@@ -530,6 +618,10 @@ def train(
     resume : continue from the newest complete checkpoint in ``out_dir`` (starts afresh when there is
         none); the model configuration must be the checkpoint's
 
+    Under ``torchrun`` (``WORLD_SIZE`` > 1) every process calls this with the same arguments and it trains
+    with a :class:`~dancekit.training.distributed.DistributedTrainer` (one share of each batch per process,
+    rank 0 writes); see :mod:`dancekit.training.distributed`.
+
     Returns
     -------
     :class:`TrainResult`
@@ -543,6 +635,21 @@ def train(
     FloatingPointError
         When the loss becomes NaN or infinite.
     """
-    trainer = Trainer(model, train_set, val_set, config, step_fn=step_fn, out_dir=out_dir, stats=stats, meta=meta,
-                      progress=progress, callbacks=callbacks)
-    return trainer.fit(resume=resume)
+    cls = Trainer
+    if _launched_by_torchrun():
+        from dancekit.training.distributed import DistributedTrainer as cls  # noqa: N813
+    trainer = cls(model, train_set, val_set, config, step_fn=step_fn, out_dir=out_dir, stats=stats, meta=meta,
+                  progress=progress, callbacks=callbacks)
+    try:
+        return trainer.fit(resume=resume)
+    finally:
+        if cls is not Trainer:
+            from dancekit.training.distributed import close
+
+            close()
+
+
+def _launched_by_torchrun() -> bool:
+    import os
+
+    return int(os.environ.get("WORLD_SIZE", "1")) > 1

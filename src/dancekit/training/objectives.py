@@ -48,7 +48,7 @@ def revolution_step(
         # without a genre, from the music alone (validation: always auto, i.e. music only)
         genre = batch["genre"].clone()
         if ctx.training:
-            drop = torch.rand(genre.shape, generator=ctx.generator) < ctx.config.genre_dropout
+            drop = torch.rand(genre.shape, generator=ctx.generator, device=ctx.generator.device) < ctx.config.genre_dropout
             genre[drop.to(genre.device)] = -1
         else:
             genre[:] = -1
@@ -56,7 +56,7 @@ def revolution_step(
     if ctx.training and ctx.config.music_dropout > 0:
         # music dropout: some windows see the mean music (zeros after normalisation), so the decoder
         # must also dance from its own motion prior (e.g. a genre model keeps its genre on new songs)
-        keep = torch.rand(music.shape[0], generator=ctx.generator) >= ctx.config.music_dropout
+        keep = torch.rand(music.shape[0], generator=ctx.generator, device=ctx.generator.device) >= ctx.config.music_dropout
         music = music * keep.to(music.device, music.dtype)[:, None, None]
     _, loss = model(music, batch["dance"], schedule_p=p, schedule_q=ctx.config.curriculum_q,
                     generator=ctx.generator, genre=genre)

@@ -1,0 +1,132 @@
+"""Inputs users really send to `dancekit dance` / `render`: each gives a dance or exactly one clear error line
+on stderr (no traceback, no decoder or librosa noise), and an output folder with nothing partial in it."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dancekit._checks import reduce_seed
+from dancekit.audio.io import save_wav
+from dancekit.audio.synth import click_track
+from dancekit.cli.main import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SR = 22050
+
+
+def _wav(path: Path, seconds: float) -> Path:
+    save_wav(path, click_track(bpm=120, duration=seconds, sr=SR), sr=SR)
+    return path
+
+
+def _random_mp3(d: Path) -> Path:
+    (d / "noise.mp3").write_bytes(np.random.default_rng(0).bytes(20000))
+    return d / "noise.mp3"
+
+
+def _empty(d: Path) -> Path:
+    (d / "empty.wav").touch()
+    return d / "empty.wav"
+
+
+def _folder(d: Path) -> Path:
+    (d / "album").mkdir()
+    return d / "album"
+
+
+# (id, make the input, extra args, expected: "dance" or a piece of the one error line)
+CASES = [
+    ("random_bytes_mp3", _random_mp3, [], "cannot decode audio file"),
+    ("clip_1_5s", lambda d: _wav(d / "short.wav", 1.5), [], "dance"),
+    ("clip_0_5s", lambda d: _wav(d / "tiny.wav", 0.5), [], "too short"),
+    ("empty_file", _empty, [], "empty (0 bytes)"),
+    ("directory", _folder, [], "got a folder"),
+    ("spaces_non_ascii_path", lambda d: _wav(d / "mi canción ü 舞.wav", 4.0), [], "dance"),
+    ("huge_seed", lambda d: _wav(d / "seed.wav", 3.0), ["--seed", "18446744073709551616"], "dance"),
+    ("negative_seed", lambda d: _wav(d / "neg.wav", 3.0), ["--seed", "-5"], "dance"),
+    ("start_beyond_end", lambda d: _wav(d / "s.wav", 3.0), ["--start", "100"], "beyond the end"),
+    ("wav_named_mp3", lambda d: _wav(d / "really_a_wav.mp3", 3.0), [], "dance"),
+    ("start_after_end", lambda d: _wav(d / "s.wav", 3.0), ["--start", "2", "--end", "1"], "start"),
+]
+
+
+@pytest.mark.parametrize("make,extra,expect", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_dance_input(tmp_path, capfd, make, extra, expect):
+    src = make(tmp_path)
+    out = tmp_path / "out dir"
+    with warnings.catch_warnings(record=True) as caught:  # what a user's terminal would show
+        warnings.simplefilter("always")
+        code = main(["dance", str(src), "-o", str(out), "--format", "npz", "--quiet", *extra])
+    stdout, stderr = capfd.readouterr()  # file-descriptor level: C libraries' output too
+    assert [str(w.message) for w in caught] == []
+    if expect == "dance":
+        assert code == 0, stderr
+        assert stderr == "", stderr  # no warnings, no decoder notes
+        assert [p.name for p in out.iterdir()] == [f"{src.stem}.npz"]
+        assert np.isfinite(np.load(out / f"{src.stem}.npz")["positions"]).all()
+    else:
+        assert code == 2
+        lines = stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("dancekit dance: error:") and expect in lines[0], stderr
+        assert not out.exists() or not any(out.iterdir())  # nothing partial
+
+
+def test_output_path_that_is_a_file(tmp_path, capfd):
+    song = _wav(tmp_path / "song.wav", 3.0)
+    (tmp_path / "taken").write_text("mine")
+    code = main(["dance", str(song), "-o", str(tmp_path / "taken"), "--format", "npz", "--quiet"])
+    lines = capfd.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "taken" in lines[0]
+    assert (tmp_path / "taken").read_text() == "mine"
+
+
+def test_huge_seeds_reduce_to_64_bits_and_keep_small_ones():
+    assert reduce_seed(0) == 0 and reduce_seed(2**63 - 1) == 2**63 - 1
+    big = [reduce_seed(2**64), reduce_seed(2**64 + 1), reduce_seed(-1), reduce_seed(10**40)]
+    assert all(0 <= s < 2**63 for s in big) and len(set(big)) == 4 and reduce_seed(2**64) == big[0]
+
+
+def test_render_refuses_audio_shorter_than_the_dance(tmp_path, capfd):
+    from dancekit.motion import Motion, get_skeleton
+    from dancekit.motion.formats import write_motion
+
+    skel = get_skeleton("tang2018")
+    pos = np.random.default_rng(0).normal(0, 10, (150, skel.num_joints, 3)).astype(np.float32)  # 6 s
+    write_motion(tmp_path / "dance.npz", Motion(skeleton=skel, fps=25.0, positions=pos))
+    song = _wav(tmp_path / "song.wav", 2.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    code = main(["render", str(tmp_path / "dance.npz"), "--audio", str(song), "-o", str(out / "v.mp4"), "-q"])
+    stderr = capfd.readouterr().err.strip().splitlines()
+    assert code == 2 and len(stderr) == 1 and "shorter than the dance" in stderr[0]
+    assert not any(out.iterdir())
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_signal_during_render_leaves_nothing(tmp_path, sig):
+    song = _wav(tmp_path / "song.wav", 30.0)
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    proc = subprocess.Popen([sys.executable, "-m", "dancekit.cli.main", "dance", str(song), "-o", str(out),
+                             "--format", "mp4", "--quiet"], env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while proc.poll() is None and time.monotonic() < deadline:
+        if out.is_dir() and any(p.name.startswith(".dancekit-") for p in out.iterdir()):
+            break  # the staging folder exists: rendering has begun
+        time.sleep(0.02)
+    time.sleep(0.5)  # a few frames into the mp4
+    assert proc.poll() is None, "the render ended before the signal"
+    proc.send_signal(sig)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + sig, stderr
+    assert stderr.strip().splitlines() == [f"dancekit dance: stopped by {sig.name}; nothing partial was left"]
+    assert not out.exists() or list(out.iterdir()) == []
