@@ -122,29 +122,10 @@ class FrameRenderer:
 
     def _build_body(self) -> None:
         """The body figure's parts: the torso's joints and a radius per limb bone (metres)."""
-        sc = self.scene
-        if self.figure != "body" or not len(sc.bones):
+        if self.figure != "body" or not len(self.scene.bones):
             self._torso = np.zeros(0, np.int64)
             return
-        mean = sc.positions.mean(axis=0)  # (J, 3)
-        parent = {int(c): int(p) for c, p in sc.bones}
-        root_h = float(np.median(mean[[j for j in range(len(mean)) if j not in parent], 1]))
-        side = sc.sides
-        trunk = {j for j in range(len(mean)) if side[j] == 0 and j != sc.head}
-        # the first joint of each limb (hips, shoulders or collars); above the hips, also the next one
-        first = [c for c, p in parent.items() if side[c] != 0 and side[p] == 0]
-        trunk.update(first)
-        for c, p in parent.items():
-            if p in first and mean[p, 1] > root_h and np.linalg.norm(mean[c] - mean[p]) < 0.16 * sc.height / 1.75:
-                trunk.add(c)
-        if sc.head is not None and sc.head in parent:  # the neck bone is drawn, the head is not torso
-            trunk.discard(sc.head)
-        self._torso = np.array(sorted(trunk), dtype=np.int64)
-        in_torso = set(trunk)
-        length = np.linalg.norm(mean[self._bc] - mean[self._bp], axis=1)
-        self._limb_r = np.clip(0.22 * length, *_LIMB_RADIUS) * self.k
-        # bones inside the torso are covered by it
-        self._limb = np.array([not (c in in_torso and p in in_torso) for c, p in sc.bones], dtype=bool)
+        self._torso, self._limb_r, self._limb = body_parts(self.scene)
 
     def _head_depth(self, z: np.ndarray) -> float:
         """Sort depth of the head disc: just in front of the bones that end at the head."""
@@ -393,6 +374,36 @@ class FrameRenderer:
                 draw.ellipse([q[0] - o - r3, q[1] - o - r3, q[0] - o + r3, q[1] - o + r3], fill=_BODY_LIGHT[0][lv])
         frame.paste(crop.reduce(_SS), (x0, y0))
 
+
+
+def body_parts(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The body figure's parts, shared by the mp4 and the html player.
+
+    Returns ``(torso, limb_radius, limb)``: the torso's joints (K,), a radius per bone
+    (B,) in metres (scaled with the figure's height) and which bones are drawn as limbs
+    (B,) bool (bones inside the torso are covered by it).
+    """
+    sc = scene
+    k = sc.height / 1.75
+    mean = sc.positions.mean(axis=0)  # (J, 3)
+    parent = {int(c): int(p) for c, p in sc.bones}
+    root_h = float(np.median(mean[[j for j in range(len(mean)) if j not in parent], 1]))
+    side = sc.sides
+    trunk = {j for j in range(len(mean)) if side[j] == 0 and j != sc.head}
+    # the first joint of each limb (hips, shoulders or collars); above the hips, also the next one
+    first = [c for c, p in parent.items() if side[c] != 0 and side[p] == 0]
+    trunk.update(first)
+    for c, p in parent.items():
+        if p in first and mean[p, 1] > root_h and np.linalg.norm(mean[c] - mean[p]) < 0.16 * sc.height / 1.75:
+            trunk.add(c)
+    if sc.head is not None and sc.head in parent:  # the neck bone is drawn, the head is not torso
+        trunk.discard(sc.head)
+    torso = np.array(sorted(trunk), dtype=np.int64)
+    bc, bp = sc.bones[:, 0], sc.bones[:, 1]
+    length = np.linalg.norm(mean[bc] - mean[bp], axis=1)
+    limb_r = np.clip(0.22 * length, *_LIMB_RADIUS) * k
+    limb = np.array([not (c in trunk and p in trunk) for c, p in sc.bones], dtype=bool)
+    return torso, limb_r, limb
 
 def _convex_hull(points: np.ndarray) -> np.ndarray:
     """Convex hull (K, 2) of 2D points (N, 2), counter-clockwise (Andrew's monotone chain)."""
