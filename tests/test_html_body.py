@@ -74,3 +74,20 @@ def test_body_figure_draws_in_headless_chromium(tmp_path):
         counts[name] = skin_pixels(np.asarray(Image.open(shot).convert("RGB")))
     print("skin-tinted pixels", counts)
     assert counts["body"] > 3000 and counts["body"] > 4 * counts["stick"]
+
+
+def test_mp4_body_fast_drawing_equals_the_public_api(monkeypatch):
+    """The mp4 body figure draws with Pillow's core and precomputed inks; the public API gives the same pixels."""
+    from test_render import figure as stick_dance
+
+    import dancekit.render.video as video
+    from dancekit.render._scene import prepare_scene
+
+    assert video._INKS is not None  # the fast path is in use with this Pillow
+    scene = prepare_scene(stick_dance(1.0, speed=0.5), parents=PARENTS, fps=FPS, unit_scale=1.0, sides=SIDES, head=2)
+    r = video.FrameRenderer(scene, width=160, height=120, figure="body")
+    fast = [np.asarray(r.render(t)) for t in (0, 12, 24)]
+    monkeypatch.setattr(video, "_INKS", None)
+    slow = [np.asarray(r.render(t)) for t in (0, 12, 24)]
+    for a, b in zip(fast, slow, strict=True):
+        assert np.array_equal(a, b)
