@@ -51,6 +51,17 @@ def test_cli_render_html_figure_body(tmp_path):
     assert page_data(out)["figure"] == "body"
 
 
+def test_export_passes_the_figure_to_the_html(tmp_path):
+    """``dancekit dance --figure body`` reaches the html player through export_motion's options."""
+    from test_glb_viewer import swaying
+
+    from dancekit.export import export_motion
+
+    written = export_motion(swaying(10), tmp_path / "out", stem="song", formats="html",
+                            options=RenderOptions(figure="body"))
+    assert page_data(written[0])["figure"] == "body"
+
+
 def test_body_figure_draws_in_headless_chromium(tmp_path):
     exe = _chromium()
     kw = dict(parents=PARENTS, fps=FPS, unit_scale=1.0, sides=SIDES, head=2)
