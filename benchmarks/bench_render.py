@@ -4,7 +4,7 @@ Target: at most 10 s of rendering per minute of music on the 2-core CI machine.
 Uses the first 60 s of tang2018 DANCE_T_5 (100 s long) when ``../shared`` is beside the repository,
 otherwise a synthetic stick figure and a synthetic tone. Run by hand::
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_render.py [--seconds 60] [--html]
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_render.py [--seconds 60] [--figure body] [--html]
 """
 
 from __future__ import annotations
@@ -61,6 +61,8 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--width", type=int, default=640)
     ap.add_argument("--height", type=int, default=480)
+    ap.add_argument("--figure", choices=("stick", "body"), default="stick",
+                    help="stick figure (default) or the volumetric body")
     ap.add_argument("--html", action="store_true", help="also time render_html")
     args = ap.parse_args()
     fps = 25.0
@@ -87,13 +89,13 @@ def main() -> int:
             sides=_SIDES,
             head=0,
             audio=AudioClip(song, start=start),
-            options=RenderOptions(width=args.width, height=args.height),
+            options=RenderOptions(width=args.width, height=args.height, figure=args.figure),
             progress=False,
         )
         took = time.perf_counter() - t0
         per_min = took / seconds * 60
         print(
-            f"render_mp4 {source}: {seconds:.1f} s of dance at {fps:g} fps, {args.width}x{args.height}: "
+            f"render_mp4 {source}, {args.figure} figure: {seconds:.1f} s of dance at {fps:g} fps, {args.width}x{args.height}: "
             f"{took:.2f} s ({per_min:.2f} s per minute of music; target <= {TARGET_S_PER_MIN:g}); "
             f"{out.stat().st_size / 1e6:.1f} MB"
         )

@@ -49,7 +49,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fps", type=float, default=None,
                    help="frame rate of the outputs (resampled with slerp; default: the model's)")
     p.add_argument("--figure", choices=("stick", "body"), default="stick",
-                   help="how the mp4 draws the dancer: stick (default) or body (shaded volumetric mannequin)")
+                   help="how the mp4 and the html player draw the dancer: stick (default) or body "
+                        "(shaded volumetric mannequin)")
     p.add_argument("--width", type=int, default=640, help="video width in pixels (default 640)")
     p.add_argument("--height", type=int, default=480, help="video height in pixels (default 480)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")

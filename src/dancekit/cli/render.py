@@ -1,5 +1,8 @@
 """``dancekit render MOTION -o OUT.mp4|OUT.html``: a dance (and its song) to a video or a web page.
 
+``dancekit render DANCE.glb -o view.html`` (or ``--format glb-html`` for any motion) writes
+a self-contained glTF viewer page instead, with the glb embedded.
+
 MOTION is anything :func:`dancekit.motion.formats.read_motion` reads (npz, BVH, AIST++
 pkl, OpenPose folder, tang2018 dance folder). A tang2018 folder brings its own song
 slice; otherwise give ``--audio`` (and optionally ``--start`` / ``--end``, seconds
@@ -43,20 +46,35 @@ def add_parser(subparsers) -> None:
     p.add_argument("--title", help="page title (html only; default: the output's file name)")
     p.add_argument("--fps", type=float, help="frame rate of the render (the motion resampled with slerp)")
     p.add_argument("--figure", choices=("stick", "body"), default=None,
-                   help="mp4 only: stick figure (default) or body (shaded volumetric mannequin)")
+                   help="mp4 and html player: stick figure (default) or body (shaded volumetric mannequin)")
+    p.add_argument("--format", choices=("mp4", "html", "glb-html"), default=None, dest="kind",
+                   help="output kind (default: from the suffix; a .glb MOTION with .html output: glb-html, "
+                        "a self-contained glTF viewer page that plays the glb's skinned body)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
+    src = Path(args.motion)
     kind = _FORMATS.get(out.suffix.lower())
     if kind is None:
         raise ParameterError(f"output must end in .mp4 or .html, got {str(out)!r}")
-    if kind == "html" and (args.width is not None or args.height is not None):
+    if args.kind is not None:
+        if (args.kind == "mp4") != (kind == "mp4"):
+            raise ParameterError(f"--format {args.kind} does not match the output {str(out)!r}")
+        kind = args.kind
+    elif kind == "html" and src.suffix.lower() == ".glb":
+        kind = "glb-html"
+    if kind != "mp4" and (args.width is not None or args.height is not None):
         raise ParameterError("--width / --height apply to .mp4 output only")
-    if kind == "html" and args.figure is not None:
-        raise ParameterError("--figure applies to .mp4 output only")
+    if kind == "glb-html":
+        for flag, value in (("--audio", args.audio), ("--start", args.start), ("--end", args.end),
+                            ("--figure", args.figure)):
+            if value is not None:
+                raise ParameterError(f"{flag} does not apply to the glTF viewer (glb-html)")
+        if src.suffix.lower() == ".glb" and args.fps is not None:
+            raise ParameterError("--fps does not apply to a .glb shown as it is")
     if kind == "mp4" and args.title is not None:
         raise ParameterError("--title applies to .html output only")
     if args.fps is not None and not args.fps > 0:
@@ -66,11 +84,18 @@ def run(args: argparse.Namespace) -> int:
 
     from dancekit.motion.formats import detect_format, read_motion, read_tang2018
     from dancekit.render import AudioClip, RenderOptions, render_motion_html, render_motion_mp4
+    from dancekit.render.glb_html import render_glb_html, render_motion_glb_html
 
     given = {"width": args.width, "height": args.height, "title": args.title, "figure": args.figure}
     options = RenderOptions(**{k: v for k, v in given.items() if v is not None})  # validated before reading
 
-    src = Path(args.motion)
+    if kind == "glb-html" and src.suffix.lower() == ".glb":
+        if not src.is_file():
+            raise ParameterError(f"no such file: {src}")
+        render_glb_html(out, src, options=options)
+        if not args.quiet:
+            print(out)
+        return 0
     audio, start, end = args.audio, args.start, args.end
     if src.is_dir() and detect_format(src) == "tang2018":
         motion, song = read_tang2018(src)
@@ -97,6 +122,8 @@ def run(args: argparse.Namespace) -> int:
     clip = None if audio is None else AudioClip(audio, start, end)
     if kind == "mp4":
         render_motion_mp4(out, motion, audio=clip, options=options, progress=not args.quiet)
+    elif kind == "glb-html":
+        render_motion_glb_html(out, motion, options=options)
     else:
         render_motion_html(out, motion, audio=clip, options=options)
     if not args.quiet:

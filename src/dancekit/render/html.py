@@ -53,11 +53,14 @@ def page_html(
     title: str = "dancekit",
     azimuth: float | None = None,
     elevation: float = _ELEVATION,
+    figure: str = "stick",
 ) -> str:
     """The html text of a player page for ``scene`` (``audio``: encoded bytes and MIME type).
 
     ``azimuth`` / ``elevation`` (degrees) set the initial camera; azimuth None is a
-    three-quarter view of the dancer's front.
+    three-quarter view of the dancer's front. ``figure``: ``"stick"`` or ``"body"`` (shaded
+    capsules, a rounded torso and a head with a face that turn with the body; the same
+    parts as the mp4's body figure).
     """
     az = default_azimuth(scene) if azimuth is None else float(azimuth)
     tan_y = math.tan(math.radians(_FOV) / 2)
@@ -83,6 +86,16 @@ def page_html(
         "positions": base64.b64encode(qbytes).decode("ascii"),
         "target": base64.b64encode(scene.target.astype("<f4").tobytes()).decode("ascii"),
     }
+    if figure == "body" and len(scene.bones):
+        from dancekit.render.video import body_parts
+
+        torso, limb_r, limb = body_parts(scene)
+        data["figure"] = "body"
+        data["torso"] = torso.tolist()
+        data["limbRadius"] = [round(float(r), 4) for r in limb_r]
+        data["limb"] = limb.astype(int).tolist()
+    else:
+        data["figure"] = "stick"
     blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
     audio_tag = ""
     if audio is not None:
@@ -165,8 +178,9 @@ def render_html(
         Song slice, embedded as MP3 (``start`` / ``end`` default to 0 and
         ``start + T / fps``, clipped to the song; a plain path: the song from 0 s).
     options : RenderOptions or None
-        ``title`` (default: the output file's stem) and the initial camera
-        (``azimuth``, ``elevation``); the size and ``crf`` apply to mp4 only.
+        ``title`` (default: the output file's stem), the initial camera
+        (``azimuth``, ``elevation``) and ``figure`` (``"stick"`` or ``"body"``, the
+        volumetric mannequin); the size and ``crf`` apply to mp4 only.
     **deprecated
         The keywords of release 0.1 (``audio_path``, ``audio_start``, ``audio_end``,
         ``title``) still work, with a ``DeprecationWarning``.
@@ -209,6 +223,7 @@ def render_html(
         title=title,
         azimuth=options.azimuth,
         elevation=options.elevation,
+        figure=options.figure,
     )
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")

@@ -109,7 +109,7 @@ class RenderOptions:
     title : str or None
         Page title (html only; None: the output file's stem).
     figure : {"stick", "body"}
-        How the dancer is drawn in the mp4: ``stick`` (thin bones and joint dots, the default) or
+        How the dancer is drawn in the mp4 and the html player: ``stick`` (thin bones and joint dots, the default) or
         ``body`` (a mannequin: shaded volumetric limbs, a torso that turns with the body, a head).
 
     Raises

@@ -65,6 +65,23 @@ _LIMB_RADIUS = (0.03, 0.07)  # metres, limb radius = 22 % of the bone length wit
 _TORSO_RADIUS = 0.075  # rounding of the torso outline
 
 
+
+def _inks() -> tuple[dict, dict, dict] | None:
+    """The body palettes as Pillow's RGB ink values, or None where its drawing core differs from Pillow 10-13's."""
+    try:
+        core = ImageDraw.Draw(Image.new("RGB", (4, 4))).draw
+        inks = tuple({sd: [core.draw_ink(c) for c in cols] for sd, cols in pal.items()}
+                     for pal in (_BODY_DARK, _BODY_PAL, _BODY_LIGHT))
+        core.draw_lines([(0.0, 0.0), (3.0, 3.0)], inks[0][0][0], 2)
+        core.draw_ellipse([0.0, 0.0, 2.0, 2.0], inks[0][0][0], 1)
+        return inks
+    except Exception:  # noqa: BLE001 - any change of the private API: use the public one
+        return None
+
+
+_INKS = _inks()
+
+
 class FrameRenderer:
     """Draws the frames of one :class:`~dancekit.render._scene.Scene` (RGB, ``height x width``).
 
@@ -109,6 +126,7 @@ class FrameRenderer:
         self._build_floor()
         bones = scene.bones
         self._bc, self._bp = bones[:, 0], bones[:, 1]
+        self._bc_all, self._bp_all = self._bc.tolist(), self._bp.tolist()
         sides = scene.sides
         bone_side = [int(sides[c]) if sides[c] == sides[p] or sides[p] == 0 else 0 for c, p in bones]
         self._bone_pal = [_PALETTE[sd] for sd in bone_side]
@@ -122,29 +140,13 @@ class FrameRenderer:
 
     def _build_body(self) -> None:
         """The body figure's parts: the torso's joints and a radius per limb bone (metres)."""
-        sc = self.scene
-        if self.figure != "body" or not len(sc.bones):
+        if self.figure != "body" or not len(self.scene.bones):
             self._torso = np.zeros(0, np.int64)
             return
-        mean = sc.positions.mean(axis=0)  # (J, 3)
-        parent = {int(c): int(p) for c, p in sc.bones}
-        root_h = float(np.median(mean[[j for j in range(len(mean)) if j not in parent], 1]))
-        side = sc.sides
-        trunk = {j for j in range(len(mean)) if side[j] == 0 and j != sc.head}
-        # the first joint of each limb (hips, shoulders or collars); above the hips, also the next one
-        first = [c for c, p in parent.items() if side[c] != 0 and side[p] == 0]
-        trunk.update(first)
-        for c, p in parent.items():
-            if p in first and mean[p, 1] > root_h and np.linalg.norm(mean[c] - mean[p]) < 0.16 * sc.height / 1.75:
-                trunk.add(c)
-        if sc.head is not None and sc.head in parent:  # the neck bone is drawn, the head is not torso
-            trunk.discard(sc.head)
-        self._torso = np.array(sorted(trunk), dtype=np.int64)
-        in_torso = set(trunk)
-        length = np.linalg.norm(mean[self._bc] - mean[self._bp], axis=1)
-        self._limb_r = np.clip(0.22 * length, *_LIMB_RADIUS) * self.k
-        # bones inside the torso are covered by it
-        self._limb = np.array([not (c in in_torso and p in in_torso) for c, p in sc.bones], dtype=bool)
+        self._torso, self._limb_r, self._limb = body_parts(self.scene)
+        self._bc_list, self._bp_list = self._bc.tolist(), self._bp.tolist()
+        self._limb_list = np.flatnonzero(self._limb).tolist()
+        self._limb_r_list = self._limb_r.tolist()
 
     def _head_depth(self, z: np.ndarray) -> float:
         """Sort depth of the head disc: just in front of the bones that end at the head."""
@@ -201,15 +203,28 @@ class FrameRenderer:
         cx, cz = self.cam[t, 0] / _TILE, self.cam[t, 2] / _TILE
 
         def square(off: np.ndarray, c: float, a: np.ndarray) -> np.ndarray:
+            # in place, with the arithmetic of the plain expressions in the comments (same pixels, fewer arrays)
             x = off + np.float32(c)
             fl = np.floor(x)
-            fr = x - fl
-            sign = 1.0 - 2.0 * (fl - 2.0 * np.floor(0.5 * fl))  # +1 on even tiles, -1 on odd
-            edge = 0.5 - np.abs(fr - 0.5)  # distance to the nearest tile edge (tiles)
-            return sign * np.minimum(edge * a, 1.0)  # box-filtered square wave
+            x -= fl  # fr = x - fl
+            x -= 0.5
+            np.abs(x, out=x)
+            np.subtract(0.5, x, out=x)  # edge = 0.5 - |fr - 0.5|: distance to the nearest tile edge (tiles)
+            x *= a
+            np.minimum(x, 1.0, out=x)  # min(edge * a, 1)
+            sign = np.multiply(fl, 0.5)  # sign = 1 - 2 (fl - 2 floor(fl / 2)): +1 on even tiles, -1 on odd
+            np.floor(sign, out=sign)
+            sign *= 2.0
+            np.subtract(fl, sign, out=sign)
+            sign *= 2.0
+            np.subtract(1.0, sign, out=sign)
+            sign *= x
+            return sign  # the box-filtered square wave
 
-        checker = square(self._offx, cx, self._ax) * square(self._offz, cz, self._az)
-        rgb = self._floor_base + checker[..., None] * self._floor_amp
+        checker = square(self._offx, cx, self._ax)
+        checker *= square(self._offz, cz, self._az)
+        rgb = checker[..., None] * self._floor_amp
+        rgb += self._floor_base
         img = Image.fromarray(rgb.astype(np.uint8), "RGB")
         # NEAREST: the checker is already box-filtered, and BILINEAR costs 2 ms a frame
         return img.resize((self.W, self.H - self.row0), Image.NEAREST)
@@ -259,13 +274,13 @@ class FrameRenderer:
         size = ((x1 - x0 + q - 1) // q, (y1 - y0 + q - 1) // q)
         mask = Image.new("L", size, 0)
         draw = ImageDraw.Draw(mask)
-        loc = (uv - [x0, y0]) / q
+        loc = [tuple(v) for v in ((uv - [x0, y0]) / q).tolist()]  # plain floats: numpy scalars are slow here
         width = max(1, int(round(2.6 * _BONE_RADIUS * self.k * self.f / float(np.median(z)) / q)))
-        for c, p in self.scene.bones:
-            draw.line([tuple(loc[c]), tuple(loc[p])], fill=110, width=width)
-        for j in range(len(pos)):
-            r = 0.5 * width
-            draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=110)
+        for c, p in zip(self._bc_all, self._bp_all):
+            draw.line([loc[c], loc[p]], fill=110, width=width)
+        r = 0.5 * width
+        for x, y in loc:
+            draw.ellipse([x - r, y - r, x + r, y + r], fill=110)
         mask = mask.filter(ImageFilter.GaussianBlur(1.2))
         mask = mask.resize((size[0] * q, size[1] * q), Image.BILINEAR).crop((0, 0, x1 - x0, y1 - y0))
         frame.paste(_SHADOW, (x0, y0, x1, y1), mask)
@@ -294,24 +309,22 @@ class FrameRenderer:
         level = np.clip(
             np.rint((np.clip((zr - depth) / 0.6, -1.0, 1.0) + 1) * 0.5 * (_LEVELS - 1)), 0, _LEVELS - 1
         )
-        level = level.astype(np.int64)
-        order = np.argsort(-depth, kind="stable")
+        level = level.astype(np.int64).tolist()
+        order = np.argsort(-depth, kind="stable").tolist()
         nb = len(self._bc)
+        # per-bone widths and per-joint boxes computed at once, as plain floats (numpy scalars are slow)
+        widths = [max(1, int(round(float(w) * _SS))) for w in (rb[self._bc] + rb[self._bp]).tolist()]
+        pts = [tuple(q) for q in loc.tolist()]
+        rs = rj * _SS
+        boxes = np.stack([loc[:, 0] - rs, loc[:, 1] - rs, loc[:, 0] + rs, loc[:, 1] + rs], axis=1).tolist()
+        bc, bp = self._bc_all, self._bp_all
         for i in order:
             if i < nb:
-                c, p = int(self._bc[i]), int(self._bp[i])
-                w = float(rb[c] + rb[p]) * _SS
-                draw.line(
-                    [(loc[c, 0], loc[c, 1]), (loc[p, 0], loc[p, 1])],
-                    fill=self._bone_pal[i][level[i]],
-                    width=max(1, int(round(w))),
-                )
-                for j in (c, p):
-                    r = rj[j] * _SS
-                    draw.ellipse(
-                        [loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r],
-                        fill=self._joint_pal[j][level[i]],
-                    )
+                c, p = bc[i], bp[i]
+                lv = level[i]
+                draw.line([pts[c], pts[p]], fill=self._bone_pal[i][lv], width=widths[i])
+                draw.ellipse(boxes[c], fill=self._joint_pal[c][lv])
+                draw.ellipse(boxes[p], fill=self._joint_pal[p][lv])
             elif sc.head is not None:
                 j = sc.head
                 r = rh[j] * _SS
@@ -327,9 +340,11 @@ class FrameRenderer:
                 draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=_BONE[0])
         frame.paste(crop.reduce(_SS), (x0, y0))
 
-
     def _body(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
-        """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled."""
+        """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled.
+
+        The per-item work is on plain Python floats (numpy scalars cost more than the drawing).
+        """
         sc = self.scene
         uv, z = self.project(t, pos)
         zr = float(np.median(z))
@@ -344,54 +359,94 @@ class FrameRenderer:
             return
         crop = frame.crop((x0, y0, x1, y1)).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
         draw = ImageDraw.Draw(crop)
-        loc = (uv - [x0, y0]) * _SS
+        loc_np = (uv - [x0, y0]) * _SS
+        loc = [tuple(q) for q in loc_np.tolist()]
+        zl, pl = z.tolist(), pix.tolist()
+        top = _LEVELS - 1
 
         def level(d: float) -> int:
-            return int(round((min(max((zr - d) / 0.6, -1.0), 1.0) + 1) * 0.5 * (_LEVELS - 1)))
+            return int(round((min(max((zr - d) / 0.6, -1.0), 1.0) + 1) * 0.5 * top))
 
-        items = []  # (depth, kind, index)
-        for i in np.flatnonzero(self._limb):
-            items.append((0.5 * float(z[self._bc[i]] + z[self._bp[i]]), 0, int(i)))
+        bc, bp = self._bc_list, self._bp_list
+        items = [(0.5 * (zl[bc[i]] + zl[bp[i]]), 0, i) for i in self._limb_list]  # (depth, kind, index)
         if len(self._torso) >= 3:
             items.append((float(z[self._torso].mean()), 1, 0))
         if sc.head is not None:
             items.append((self._head_depth(z), 2, sc.head))
         items.sort(key=lambda it: -it[0])
+        line, ellipse = draw.line, draw.ellipse
+        if _INKS is not None:  # Pillow's drawing core with precomputed inks: the same pixels, less overhead
+            seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
+            dark, pal, light = _INKS
+        else:
+            def seg(xy, fill, width):
+                line(xy, fill=fill, width=width)
 
-        def capsule(a, b, r, fill, ends=True):
-            draw.line([tuple(a), tuple(b)], fill=fill, width=max(1, int(round(2 * r))))
-            if ends:
-                for q in (a, b):
-                    draw.ellipse([q[0] - r, q[1] - r, q[0] + r, q[1] + r], fill=fill)
+            def disc(box, fill, _):
+                ellipse(box, fill=fill)
+
+            dark, pal, light = _BODY_DARK, _BODY_PAL, _BODY_LIGHT
 
         for d, kind, i in items:
             lv = level(d)
             if kind == 0:  # a limb: dark rim, body colour, a highlight towards the light (up left)
-                c, p = int(self._bc[i]), int(self._bp[i])
+                c, p = bc[i], bp[i]
                 sd = self._bone_side[i]
-                r = float(self._limb_r[i]) * 0.5 * float(pix[c] + pix[p]) * _SS
-                capsule(loc[c], loc[p], r, _BODY_DARK[sd][lv])
-                capsule(loc[c], loc[p], 0.82 * r, _BODY_PAL[sd][lv])
-                off = np.array([-0.3 * r, -0.3 * r])
-                capsule(loc[c] + off, loc[p] + off, 0.32 * r, _BODY_LIGHT[sd][lv], ends=False)
+                (ax, ay), (bx, by) = loc[c], loc[p]
+                r = self._limb_r_list[i] * 0.5 * (pl[c] + pl[p]) * _SS
+                for fill, rr in ((dark[sd][lv], r), (pal[sd][lv], 0.82 * r)):
+                    seg([(ax, ay), (bx, by)], fill, max(1, int(round(2 * rr))))
+                    disc([ax - rr, ay - rr, ax + rr, ay + rr], fill, 1)
+                    disc([bx - rr, by - rr, bx + rr, by + rr], fill, 1)
+                o = -0.3 * r
+                seg([(ax + o, ay + o), (bx + o, by + o)], light[sd][lv], max(1, int(round(2 * 0.32 * r))))
             elif kind == 1:  # the torso: the outline of its joints, rounded, shaded the same way
-                pts = loc[self._torso]
-                hull = _convex_hull(pts)
+                hull = _convex_hull(loc_np[self._torso])
                 r = _TORSO_RADIUS * self.k * float(pix[self._torso].mean()) * _SS
                 ring = [tuple(q) for q in hull] + [tuple(hull[0]), tuple(hull[1 % len(hull)])]
                 for fill, grow in ((_BODY_DARK[0][lv], 1.0), (_BODY_PAL[0][lv], 0.82)):
                     # the outline as one wide line with round joints: the hull grown by r, rounded
-                    draw.line(ring, fill=fill, width=max(1, int(round(2 * grow * r))), joint="curve")
+                    line(ring, fill=fill, width=max(1, int(round(2 * grow * r))), joint="curve")
                     draw.polygon(ring[:-2], fill=fill)
             else:  # the head
-                r = rh[i] * _SS
-                q = loc[i]
-                draw.ellipse([q[0] - r, q[1] - r, q[0] + r, q[1] + r], fill=_BODY_DARK[0][lv])
+                r = float(rh[i]) * _SS
+                qx, qy = loc[i]
+                ellipse([qx - r, qy - r, qx + r, qy + r], fill=_BODY_DARK[0][lv])
                 r2 = 0.86 * r
-                draw.ellipse([q[0] - r2, q[1] - r2, q[0] + r2, q[1] + r2], fill=_BODY_PAL[0][lv])
+                ellipse([qx - r2, qy - r2, qx + r2, qy + r2], fill=_BODY_PAL[0][lv])
                 r3, o = 0.35 * r, 0.3 * r
-                draw.ellipse([q[0] - o - r3, q[1] - o - r3, q[0] - o + r3, q[1] - o + r3], fill=_BODY_LIGHT[0][lv])
+                ellipse([qx - o - r3, qy - o - r3, qx - o + r3, qy - o + r3], fill=_BODY_LIGHT[0][lv])
         frame.paste(crop.reduce(_SS), (x0, y0))
+
+
+def body_parts(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The body figure's parts, shared by the mp4 and the html player.
+
+    Returns ``(torso, limb_radius, limb)``: the torso's joints (K,), a radius per bone
+    (B,) in metres (scaled with the figure's height) and which bones are drawn as limbs
+    (B,) bool (bones inside the torso are covered by it).
+    """
+    sc = scene
+    k = sc.height / 1.75
+    mean = sc.positions.mean(axis=0)  # (J, 3)
+    parent = {int(c): int(p) for c, p in sc.bones}
+    root_h = float(np.median(mean[[j for j in range(len(mean)) if j not in parent], 1]))
+    side = sc.sides
+    trunk = {j for j in range(len(mean)) if side[j] == 0 and j != sc.head}
+    # the first joint of each limb (hips, shoulders or collars); above the hips, also the next one
+    first = [c for c, p in parent.items() if side[c] != 0 and side[p] == 0]
+    trunk.update(first)
+    for c, p in parent.items():
+        if p in first and mean[p, 1] > root_h and np.linalg.norm(mean[c] - mean[p]) < 0.16 * sc.height / 1.75:
+            trunk.add(c)
+    if sc.head is not None and sc.head in parent:  # the neck bone is drawn, the head is not torso
+        trunk.discard(sc.head)
+    torso = np.array(sorted(trunk), dtype=np.int64)
+    bc, bp = sc.bones[:, 0], sc.bones[:, 1]
+    length = np.linalg.norm(mean[bc] - mean[bp], axis=1)
+    limb_r = np.clip(0.22 * length, *_LIMB_RADIUS) * k
+    limb = np.array([not (c in trunk and p in trunk) for c, p in sc.bones], dtype=bool)
+    return torso, limb_r, limb
 
 
 def _convex_hull(points: np.ndarray) -> np.ndarray:

@@ -1,9 +1,10 @@
 // dancekit html player: a small Canvas-2D perspective renderer for one dance.
 // Reads the JSON in <script id="dk-data">, draws a checkerboard floor, a soft shadow
-// and the skeleton (left blue, right orange), and keeps the dance in sync with the
+// and the skeleton (left blue, right orange) or, with data.figure "body", a mannequin
+// (shaded capsules, a rounded torso, a head with a face that turns with the body), and keeps the dance in sync with the
 // <audio id="dk-audio"> element when there is one: frame = floor(currentTime * fps).
 // Without audio it plays on a clock. Orbit camera: drag to rotate, wheel to zoom,
-// double-click to reset; space plays/pauses, arrows step.
+// double-click to reset; space plays/pauses, arrows step; "#t=SECONDS" opens it paused there.
 // Scene: metres, +y up, floor at y = 0 (see dancekit/render/_scene.py).
 (function () {
   "use strict";
@@ -44,6 +45,11 @@
   var TILE = 0.5, FOG = 14.0, RADIUS = 9.0;
   var BONE_R = 0.032 * data.height / 1.75, JOINT_R = 0.04 * data.height / 1.75, HEAD_R = 0.11 * data.height / 1.75;
   var FOV = 40 * Math.PI / 180, NEAR = 0.05;
+  var BODY = data.figure === "body";
+  // body figure: a mannequin with a slight blue / orange tint for the left / right limbs (as the mp4)
+  var SKIN = { "1": [196, 200, 222], "-1": [226, 196, 178], "0": [214, 200, 194] };
+  var TORSO_R = 0.075 * data.height / 1.75, FACE_R = 1.15 * HEAD_R;
+  var torso = data.torso || [], limbR = data.limbRadius || [], isLimb = data.limb || [];
 
   // ------------------------------------------------------------------ DOM
   var canvas = document.getElementById("dk-canvas");
@@ -243,6 +249,10 @@
       }
     }
 
+    if (BODY) {
+      drawBody(t, cj, toCam, toPix, foc, [cx, cy, cz]);
+      return;
+    }
     // figure: bones far to near, head disc in front of the bones that end at it
     var zs = cj.map(function (c) { return c[2]; }).slice().sort(function (a, b) { return a - b; });
     var zmid = zs[Math.floor(zs.length / 2)];
@@ -281,10 +291,183 @@
       }
       drawn++;
     }
-    document.documentElement.dataset.dkStatus = "drawn";
-    document.documentElement.dataset.dkDrawn = String(drawn);
-    document.documentElement.dataset.dkFrame = String(frame);
-    document.documentElement.dataset.dkCamera = cam.az.toFixed(1) + "," + cam.el.toFixed(1) + "," + cam.dist.toFixed(2);
+    report(drawn);
+  }
+
+  function report(drawn) {
+    var ds = document.documentElement.dataset;
+    ds.dkStatus = "drawn";
+    ds.dkFigure = BODY ? "body" : "stick";
+    ds.dkDrawn = String(drawn);
+    ds.dkFrame = String(frame);
+    ds.dkCamera = cam.az.toFixed(1) + "," + cam.el.toFixed(1) + "," + cam.dist.toFixed(2);
+  }
+
+  // the body figure: limbs as shaded capsules, the torso as the rounded outline of its joints, the
+  // head as a ball with a face towards the body's front; far to near (painter's order)
+  function drawBody(t, cj, toCam, toPix, foc, camPos) {
+    var zs = cj.map(function (c) { return c[2]; }).slice().sort(function (a, b) { return a - b; });
+    var zmid = zs[Math.floor(zs.length / 2)];
+    function level(d) { return 1 + 0.22 * Math.max(-1, Math.min(1, (zmid - d) / 0.6)); }
+    function P(j, a) { return pos[3 * (t * J + j) + a]; }
+    // the body's front this frame: left (mean of left joints - mean of right joints) x up
+    var lx = 0, lz = 0, nl = 0, nr = 0, rx = 0, rz = 0;
+    for (var j = 0; j < J; j++) {
+      if (sides[j] > 0) { lx += P(j, 0); lz += P(j, 2); nl++; }
+      else if (sides[j] < 0) { rx += P(j, 0); rz += P(j, 2); nr++; }
+    }
+    var side = null, front = null;
+    if (nl && nr) {
+      var ax = lx / nl - rx / nr, az = lz / nl - rz / nr, an = Math.hypot(ax, az);
+      if (an > 1e-6) { side = [ax / an, 0, az / an]; front = [-side[2], 0, side[0]]; }
+    }
+    var items = [];
+    for (var b = 0; b < bones.length; b++) {
+      if (isLimb[b]) items.push({ d: 0.5 * (cj[bones[b][0]][2] + cj[bones[b][1]][2]), k: 0, i: b });
+    }
+    if (torso.length >= 3) {
+      var tz = 0;
+      for (var q = 0; q < torso.length; q++) tz += cj[torso[q]][2];
+      items.push({ d: tz / torso.length, k: 1, i: 0 });
+    }
+    if (head !== null) {
+      var hd = cj[head][2];
+      for (b = 0; b < bones.length; b++) if (bones[b][0] === head || bones[b][1] === head) hd = Math.min(hd, cj[bones[b][0]][2], cj[bones[b][1]][2]);
+      items.push({ d: hd - 1e-3, k: 2, i: head });
+    }
+    items.sort(function (x, y) { return y.d - x.d; });
+    ctx.lineCap = "round";
+    ctx.lineJoin = "round";
+    var drawn = 0;
+    for (var it = 0; it < items.length; it++) {
+      var item = items[it], kb = level(item.d);
+      if (item.k === 0) {
+        var c = bones[item.i][0], p = bones[item.i][1];
+        if (cj[c][2] < NEAR || cj[p][2] < NEAR) continue;
+        var a = toPix(cj[c]), e = toPix(cj[p]);
+        var r = limbR[item.i] * 0.5 * foc * (1 / cj[c][2] + 1 / cj[p][2]);
+        var skin = SKIN[String(boneSide[item.i])];
+        capsule(a, e, r, shade(skin, 0.62 * kb));
+        // the inside: a gradient across the limb, lit from the upper left
+        var dx = e[0] - a[0], dy = e[1] - a[1], dn = Math.hypot(dx, dy) || 1;
+        var nx = -dy / dn, ny = dx / dn;
+        if (nx + ny > 0) { nx = -nx; ny = -ny; }
+        var mx = 0.5 * (a[0] + e[0]), my = 0.5 * (a[1] + e[1]);
+        var g = ctx.createLinearGradient(mx + nx * r, my + ny * r, mx - nx * r, my - ny * r);
+        g.addColorStop(0, shade(skin, 1.1 * kb));
+        g.addColorStop(0.45, shade(skin, 0.92 * kb));
+        g.addColorStop(1, shade(skin, 0.7 * kb));
+        capsule(a, e, 0.82 * r, g);
+        drawn++;
+      } else if (item.k === 1) {
+        var pts = [], zsum = 0, ok = true;
+        for (q = 0; q < torso.length; q++) {
+          if (cj[torso[q]][2] < NEAR) { ok = false; break; }
+          pts.push(toPix(cj[torso[q]])); zsum += cj[torso[q]][2];
+        }
+        if (!ok) continue;
+        var hull = convexHull(pts), R = TORSO_R * foc * torso.length / zsum;
+        // the chest is lit when it faces the camera, the back is a little darker
+        var kf = kb;
+        if (front) {
+          var tc = [0, 0, 0];
+          for (q = 0; q < torso.length; q++) for (var ax3 = 0; ax3 < 3; ax3++) tc[ax3] += P(torso[q], ax3) / torso.length;
+          var vx = camPos[0] - tc[0], vz = camPos[2] - tc[2], vn = Math.hypot(vx, vz) || 1;
+          kf = kb * (0.94 + 0.08 * (front[0] * vx + front[2] * vz) / vn);
+        }
+        var sk0 = SKIN["0"];
+        polygon(hull, 2 * R, shade(sk0, 0.62 * kf));
+        var lo = hull[0][1], hi = hull[0][1], left = hull[0][0], right = hull[0][0];
+        for (q = 1; q < hull.length; q++) {
+          lo = Math.min(lo, hull[q][1]); hi = Math.max(hi, hull[q][1]);
+          left = Math.min(left, hull[q][0]); right = Math.max(right, hull[q][0]);
+        }
+        var tg = ctx.createLinearGradient(left - R, lo - R, right + R, hi + R);
+        tg.addColorStop(0, shade(sk0, 1.08 * kf));
+        tg.addColorStop(0.5, shade(sk0, 0.92 * kf));
+        tg.addColorStop(1, shade(sk0, 0.76 * kf));
+        polygon(hull, 1.64 * R, tg);
+        if (front) {  // the sternum: a crease down the front of the chest, when it faces the camera
+          var neckTop = null, lowest = null;
+          for (q = 0; q < torso.length; q++) {
+            var jt = torso[q];
+            if (neckTop === null || P(jt, 1) > P(neckTop, 1)) neckTop = jt;
+            if (lowest === null || P(jt, 1) < P(lowest, 1)) lowest = jt;
+          }
+          var fr = 0.6 * TORSO_R;
+          var s0 = toCam(P(neckTop, 0) + front[0] * fr, 0.85 * P(neckTop, 1) + 0.15 * P(lowest, 1), P(neckTop, 2) + front[2] * fr);
+          var s1 = toCam(P(lowest, 0) + front[0] * fr, 0.35 * P(neckTop, 1) + 0.65 * P(lowest, 1), P(lowest, 2) + front[2] * fr);
+          var midz = 0.5 * (cj[neckTop][2] + cj[lowest][2]);
+          if (s0[2] > NEAR && s1[2] > NEAR && 0.5 * (s0[2] + s1[2]) < midz) {
+            var q0 = toPix(s0), q1 = toPix(s1);
+            ctx.strokeStyle = shade(sk0, 0.72 * kf);
+            ctx.lineWidth = Math.max(1, 0.12 * R);
+            ctx.beginPath(); ctx.moveTo(q0[0], q0[1]); ctx.lineTo(q1[0], q1[1]); ctx.stroke();
+          }
+        }
+        drawn++;
+      } else {
+        var ch = cj[head];
+        if (ch[2] < NEAR) continue;
+        var ph = toPix(ch), rh = FACE_R * foc / ch[2];
+        var hs = SKIN["0"];
+        ctx.fillStyle = shade(hs, 0.62 * kb);
+        ctx.beginPath(); ctx.arc(ph[0], ph[1], rh, 0, 2 * Math.PI); ctx.fill();
+        var hg = ctx.createRadialGradient(ph[0] - 0.35 * rh, ph[1] - 0.35 * rh, 0.1 * rh, ph[0], ph[1], 0.86 * rh);
+        hg.addColorStop(0, shade(hs, 1.12 * kb));
+        hg.addColorStop(1, shade(hs, 0.8 * kb));
+        ctx.fillStyle = hg;
+        ctx.beginPath(); ctx.arc(ph[0], ph[1], 0.86 * rh, 0, 2 * Math.PI); ctx.fill();
+        if (front) {  // eyes towards the body's front, hidden when the face looks away
+          var R3 = FACE_R, hx = P(head, 0), hy = P(head, 1), hz = P(head, 2);
+          for (var eye = -1; eye <= 1; eye += 2) {
+            var ec = toCam(hx + front[0] * 0.82 * R3 + eye * side[0] * 0.36 * R3, hy + 0.12 * R3,
+              hz + front[2] * 0.82 * R3 + eye * side[2] * 0.36 * R3);
+            if (ec[2] < NEAR || ec[2] > ch[2]) continue;
+            var pe = toPix(ec);
+            ctx.fillStyle = shade([70, 60, 66], kb);
+            ctx.beginPath(); ctx.arc(pe[0], pe[1], Math.max(1, 0.11 * rh), 0, 2 * Math.PI); ctx.fill();
+          }
+        }
+        drawn++;
+      }
+    }
+    report(drawn);
+  }
+
+  function capsule(a, b, r, style) {
+    ctx.strokeStyle = style;
+    ctx.lineWidth = Math.max(1, 2 * r);
+    ctx.beginPath(); ctx.moveTo(a[0], a[1]); ctx.lineTo(b[0] + 1e-3, b[1]); ctx.stroke();
+  }
+
+  // a convex polygon grown by half the line width, with round corners
+  function polygon(pts, width, style) {
+    ctx.strokeStyle = style;
+    ctx.fillStyle = style;
+    ctx.lineWidth = Math.max(1, width);
+    ctx.beginPath();
+    for (var i = 0; i < pts.length; i++) { if (i === 0) ctx.moveTo(pts[i][0], pts[i][1]); else ctx.lineTo(pts[i][0], pts[i][1]); }
+    ctx.closePath();
+    ctx.fill();
+    ctx.stroke();
+  }
+
+  // Andrew's monotone chain: the convex hull of 2D points
+  function convexHull(points) {
+    var pts = points.slice().sort(function (a, b) { return a[0] - b[0] || a[1] - b[1]; });
+    if (pts.length <= 2) return pts;
+    function cross(o, a, b) { return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]); }
+    var lower = [], upper = [];
+    for (var i = 0; i < pts.length; i++) {
+      while (lower.length >= 2 && cross(lower[lower.length - 2], lower[lower.length - 1], pts[i]) <= 0) lower.pop();
+      lower.push(pts[i]);
+    }
+    for (i = pts.length - 1; i >= 0; i--) {
+      while (upper.length >= 2 && cross(upper[upper.length - 2], upper[upper.length - 1], pts[i]) <= 0) upper.pop();
+      upper.push(pts[i]);
+    }
+    return lower.slice(0, -1).concat(upper.slice(0, -1));
   }
 
   // Sutherland-Hodgman against the plane z = NEAR (camera space)
@@ -310,6 +493,12 @@
     requestAnimationFrame(loop);
   }
 
+  // "#t=SECONDS" in the address opens the page paused at that time
+  var hashTime = /(?:^#|&)t=([0-9.]+)/.exec(window.location.hash);
+  if (hashTime) {
+    setTime(parseFloat(hashTime[1]));
+    if (audio) audio.addEventListener("loadedmetadata", function () { setTime(parseFloat(hashTime[1])); draw(); });
+  }
   resize();
   updateButton();
   draw();
