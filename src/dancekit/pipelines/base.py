@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dancekit import registry
 from dancekit.checkpoints.hub import read_meta, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
@@ -80,3 +82,25 @@ def load_pipeline(model: str | os.PathLike | None = None, checkpoint: str | os.P
     except (ParameterError, ImportError, AttributeError) as exc:
         raise CheckpointError(f"{folder} holds a {family!r} model, which has no pipeline: {exc}") from exc
     return cls.from_pretrained(Path(folder), device=device)
+
+
+def song_features(audio_path: str | os.PathLike, *, fps: float, preset: str, hop_length: int, music_dim: int,
+                  start: float | None = None, end: float | None = None) -> np.ndarray:
+    """A song's (excerpt's) music features ``(T, music_dim)`` float32, unnormalised, at a checkpoint's fps,
+    preset and hop length (:func:`dancekit.features.extract_file`, with its cache).
+
+    Raises
+    ------
+    AudioError
+        For a missing, unreadable or too short song.
+    CheckpointError
+        When the preset's features do not have the model's ``music_dim`` columns.
+    """
+    from dancekit.features import extract_file
+
+    fs = extract_file(audio_path, fps=fps, preset=preset, start=start, end=end, hop_length=hop_length)
+    feats = np.asarray(fs.features, np.float32)
+    if feats.ndim != 2 or feats.shape[1] != music_dim:
+        raise CheckpointError(f"the {preset!r} features of {audio_path} have shape {feats.shape}, but the model "
+                              f"expects {music_dim} columns")
+    return feats

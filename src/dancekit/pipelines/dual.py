@@ -24,7 +24,7 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, encode_motion
-from dancekit.pipelines.base import DanceResult
+from dancekit.pipelines.base import DanceResult, song_features
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -67,14 +67,8 @@ class DualPipeline:
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:
         """The song's ``dual`` features (T, 53), MFCC blocks normalised, chroma + beat raw."""
-        from dancekit.features import extract_file
-
-        fs = extract_file(audio_path, fps=self.fps, preset=self.preset, start=start, end=end,
-                          hop_length=self.hop_length)
-        feats = np.asarray(fs.features, np.float32)
-        if feats.ndim != 2 or feats.shape[1] != self.model.config.music_dim:
-            raise CheckpointError(f"the {self.preset!r} features of {audio_path} have shape {feats.shape}, the model "
-                                  f"expects {self.model.config.music_dim} columns")
+        feats = song_features(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
+                              music_dim=self.model.config.music_dim, start=start, end=end)
         return self.stats.normalize_music(feats)
 
     def start_pose(self, pose: Motion | np.ndarray | None, seed: int) -> torch.Tensor:

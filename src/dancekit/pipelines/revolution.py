@@ -35,7 +35,7 @@ from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.kinematics import normalize_bone_lengths
 from dancekit.motion.representations import decode_motion, get_representation
-from dancekit.pipelines.base import DanceResult
+from dancekit.pipelines.base import DanceResult, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 
 
@@ -122,16 +122,8 @@ class RevolutionPipeline:
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:
         """Normalised music features (T, music_dim) of the song (excerpt) at the checkpoint's fps."""
-        from dancekit.features import extract_file
-
-        fs = extract_file(audio_path, fps=self.fps, preset=self.preset, start=start, end=end,
-                          hop_length=self.hop_length)
-        feats = np.asarray(fs.features, np.float32)
-        if feats.ndim != 2 or feats.shape[1] != self.model.config.music_dim:
-            raise CheckpointError(
-                f"the {self.preset!r} features of {audio_path} have shape {feats.shape}, but the model expects "
-                f"{self.model.config.music_dim} columns"
-            )
+        feats = song_features(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
+                              music_dim=self.model.config.music_dim, start=start, end=end)
         return self.stats.normalize_music(feats)
 
     @torch.no_grad()
