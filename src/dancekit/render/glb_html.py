@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import base64
 import dataclasses
-import html as html_lib
 import json
 import os
 import tempfile
@@ -20,7 +19,7 @@ from pathlib import Path
 
 from dancekit._io import atomic_path
 from dancekit.errors import ParameterError
-from dancekit.render.html import _asset
+from dancekit.render.html import _asset, page_shell
 from dancekit.render.options import RenderOptions
 
 _ELEVATION = 12.0
@@ -33,38 +32,12 @@ def glb_page_html(glb: bytes, *, title: str = "dancekit", azimuth: float = 30.0,
         raise ParameterError("not a glTF binary (.glb): the file does not start with 'glTF'")
     conf = json.dumps({"title": title, "azimuth": float(azimuth), "elevation": float(elevation)})
     conf = conf.replace("</", "<\\/")
-    esc = html_lib.escape(title)
     b64 = base64.b64encode(glb).decode("ascii")
-    return (
-        "<!doctype html>\n"
-        '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-        f"<title>{esc}</title>\n"
-        "<script>\n"
-        "(function () {\n"
-        "  function note(msg) { var d = document.documentElement;\n"
-        "    d.dataset.dkError = (d.dataset.dkError ? d.dataset.dkError + ' | ' : '') + msg; }\n"
-        "  window.addEventListener('error', function (e) { note(e.message || 'error'); });\n"
-        "  var err = console.error; console.error = function () {\n"
-        "    note(Array.prototype.join.call(arguments, ' ')); err.apply(console, arguments); };\n"
-        "})();\n"
-        "</script>\n"
-        f"<style>\n{_asset('player.css')}</style>\n"
-        "</head>\n<body>\n"
-        '<div id="dk-player">\n'
-        '<canvas id="dk-canvas"></canvas>\n'
-        f'<div id="dk-title">{esc}</div>\n'
-        '<div id="dk-help">drag: rotate &middot; wheel: zoom &middot; double-click: reset &middot; space: play</div>\n'
-        '<div id="dk-controls">\n'
-        '<button id="dk-play" type="button" aria-label="play">&#9654;</button>\n'
-        '<input id="dk-scrub" type="range" min="0" max="0" step="1" value="0" aria-label="time">\n'
-        '<span id="dk-time">0:00.0</span>\n'
-        "</div>\n</div>\n"
+    return page_shell(title, (
         f'<script id="dk-conf" type="application/json">{conf}</script>\n'
         f'<script id="dk-glb" type="application/octet-stream">{b64}</script>\n'
         f"<script>\n{_asset('glb_viewer.js')}</script>\n"
-        "</body>\n</html>\n"
-    )
+    ))
 
 
 def render_glb_html(path: str | os.PathLike, glb: str | os.PathLike | bytes, *,

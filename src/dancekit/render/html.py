@@ -101,39 +101,11 @@ def page_html(
     if audio is not None:
         b64 = base64.b64encode(audio[0]).decode("ascii")
         audio_tag = f'<audio id="dk-audio" preload="auto" src="data:{audio[1]};base64,{b64}"></audio>\n'
-    esc = html_lib.escape(title)
-    # the first script records errors (even a syntax error in the player) on <html data-dk-error>
-    return (
-        "<!doctype html>\n"
-        '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
-        f"<title>{esc}</title>\n"
-        "<script>\n"
-        "(function () {\n"
-        "  function note(msg) { var d = document.documentElement;\n"
-        "    d.dataset.dkError = (d.dataset.dkError ? d.dataset.dkError + ' | ' : '') + msg; }\n"
-        "  window.addEventListener('error', function (e) { note(e.message || 'error'); });\n"
-        "  window.addEventListener('unhandledrejection', function (e) { note(String(e.reason)); });\n"
-        "  var err = console.error; console.error = function () {\n"
-        "    note(Array.prototype.join.call(arguments, ' ')); err.apply(console, arguments); };\n"
-        "})();\n"
-        "</script>\n"
-        f"<style>\n{_asset('player.css')}</style>\n"
-        "</head>\n<body>\n"
-        '<div id="dk-player">\n'
-        '<canvas id="dk-canvas"></canvas>\n'
-        f'<div id="dk-title">{esc}</div>\n'
-        '<div id="dk-help">drag: rotate &middot; wheel: zoom &middot; double-click: reset &middot; space: play</div>\n'
-        '<div id="dk-controls">\n'
-        '<button id="dk-play" type="button" aria-label="play">&#9654;</button>\n'
-        '<input id="dk-scrub" type="range" min="0" max="0" step="1" value="0" aria-label="time">\n'
-        '<span id="dk-time">0:00.0</span>\n'
-        "</div>\n</div>\n"
+    return page_shell(title, (
         f"{audio_tag}"
         f'<script id="dk-data" type="application/json">{blob}</script>\n'
         f"<script>\n{_asset('player.js')}</script>\n"
-        "</body>\n</html>\n"
-    )
+    ))
 
 
 def render_html(
@@ -248,3 +220,39 @@ def render_motion_html(
 
     options, audio = resolve("render_motion_html", options, audio, deprecated, accepted=_HTML_KEYWORDS)
     render_html(path, **motion_arrays(motion), audio=audio, options=options)
+
+
+def page_shell(title: str, body: str) -> str:
+    """The html page of the players: a head (error recorder, styles), the canvas, title, help line and
+    play/scrub controls, then ``body`` (the page's data and script tags). ``title`` is escaped here."""
+    esc = html_lib.escape(title)
+    # the first script records errors (even a syntax error in the player) on <html data-dk-error>
+    return (
+        "<!doctype html>\n"
+        '<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
+        f"<title>{esc}</title>\n"
+        "<script>\n"
+        "(function () {\n"
+        "  function note(msg) { var d = document.documentElement;\n"
+        "    d.dataset.dkError = (d.dataset.dkError ? d.dataset.dkError + ' | ' : '') + msg; }\n"
+        "  window.addEventListener('error', function (e) { note(e.message || 'error'); });\n"
+        "  window.addEventListener('unhandledrejection', function (e) { note(String(e.reason)); });\n"
+        "  var err = console.error; console.error = function () {\n"
+        "    note(Array.prototype.join.call(arguments, ' ')); err.apply(console, arguments); };\n"
+        "})();\n"
+        "</script>\n"
+        f"<style>\n{_asset('player.css')}</style>\n"
+        "</head>\n<body>\n"
+        '<div id="dk-player">\n'
+        '<canvas id="dk-canvas"></canvas>\n'
+        f'<div id="dk-title">{esc}</div>\n'
+        '<div id="dk-help">drag: rotate &middot; wheel: zoom &middot; double-click: reset &middot; space: play</div>\n'
+        '<div id="dk-controls">\n'
+        '<button id="dk-play" type="button" aria-label="play">&#9654;</button>\n'
+        '<input id="dk-scrub" type="range" min="0" max="0" step="1" value="0" aria-label="time">\n'
+        '<span id="dk-time">0:00.0</span>\n'
+        "</div>\n</div>\n"
+        f"{body}"
+        "</body>\n</html>\n"
+    )
