@@ -200,3 +200,16 @@ def test_window_dataset_keeps_only_the_asked_genres(prepared_tang2018):
     assert {data.genres[latin.genres[i]] for i, _ in latin.index} == {"rumba", "chacha"}
     with pytest.raises(ParameterError, match="salsa"):
         WindowDataset(data, "train", preset="music2dance", window=100, stats=plain.stats, genres=["salsa"])
+
+
+def test_norm_stats_from_checkpoint_arrays_names_what_is_missing():
+    from dancekit.errors import CheckpointError
+
+    arrays = {k: np.arange(3, dtype=np.float64) for k in ("music_mean", "music_std", "dance_mean", "dance_std")}
+    s = NormStats.from_arrays(arrays, source="ckpt")
+    assert s.music_std.dtype == np.float32 and s.dance_mean.tolist() == [0.0, 1.0, 2.0]
+    s.music_mean[0] = 9.0  # a copy: the checkpoint's arrays are untouched
+    assert arrays["music_mean"][0] == 0.0
+    del arrays["dance_std"]
+    with pytest.raises(CheckpointError, match=r"checkpoint ckpt: stats.npz lacks \['dance_std'\]"):
+        NormStats.from_arrays(arrays, source="ckpt")

@@ -59,6 +59,21 @@ class NormStats:
         }
 
     @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], *, source: str = "?") -> NormStats:
+        """The statistics in a checkpoint's ``stats.npz`` arrays (copied as float32).
+
+        Raises
+        ------
+        CheckpointError
+            Naming ``source`` and the missing arrays when one of the four is absent.
+        """
+        keys = ("music_mean", "music_std", "dance_mean", "dance_std")
+        missing = [k for k in keys if k not in arrays]
+        if missing:
+            raise CheckpointError(f"checkpoint {source}: stats.npz lacks {missing}")
+        return cls(**{k: np.array(arrays[k], np.float32) for k in keys})
+
+    @classmethod
     def load(cls, path: str | os.PathLike) -> NormStats:
         try:
             with np.load(path, allow_pickle=False) as z:

@@ -32,13 +32,11 @@ def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, 
     model, meta, arrays = load_pretrained(folder, device=device)
     if not isinstance(model, DualModel):
         raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a dual-learning model")
-    missing = [k for k in ("music_mean", "music_std", "dance_mean", "dance_std") if k not in arrays]
-    missing += [k for k in ("skeleton", "fps") if k not in meta]
+    missing = [k for k in ("skeleton", "fps") if k not in meta]
     if missing:
-        raise CheckpointError(f"checkpoint {folder}: stats.npz / config.json lack {missing}")
+        raise CheckpointError(f"checkpoint {folder}: config.json lacks {missing}")
     c = model.config
-    stats = NormStats(**{k: np.array(arrays[k], np.float32) for k in ("music_mean", "music_std", "dance_mean",
-                                                                        "dance_std")})
+    stats = NormStats.from_arrays(arrays, source=str(folder))  # a copy: the raw columns are set below
     if len(stats.music_mean) != c.music_dim or len(stats.dance_mean) != c.pose_dim:
         raise CheckpointError(f"checkpoint {folder}: statistics do not match the model's music_dim / pose_dim")
     stats.music_mean[c.music_raw_from:], stats.music_std[c.music_raw_from:] = 0.0, 1.0

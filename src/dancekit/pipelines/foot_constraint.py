@@ -44,10 +44,7 @@ class FootConstraintPipeline:
         """Load a checkpoint folder (``dancekit train foot_constraint``) or a model name."""
         folder = resolve_model(folder)
         model, meta, arrays = load_pretrained(folder, device=device)
-        keys = ("music_mean", "music_std", "dance_mean", "dance_std")
-        if any(k not in arrays for k in keys):
-            raise CheckpointError(f"checkpoint {folder}: stats.npz lacks some of {keys}")
-        stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in keys})
+        stats = NormStats.from_arrays(arrays, source=str(folder))
         return cls(model, meta=meta, stats=stats, folder=str(Path(folder)))
 
     @torch.no_grad()

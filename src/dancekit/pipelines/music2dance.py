@@ -81,11 +81,7 @@ class Music2DancePipeline:
         """
         folder = resolve_model(folder)
         model, meta, arrays = load_pretrained(folder, device=device)
-        keys = ("music_mean", "music_std", "dance_mean", "dance_std")
-        missing = [k for k in keys if k not in arrays]
-        if missing:
-            raise CheckpointError(f"checkpoint {folder}: stats.npz lacks {missing}")
-        stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in keys})
+        stats = NormStats.from_arrays(arrays, source=str(folder))
         parts = components(folder, meta)
         unknown = sorted(set(parts) - {"genre_reader"})
         if unknown:

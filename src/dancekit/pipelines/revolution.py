@@ -99,11 +99,7 @@ class RevolutionPipeline:
         """
         folder = resolve_model(folder)
         model, meta, arrays = load_pretrained(folder, device=device)
-        missing = [k for k in ("music_mean", "music_std", "dance_mean", "dance_std") if k not in arrays]
-        if missing:
-            raise CheckpointError(f"checkpoint {folder}: stats.npz lacks {missing}")
-        stats = NormStats(**{k: np.asarray(arrays[k], np.float32) for k in
-                             ("music_mean", "music_std", "dance_mean", "dance_std")})
+        stats = NormStats.from_arrays(arrays, source=str(folder))
         parts = components(folder, meta)
         unknown_parts = sorted(set(parts) - {"genres", "genre_reader"})
         if unknown_parts:
