@@ -294,13 +294,11 @@ class FrameRenderer:
         rj = _JOINT_RADIUS * self.k * self.f / z
         rh = _HEAD_RADIUS * self.k * self.f / z
         reach = float(max(rj.max(), rh.max() if sc.head is not None else 0.0)) + 3
-        x0 = int(max(math.floor(uv[:, 0].min() - reach), 0))
-        y0 = int(max(math.floor(uv[:, 1].min() - reach), 0))
-        x1 = int(min(math.ceil(uv[:, 0].max() + reach), self.W))
-        y1 = int(min(math.ceil(uv[:, 1].max() + reach), self.H))
-        if x1 - x0 < 2 or y1 - y0 < 2:
+        box = self._figure_box(uv, reach)
+        if box is None:
             return
-        crop = frame.crop((x0, y0, x1, y1)).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
+        x0, y0, x1, y1 = box
+        crop = frame.crop(box).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
         draw = ImageDraw.Draw(crop)
         loc = (uv - [x0, y0]) * _SS
 
@@ -340,6 +338,15 @@ class FrameRenderer:
                 draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=_BONE[0])
         frame.paste(crop.reduce(_SS), (x0, y0))
 
+    def _figure_box(self, uv: np.ndarray, reach: float) -> tuple[int, int, int, int] | None:
+        """The pixel box ``(x0, y0, x1, y1)`` around the projected joints ``uv`` (J, 2) plus ``reach`` pixels,
+        clipped to the frame; None when less than 2 pixels of it are on screen."""
+        x0 = int(max(math.floor(uv[:, 0].min() - reach), 0))
+        y0 = int(max(math.floor(uv[:, 1].min() - reach), 0))
+        x1 = int(min(math.ceil(uv[:, 0].max() + reach), self.W))
+        y1 = int(min(math.ceil(uv[:, 1].max() + reach), self.H))
+        return None if x1 - x0 < 2 or y1 - y0 < 2 else (x0, y0, x1, y1)
+
     def _body(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
         """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled.
 
@@ -351,13 +358,11 @@ class FrameRenderer:
         pix = self.f / z  # pixels per metre at each joint
         rh = 1.15 * _HEAD_RADIUS * self.k * pix
         reach = float(max((_LIMB_RADIUS[1] * self.k * pix).max(), rh.max() if sc.head is not None else 0.0)) + 3
-        x0 = int(max(math.floor(uv[:, 0].min() - reach), 0))
-        y0 = int(max(math.floor(uv[:, 1].min() - reach), 0))
-        x1 = int(min(math.ceil(uv[:, 0].max() + reach), self.W))
-        y1 = int(min(math.ceil(uv[:, 1].max() + reach), self.H))
-        if x1 - x0 < 2 or y1 - y0 < 2:
+        box = self._figure_box(uv, reach)
+        if box is None:
             return
-        crop = frame.crop((x0, y0, x1, y1)).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
+        x0, y0, x1, y1 = box
+        crop = frame.crop(box).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
         draw = ImageDraw.Draw(crop)
         loc_np = (uv - [x0, y0]) * _SS
         loc = [tuple(q) for q in loc_np.tolist()]
