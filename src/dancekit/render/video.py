@@ -294,11 +294,10 @@ class FrameRenderer:
         rj = _JOINT_RADIUS * self.k * self.f / z
         rh = _HEAD_RADIUS * self.k * self.f / z
         reach = float(max(rj.max(), rh.max() if sc.head is not None else 0.0)) + 3
-        box = self._figure_box(uv, reach)
-        if box is None:
+        region = self._figure_region(frame, uv, reach)
+        if region is None:
             return
-        x0, y0, x1, y1 = box
-        crop = frame.crop(box).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
+        crop, x0, y0 = region
         draw = ImageDraw.Draw(crop)
         loc = (uv - [x0, y0]) * _SS
 
@@ -338,14 +337,19 @@ class FrameRenderer:
                 draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=_BONE[0])
         frame.paste(crop.reduce(_SS), (x0, y0))
 
-    def _figure_box(self, uv: np.ndarray, reach: float) -> tuple[int, int, int, int] | None:
-        """The pixel box ``(x0, y0, x1, y1)`` around the projected joints ``uv`` (J, 2) plus ``reach`` pixels,
-        clipped to the frame; None when less than 2 pixels of it are on screen."""
+    def _figure_region(self, frame: Image.Image, uv: np.ndarray,
+                       reach: float) -> tuple[Image.Image, int, int] | None:
+        """The part of ``frame`` around the projected joints ``uv`` (J, 2) plus ``reach`` pixels, clipped to the
+        frame and upscaled ``_SS`` times for supersampled drawing, with its top-left corner ``(x0, y0)``;
+        None when less than 2 pixels of it are on screen."""
         x0 = int(max(math.floor(uv[:, 0].min() - reach), 0))
         y0 = int(max(math.floor(uv[:, 1].min() - reach), 0))
         x1 = int(min(math.ceil(uv[:, 0].max() + reach), self.W))
         y1 = int(min(math.ceil(uv[:, 1].max() + reach), self.H))
-        return None if x1 - x0 < 2 or y1 - y0 < 2 else (x0, y0, x1, y1)
+        if x1 - x0 < 2 or y1 - y0 < 2:
+            return None
+        crop = frame.crop((x0, y0, x1, y1)).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
+        return crop, x0, y0
 
     def _body(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
         """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled.
@@ -358,11 +362,10 @@ class FrameRenderer:
         pix = self.f / z  # pixels per metre at each joint
         rh = 1.15 * _HEAD_RADIUS * self.k * pix
         reach = float(max((_LIMB_RADIUS[1] * self.k * pix).max(), rh.max() if sc.head is not None else 0.0)) + 3
-        box = self._figure_box(uv, reach)
-        if box is None:
+        region = self._figure_region(frame, uv, reach)
+        if region is None:
             return
-        x0, y0, x1, y1 = box
-        crop = frame.crop(box).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
+        crop, x0, y0 = region
         draw = ImageDraw.Draw(crop)
         loc_np = (uv - [x0, y0]) * _SS
         loc = [tuple(q) for q in loc_np.tolist()]
