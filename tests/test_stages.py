@@ -238,3 +238,55 @@ def test_stage_warps_on_a_beat_and_leaves_a_beatless_song_alone(tmp_path):
     np.testing.assert_array_equal(same.motion.positions, result.motion.positions)
     cleaned = finish(result, clicks, beat_sync_on=False)
     assert cleaned.motion.num_frames == result.motion.num_frames and cleaned.notes == []
+
+
+def test_warp_keeps_bone_lengths_of_a_positions_motion():
+    from dancekit.motion.analysis import rest_pose
+    from dancekit.motion.timewarp import warp_bones
+
+    sk = get_skeleton("tang2018")
+    rest = rest_pose(sk)
+    T = 40
+    angle = np.linspace(0, 3.0, T)  # the whole body turns 3 rad: 0.08 rad between frames
+    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    p = np.repeat(rest[None], T, axis=0)
+    x, z = p[..., 0].copy(), p[..., 2].copy()
+    p[..., 0], p[..., 2] = c * x - s * z, s * x + c * z
+    frames = np.linspace(0, T - 1, 57)
+    out = warp_bones(p, skeleton=sk, source_frames=frames)
+    lerped = warp_frames(p, source_frames=frames)
+    for j, parent in enumerate(sk.parents):
+        if parent >= 0:
+            want = np.linalg.norm(rest[j] - rest[parent])
+            np.testing.assert_allclose(np.linalg.norm(out[:, j] - out[:, parent], axis=-1), want, atol=1e-9)
+    # a plain lerp would shorten the long bones of the turning body; the positions stay close to it
+    assert np.abs(out - lerped).max() < 0.5
+
+
+def test_seed_distance_counts_the_seconds_until_seeds_converge():
+    from dancekit.evaluation.stages import seed_distance
+    from dancekit.motion.analysis import rest_pose
+
+    sk = get_skeleton("tang2018")
+    rest = rest_pose(sk)
+    T = int(10 * FPS)
+
+    def dance(arm_cm: np.ndarray, drift_cm: float = 0.0) -> Motion:
+        p = np.repeat(rest[None], T, axis=0)
+        wrist = sk.index("left_wrist")
+        p[:, wrist, 0] += arm_cm
+        p[:, :, 2] += drift_cm * np.arange(T)[:, None]  # travel does not count (poses relative to the root)
+        return Motion(skeleton=sk, fps=FPS, positions=p.astype(np.float32))
+
+    t = np.arange(T) / FPS
+    J = sk.num_joints
+    # song a: two seeds whose left wrist differs by 46 cm for the first 3 s, then not at all
+    a0, a1 = dance(np.zeros(T)), dance(np.where(t < 3.0, 46.0, 0.0), drift_cm=2.0)
+    # song b: the wrist 23 cm off throughout
+    b0 = dance(np.full(T, 23.0))
+    out = seed_distance({"a": [a0, a1], "b": [b0]})
+    np.testing.assert_allclose(out["seed_cm"], [46.0 / J] * 3 + [0.0] * 7, atol=1e-4)
+    np.testing.assert_allclose(out["song_cm"], [23.0 / J] * 10, atol=1e-4)
+    assert out["converged_after_s"] == 3.0 and out["pairs"] == {"seed": 1, "song": 1}
+    never = seed_distance({"a": [a0, dance(np.full(T, 46.0))], "b": [b0]})
+    assert never["converged_after_s"] is None

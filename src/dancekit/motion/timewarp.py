@@ -16,9 +16,9 @@ Three steps (:func:`beat_warp` runs them):
    differences: no speed jumps, the dance's speed changes gradually) that puts every matched pair
    exactly on its beat, an equality-constrained quadratic programme solved with a sparse KKT system;
    rates that leave ``1 ± max_rate_change`` are fixed at the bound and the rest solved again (active set).
-3. :func:`warp_frames` — the frames ``(T, ...)`` sampled at the fractional source frames (linear
-   interpolation, the toolkit's resampling rule); :meth:`Motion` rotations are slerped by
-   :func:`warp_motion`.
+3. :func:`warp_motion` — the dance sampled at the fractional source frames: rotations slerped, 3D
+   positions bone by bone (:func:`warp_bones`, bone lengths kept), anything else linearly
+   (:func:`warp_frames`, the toolkit's resampling rule).
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from dancekit.errors import ParameterError
 
 if TYPE_CHECKING:  # pragma: no cover
     from dancekit.motion.motion import Motion
+    from dancekit.motion.skeleton import Skeleton
 
 __all__ = [
     "DEFAULT_MAX_RATE_CHANGE",
@@ -39,6 +40,7 @@ __all__ = [
     "DEFAULT_PAIR_RATE_CHANGE",
     "beat_warp",
     "match_beats",
+    "warp_bones",
     "warp_frames",
     "warp_motion",
     "warp_rates",
@@ -235,15 +237,47 @@ def warp_frames(x: np.ndarray, *, source_frames: np.ndarray) -> np.ndarray:
     return x[i0] * (1 - w) + x[i1] * w
 
 
+def warp_bones(positions: np.ndarray, *, skeleton: Skeleton, source_frames: np.ndarray) -> np.ndarray:
+    """3D joint positions ``(T, J, 3)`` sampled at fractional source frames ``(T',)`` bone by bone: the
+    root's position interpolated linearly, every bone vector (parent → child) interpolated linearly,
+    then scaled to the linear interpolation of its two lengths (normalised lerp, close to slerp for the
+    small turns between neighbouring frames), chained from the root. Bones keep their lengths (a
+    straight lerp of positions shortens a turning bone). Returns float64 ``(T', J, 3)``."""
+    p = np.asarray(positions, dtype=np.float64)
+    s = np.clip(np.asarray(source_frames, dtype=np.float64), 0, len(p) - 1)
+    i0 = np.floor(s).astype(int)
+    i1 = np.minimum(i0 + 1, len(p) - 1)
+    w = (s - i0)[:, None]
+    out = np.empty((len(s),) + p.shape[1:])
+    for j in skeleton.topological_order:
+        parent = skeleton.parents[j]
+        if parent < 0:
+            out[:, j] = p[i0, j] * (1 - w) + p[i1, j] * w
+            continue
+        b0, b1 = p[i0, j] - p[i0, parent], p[i1, j] - p[i1, parent]
+        v = b0 * (1 - w) + b1 * w
+        length = np.linalg.norm(b0, axis=-1, keepdims=True) * (1 - w) + np.linalg.norm(b1, axis=-1, keepdims=True) * w
+        norm = np.linalg.norm(v, axis=-1, keepdims=True)
+        v = np.where(norm > 1e-12, v / np.maximum(norm, 1e-12) * length, v)
+        out[:, j] = out[:, parent] + v
+    return out
+
+
 def warp_motion(motion: Motion, *, source_frames: np.ndarray) -> Motion:
-    """The :class:`~dancekit.motion.Motion` sampled at fractional source frames ``(T',)``: positions and
-    root translation interpolated linearly, rotations by quaternion slerp (same fps and skeleton)."""
+    """The :class:`~dancekit.motion.Motion` sampled at fractional source frames ``(T',)`` (same fps and
+    skeleton): rotations by quaternion slerp and the root translation linearly; a 3D motion of positions
+    alone bone by bone (:func:`warp_bones`: bone lengths kept), a 2D one linearly."""
     from dancekit.motion.motion import Motion
 
     s = np.clip(np.asarray(source_frames, dtype=np.float64), 0, motion.num_frames - 1)
 
     def lerp(a: np.ndarray | None) -> np.ndarray | None:
         return None if a is None else warp_frames(a, source_frames=s)
+
+    if motion.rotations is None and motion.positions is not None and motion.positions.shape[-1] == 3:
+        pos = warp_bones(motion.positions, skeleton=motion.skeleton, source_frames=s)
+        return Motion(motion.skeleton, motion.fps, pos.astype(motion.positions.dtype), None,
+                      lerp(motion.root_translation))
 
     rot = None
     if motion.rotations is not None:
