@@ -290,3 +290,20 @@ def test_seed_distance_counts_the_seconds_until_seeds_converge():
     assert out["converged_after_s"] == 3.0 and out["pairs"] == {"seed": 1, "song": 1}
     never = seed_distance({"a": [a0, dance(np.full(T, 46.0))], "b": [b0]})
     assert never["converged_after_s"] is None
+
+
+def test_song_beats_are_cached(tmp_path):
+    from dancekit.audio import save_wav
+    from dancekit.audio.synth import click_track
+    from dancekit.features.pulse import song_beats_file
+
+    sr = 22050
+    song = tmp_path / "clicks.wav"
+    save_wav(song, click_track(bpm=120.0, duration=6.0, sr=sr), sr=sr)
+    first = song_beats_file(song, start=1.0, cache_dir=tmp_path / "cache")
+    assert len(list((tmp_path / "cache").glob("*.beats.npz"))) == 1
+    again = song_beats_file(song, start=1.0, cache_dir=tmp_path / "cache")
+    np.testing.assert_array_equal(first.times, again.times)
+    assert (first.tempo, first.clarity, first.has_beat) == (again.tempo, again.clarity, again.has_beat)
+    fresh = song_beats_file(song, start=1.0, use_cache=False)
+    np.testing.assert_array_equal(fresh.times, first.times)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dancekit.errors import DancekitError
 from dancekit.features.rhythm import (
     BEAT_HOP,
     BEAT_SR,
@@ -27,7 +28,7 @@ from dancekit.features.rhythm import (
     _to_beat_sr,
 )
 
-__all__ = ["MIN_BEATS", "MIN_PULSE_CLARITY", "SongBeats", "pulse_clarity", "song_beats"]
+__all__ = ["MIN_BEATS", "MIN_PULSE_CLARITY", "SongBeats", "pulse_clarity", "song_beats", "song_beats_file"]
 
 #: Below this pulse clarity a song is taken to have no beat.
 MIN_PULSE_CLARITY = 0.05
@@ -70,3 +71,43 @@ def song_beats(*, y: np.ndarray, sr: int, min_clarity: float = MIN_PULSE_CLARITY
     clarity = pulse_clarity(envelope=env, tempo=tempo)
     return SongBeats(tempo=float(tempo), times=np.asarray(times, np.float64), clarity=float(clarity),
                      has_beat=bool(len(times) >= min_beats and clarity >= min_clarity))
+
+
+def song_beats_file(path, *, start: float | None = None, end: float | None = None, cache_dir=None,
+                    use_cache: bool = True) -> SongBeats:
+    """:func:`song_beats` of an audio file (or its excerpt ``[start, end)`` s; times from ``start``), cached
+    beside the music features (:func:`dancekit.features.default_cache_dir`, keyed on the file's content and
+    the excerpt): librosa's beat tracker is compiled on its first call in a process, seconds that a song
+    danced again should not pay."""
+    from pathlib import Path
+
+    from dancekit._io import atomic_path, file_sha256
+    from dancekit.audio import load
+    from dancekit.audio.io import check_audio_path
+    from dancekit.features.cache import cache_key, default_cache_dir
+
+    entry = None
+    if use_cache:
+        check_audio_path(Path(path))
+        key = cache_key(sha256=file_sha256(Path(path)), fps=float(BEAT_SR) / BEAT_HOP, preset="song_beats",
+                        hop_length=BEAT_HOP, start=start, end=end, backend="librosa")
+        folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+        entry = folder / f"{key}.beats.npz"
+        if entry.is_file():
+            try:
+                with np.load(entry) as z:
+                    return SongBeats(tempo=float(z["tempo"]), times=np.asarray(z["times"], np.float64),
+                                     clarity=float(z["clarity"]), has_beat=bool(z["has_beat"]))
+            except (OSError, KeyError, ValueError, EOFError):
+                pass  # an unreadable entry is recomputed
+    y, sr = load(path, sr=BEAT_SR, start=start, end=end)
+    beats = song_beats(y=y, sr=sr)
+    if entry is not None:
+        try:
+            entry.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_path(entry) as tmp:
+                with open(tmp, "wb") as fh:
+                    np.savez(fh, tempo=beats.tempo, times=beats.times, clarity=beats.clarity, has_beat=beats.has_beat)
+        except (OSError, DancekitError):
+            pass  # caching is an optimisation only
+    return beats

@@ -36,11 +36,9 @@ def _is_3d(motion: Motion) -> bool:
 
 def song_beats_for(audio_path: str | os.PathLike, *, start: float | None = None, end: float | None = None):
     """The :class:`~dancekit.features.pulse.SongBeats` of the song (excerpt), times from the excerpt's start."""
-    from dancekit.audio import load
-    from dancekit.features.pulse import song_beats
+    from dancekit.features.pulse import song_beats_file
 
-    y, sr = load(audio_path, sr=22050, start=start, end=end)
-    return song_beats(y=y, sr=sr)
+    return song_beats_file(audio_path, start=start, end=end)
 
 
 def beat_sync(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
