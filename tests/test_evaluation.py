@@ -70,7 +70,10 @@ def test_evaluate_checkpoint_end_to_end(tiny_checkpoint, data_with_audio, tmp_pa
     assert sorted(p.name for p in (out / "pred_unwarped").glob("*.npz")) == ["DANCE_W_2__0.npz", "DANCE_W_2__1.npz"]
     bs = report["beat_sync"]
     assert bs["before"]["n_dances"] == bs["after"]["n_dances"] == 2 and report["generation"]["beat_sync"] is True
-    assert bs["after"]["bas_bailando"] == pytest.approx(m["bas_bailando"])  # "after" is what was scored
+    if m["bas_bailando"] is None:  # the tiny untrained model may have no speed minima: NaN, written as null
+        assert bs["after"]["bas_bailando"] != bs["after"]["bas_bailando"]
+    else:
+        assert bs["after"]["bas_bailando"] == pytest.approx(m["bas_bailando"])  # "after" is what was scored
     assert "beat sync: BAS" in printed and "seeds: mean pose distance" in printed
     assert report["seed_distance"]["pairs"] == {"seed": 1, "song": 0}
     # the same folder scored by `evaluate --pred` gives the same report

@@ -7,8 +7,9 @@
 ``seed_distance`` (:func:`seed_distance`)
     Per second of the song, the mean per-frame distance (cm) between the dances of two seeds for one
     song, and, for scale, between the dances of two different songs (same seed, cropped to the shorter).
-    Poses are compared relative to their root (the root's travel left out, so a dance that only drifts
-    elsewhere is not "different"); joint distances are averaged over joints, then over frames of each
+    Poses are compared relative to their root and in the body's heading frame
+    (:func:`dancekit.motion.analysis.heading_rotation`: the root's travel and the figure's turns left out,
+    so the same dance drifting or facing elsewhere is not "different"); joint distances are averaged over joints, then over frames of each
     second and over pairs. ``converged_after_s`` is the first second from which the seed distance stays
     below half the between-song distance to the end (None: it never does; 0.0: from the start).
 """
@@ -46,8 +47,12 @@ def beat_sync_comparison(before: Mapping[str, Sequence[Any]], after: Mapping[str
 
 
 def _pose(m: Any) -> np.ndarray:
+    """(T, J, 3) cm: joints relative to the root, in the body's heading frame (travel and turns left out)."""
+    from dancekit.motion.analysis import heading_rotation
+
     p = np.asarray(m.to_positions(), np.float64) * m.skeleton.unit_scale * 100.0  # cm
-    return p - p[:, m.skeleton.root : m.skeleton.root + 1]
+    rel = p - p[:, m.skeleton.root : m.skeleton.root + 1]
+    return np.einsum("tij,tkj->tki", heading_rotation(p, m.skeleton), rel)
 
 
 def _per_second(a: np.ndarray, b: np.ndarray, fps: float) -> np.ndarray:
