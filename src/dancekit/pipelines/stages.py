@@ -55,7 +55,12 @@ def beat_sync(result: DanceResult, audio_path: str | os.PathLike, *, start: floa
         return _with_note(result, "not beat-synced (not a 3D dance)")
     beats = song_beats_for(audio_path, start=start, end=end) if beats is None else beats
     if not beats.has_beat:
-        return _with_note(result, f"not beat-synced: the song has no clear beat (pulse clarity {beats.clarity:.2f})")
+        from dancekit.features.pulse import MIN_BEATS
+
+        clarity = 0.0 if abs(beats.clarity) < 0.005 else beats.clarity
+        why = (f"only {len(beats.times)} beats found" if len(beats.times) < MIN_BEATS
+               else f"pulse clarity {clarity:.2f}")
+        return _with_note(result, f"not beat-synced: the song has no clear beat ({why})")
     source, pairs = beat_warp(motion.to_positions(), music_beats=beats.times, fps=motion.fps)
     n_music = int(np.sum((beats.times > 0) & (beats.times < motion.duration)))
     if len(pairs) == 0:
