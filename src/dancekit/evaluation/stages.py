@@ -41,9 +41,16 @@ def beat_sync_comparison(before: Mapping[str, Sequence[Any]], after: Mapping[str
             for m in dances[name]:
                 rows.append(beat_mod.beat_metrics(m.to_positions(), music_beats[name], fps=m.fps, skeleton=m.skeleton,
                                                   sigma=sigma, tolerance=tolerance))
-        out[label] = {k: float(np.nanmean([r[k] for r in rows])) for k in _BEAT_KEYS}
+        out[label] = {k: _finite_mean([r[k] for r in rows]) for k in _BEAT_KEYS}
         out[label]["n_dances"] = len(rows)
     return out
+
+
+def _finite_mean(values: list[float]) -> float:
+    """Mean of the finite values (NaN when there is none, without a warning)."""
+    arr = np.asarray(values, dtype=np.float64)
+    arr = arr[np.isfinite(arr)]
+    return float(arr.mean()) if arr.size else float("nan")
 
 
 def _pose(m: Any) -> np.ndarray:
