@@ -49,7 +49,13 @@ def test_output_shape_and_upper_body_untouched(arch):
     lower = list(model.config.lower_idx)
     others = [i for i in range(155) if i not in set(lower)]
     torch.testing.assert_close(y[..., others], x[..., others], rtol=0, atol=0)  # upper body, effectors, contacts
-    assert (y[..., lower] - x[..., lower]).abs().max() > 1e-3  # the lower body is corrected
+    path = [rootdelta_layout(SK).root_cols[i] for i in (0, 2, 3)]  # Δt_x, Δt_z, Δr_y: the root's path
+    assert path == [lower[0], lower[2], lower[3]]
+    torch.testing.assert_close(y[..., path], x[..., path], rtol=0, atol=0)
+    legs = [i for i in lower if i not in path]
+    assert (y[..., legs] - x[..., legs]).abs().min() > 0  # every other lower-body column is corrected
+    free = _model(arch=arch, keep_root_path=False)(x)
+    assert (free[..., path] - x[..., path]).abs().max() > 1e-3
     assert model.increment(x).shape == (2, 40, len(lower))
 
 
@@ -81,10 +87,10 @@ def test_objective_corrupts_the_lower_body_and_the_model_can_undo_it():
     t = torch.linspace(0, 6, 48, dtype=torch.float64)
     x = torch.sin(t[None, :, None] * torch.linspace(0.5, 3, 155, dtype=torch.float64)).repeat(2, 1, 1)
     ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0), config=TrainConfig())
-    identity = FootConstraintModel(FootConstraintConfig(channels=8)).double()
+    identity = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0)).double()
     loss, logs = foot_constraint_step(identity, {"dance": x}, ctx)
     assert logs["mse_input"] > 0.005 and logs["mse"] == pytest.approx(logs["mse_input"])  # identity: no fix
-    model = FootConstraintModel(FootConstraintConfig(channels=16)).double()
+    model = FootConstraintModel(FootConstraintConfig(channels=16, clean_share=0.0)).double()
     opt = torch.optim.Adam(model.parameters(), lr=3e-3)
     first = None
     for _ in range(60):
@@ -94,6 +100,23 @@ def test_objective_corrupts_the_lower_body_and_the_model_can_undo_it():
         loss.backward()
         opt.step()
     assert logs["mse"] < 0.75 * first and logs["mse"] < logs["mse_input"]
+
+
+def test_objective_leaves_a_clean_share_of_the_windows_alone():
+    from dancekit.training import StepContext, TrainConfig
+    from dancekit.training.m2d import foot_constraint_step
+
+    t = torch.linspace(0, 6, 48, dtype=torch.float64)
+    wave = torch.sin(t[None, :, None] * torch.linspace(0.5, 3, 155, dtype=torch.float64))
+    x = wave.repeat(400, 1, 1)
+    ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0), config=TrainConfig())
+    clean = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=1.0)).double()
+    assert foot_constraint_step(clean, {"dance": x[:4]}, ctx)[1]["mse_input"] == 0.0
+    slid = foot_constraint_step(FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0)).double(),
+                                {"dance": x}, ctx)[1]["mse_input"]
+    half = foot_constraint_step(FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.25)).double(),
+                                {"dance": x}, ctx)[1]["mse_input"]
+    assert half / slid == pytest.approx(0.75, abs=0.07)  # 400 windows: 3/4 ± 3 binomial standard deviations
 
 
 def test_pipeline_post_processes_a_motion_in_place(tmp_path, rng):
