@@ -364,3 +364,25 @@ def test_fmap_on_windows_matches_the_windows_where_it_reads_them():
     torch.testing.assert_close(chunked[:, :30], model.music_condition(music[:, :40])[:, :30])
     torch.testing.assert_close(chunked[:, 30:50], model.music_condition(music[:, 20:60])[:, 10:30])
     torch.testing.assert_close(chunked[:, 70:], model.music_condition(music[:, 60:])[:, 10:])
+
+
+def test_pipeline_takes_its_default_temperature_from_the_checkpoint(m2d_folder, song8, tmp_path):
+    import json
+    import shutil
+
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    folder = tmp_path / "t0"
+    shutil.copytree(m2d_folder, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"temperature": 0.0}}))
+    plain, cold = Music2DancePipeline.from_pretrained(m2d_folder), Music2DancePipeline.from_pretrained(folder)
+    assert plain.temperature == 1.0 and cold.temperature == 0.0
+    means = plain(song8, seed=0, temperature=0.0).motion.to_positions()
+    np.testing.assert_array_equal(cold(song8, seed=0).motion.to_positions(), means)  # no temperature: the folder's
+    np.testing.assert_array_equal(cold(song8, seed=5).motion.to_positions(), means)  # temperature 0: no randomness
+    assert np.abs(plain(song8, seed=0).motion.to_positions() - means).max() > 1.0
+    (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"temperature": -1}}))
+    with pytest.raises(CheckpointError, match="temperature"):
+        Music2DancePipeline.from_pretrained(folder)

@@ -39,6 +39,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=_seed, default=0,
                    help="random seed: another seed, another dance (default 0); any integer (seeds outside "
                         "[0, 2**63) are hashed to 63 bits)")
+    p.add_argument("--foot-constraint", nargs="?", const="default", default=None, metavar="MODEL",
+                   help="post-process the dance with the Foot Constraint Model of Music2Dance (less foot sliding; "
+                        "the lower body alone is corrected, the path over the floor is kept): the one embedded with "
+                        "the music2dance model, or MODEL (a foot_constraint checkpoint). Any model on the tang2018 "
+                        "skeleton (default: off)")
     p.add_argument("--start", type=float, default=None, help="start of the song excerpt, seconds")
     p.add_argument("--end", type=float, default=None, help="end of the song excerpt, seconds")
     p.add_argument("--format", default=",".join(DEFAULT_FORMATS),
@@ -73,9 +78,14 @@ def run(args: argparse.Namespace) -> int:
     options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
     pipe = load_pipeline(args.model, args.checkpoint)
+    fix = None
+    if args.foot_constraint is not None:
+        from dancekit.pipelines.foot_constraint import load_foot_constraint
+
+        fix = load_foot_constraint(args.foot_constraint)  # before the dance: a bad name fails fast
     result = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=args.genre,
                   progress=not args.quiet)
-    motion = result.motion
+    motion = result.motion if fix is None else fix(result.motion)
     if args.fps is not None and args.fps != motion.fps:
         motion = motion.resample(args.fps)
     written = export_motion(motion, out, stem=audio.stem, formats=formats, audio=clip, options=options,

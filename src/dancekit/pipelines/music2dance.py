@@ -66,6 +66,11 @@ class Music2DancePipeline:
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         self.genres = tuple(meta.get("genres", ()))[: model.config.n_genres]
         self.genre_reader = genre_reader
+        #: sampling temperature when a call names none: the checkpoint's ``"sampling": {"temperature": t}``
+        #: (chosen on the validation songs for the embedded model), else 1 (the mixture as trained)
+        self.temperature = float(meta.get("sampling", {}).get("temperature", 1.0))
+        if not self.temperature >= 0:
+            raise CheckpointError(f"checkpoint {folder}: sampling temperature must be >= 0, got {self.temperature!r}")
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
@@ -83,7 +88,7 @@ class Music2DancePipeline:
         model, meta, arrays = load_pretrained(folder, device=device)
         stats = NormStats.from_arrays(arrays, source=str(folder))
         parts = components(folder, meta)
-        unknown = sorted(set(parts) - {"genre_reader"})
+        unknown = sorted(set(parts) - {"genre_reader", "foot_constraint"})  # the foot model: dancekit dance --foot-constraint
         if unknown:
             raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a Music2Dance model")
         reader = parts.get("genre_reader")
@@ -118,7 +123,7 @@ class Music2DancePipeline:
 
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, genre: str | None = None,
-                 temperature: float = 1.0, start: float | None = None, end: float | None = None,
+                 temperature: float | None = None, start: float | None = None, end: float | None = None,
                  progress: bool = False) -> DanceResult:
         """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
 
@@ -127,7 +132,8 @@ class Music2DancePipeline:
         seed : seeds the mixture sampling; the same seed gives the same dance
         genre : a dance type of :attr:`genres`; "auto"/None: read from the music by the folder's classifier when
             it has one (else "none"); "none": no dance type (the model's own learned "none" condition)
-        temperature : scales the sampled variances (and sharpens the mixture weights); 0 takes the means
+        temperature : scales the sampled variances (and sharpens the mixture weights); 0 takes the means;
+            None: the checkpoint's default (:attr:`temperature`)
         start, end : excerpt in seconds
 
         Returns
@@ -140,6 +146,7 @@ class Music2DancePipeline:
         ParameterError
             For an unknown genre or a negative temperature.
         """
+        temperature = self.temperature if temperature is None else temperature
         if not temperature >= 0:
             raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
         requested, danced, probs = self._genre(genre, audio_path, start, end)
