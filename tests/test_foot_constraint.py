@@ -144,3 +144,49 @@ def test_pipeline_post_processes_a_motion_in_place(tmp_path, rng):
     np.testing.assert_allclose(out.root_translation[0, [0, 2]], pos[0, SK.root, [0, 2]], atol=1e-3)  # in place
     assert np.abs(out.to_positions() - pos).max() > 1e-3  # the model did correct something
     assert np.abs(out.to_positions() - pos).max() < 20.0
+
+
+def test_dance_cli_foot_constraint_option(tmp_path, capsys):
+    """`dancekit dance --foot-constraint MODEL` corrects the lower body of any model's dance on the skeleton,
+    leaves the upper body's rotations alone; a folder that is no foot model is a one-line error."""
+    from dancekit.audio import save_wav, synth
+    from dancekit.checkpoints import NormStats, save_pretrained
+    from dancekit.cli.main import main
+    from dancekit.models.music2dance import Music2DanceConfig, Music2DanceModel
+    from dancekit.motion.formats import read_motion
+    from dancekit.pipelines.foot_constraint import foot_constraint_folder
+
+    lay = rootdelta_layout(SK)
+    stats = NormStats(music_mean=np.zeros(15, np.float32), music_std=np.ones(15, np.float32),
+                      dance_mean=np.zeros(lay.dim, np.float32), dance_std=np.full(lay.dim, 0.05, np.float32))
+    stats.dance_mean[1], stats.dance_std[1] = 90.0, 1.0  # root height, cm
+    stats.dance_std[list(lay.contact_cols)] = 1.0
+    meta = {"skeleton": SK.to_dict(), "fps": 25.0, "representation": "rotations_rootdelta", "preset": "music2dance",
+            "hop_length": 512}
+    torch.manual_seed(0)
+    cfg = Music2DanceConfig(pose_dim=lay.dim, n_genres=0, n_layers=2, channels=4, skip_channels=4, genre_dim=2,
+                            fmap_channels=(2, 2, 2), fmap_lstm_hidden=2)
+    dancer = save_pretrained(tmp_path / "m2d", Music2DanceModel(cfg), cfg, stats=stats,
+                             extra={**meta, "sampling": {"temperature": 0.0}})
+    fc = _model().float()
+    save_pretrained(tmp_path / "fc", fc, fc.config, stats=stats, extra=meta)
+    assert foot_constraint_folder(tmp_path / "fc") == tmp_path / "fc"
+    song = tmp_path / "tune.wav"
+    save_wav(song, synth.ode_to_joy(sr=22050)[: 2 * 22050], sr=22050)
+    runs = {}
+    for label, extra in (("plain", []), ("fixed", ["--foot-constraint", str(tmp_path / "fc")])):
+        code = main(["dance", str(song), "-o", str(tmp_path / label), "--checkpoint", str(dancer), "--quiet",
+                     "--format", "npz", *extra])
+        assert code == 0
+        runs[label] = read_motion(tmp_path / label / "tune.npz")
+    legs = [j for j in range(SK.rig().num_joints) if "knee" in SK.rig().joint_names[j]]
+    arms = [j for j in range(SK.rig().num_joints) if "elbow" in SK.rig().joint_names[j]]
+    assert legs and arms
+    a, b = runs["plain"].rotations, runs["fixed"].rotations
+    assert np.abs(a[:, legs] - b[:, legs]).max() > 1e-3  # the legs are corrected
+    np.testing.assert_allclose(a[:, arms], b[:, arms], atol=1e-5)  # the arms are not
+    capsys.readouterr()
+    out = tmp_path / "bad"
+    assert main(["dance", str(song), "-o", str(out), "--checkpoint", str(dancer), "--foot-constraint", str(dancer)]) != 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not a Foot Constraint Model" in err and not out.exists()
