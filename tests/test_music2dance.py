@@ -386,3 +386,15 @@ def test_pipeline_takes_its_default_temperature_from_the_checkpoint(m2d_folder, 
     (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"temperature": -1}}))
     with pytest.raises(CheckpointError, match="temperature"):
         Music2DancePipeline.from_pretrained(folder)
+
+
+def test_a_batch_of_seeds_equals_the_seeds_one_by_one(m2d_folder, song8):
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    pipe = Music2DancePipeline.from_pretrained(m2d_folder)
+    batch = pipe.dances(song8, seeds=[3, 0, 7], genre="rumba", end=3.0)
+    assert [r.seed for r in batch] == [3, 0, 7]
+    for r in batch:
+        alone = pipe(song8, seed=r.seed, genre="rumba", end=3.0).motion.to_positions()
+        np.testing.assert_allclose(r.motion.to_positions(), alone, rtol=0, atol=1e-4)  # cm (float32 batching)
+    assert np.abs(batch[0].motion.to_positions() - batch[1].motion.to_positions()).max() > 1.0

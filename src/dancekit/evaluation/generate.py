@@ -38,7 +38,8 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
 
     Parameters
     ----------
-    pipe : a dance pipeline (``pipe(audio, seed=, start=, end=, genre=)`` → :class:`~dancekit.pipelines.DanceResult`)
+    pipe : a dance pipeline (``pipe(audio, seed=, start=, end=, genre=)`` → :class:`~dancekit.pipelines.DanceResult`;
+        when it has ``pipe.dances(audio, seeds=[...], ...)``, the seeds of a song are danced at once)
     data : a :class:`~dancekit.data.PreparedData`
     split : the split whose songs are danced
     seeds : dances per song (seeds ``0 .. seeds-1``)
@@ -63,11 +64,16 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
         old.unlink()
     t0 = time.perf_counter()
     seconds, files = 0.0, 0
+    batch = getattr(pipe, "dances", None)  # a pipeline that dances several seeds at once (equal results)
     for name in tqdm(names, desc="generate", unit="song", disable=not progress):
         ref = data.audio(name)
-        for k in range(seeds):
-            motion = pipe(ref.path, seed=k, start=ref.start, end=ref.end,
-                          genre=requested_genre(genre, data.genre(name))).motion
+        want = requested_genre(genre, data.genre(name))
+        if batch is not None:
+            motions = [r.motion for r in batch(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end,
+                                               genre=want)]
+        else:
+            motions = [pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=want).motion for k in range(seeds)]
+        for k, motion in enumerate(motions):
             stem = name if seeds == 1 else f"{name}{SAMPLE_SEP}{k}"
             write_motion(out / f"{stem}.npz", motion)
             seconds += motion.duration

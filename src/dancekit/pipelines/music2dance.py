@@ -146,20 +146,38 @@ class Music2DancePipeline:
         ParameterError
             For an unknown genre or a negative temperature.
         """
+        return self.dances(audio_path, seeds=[seed], genre=genre, temperature=temperature, start=start, end=end,
+                           progress=progress)[0]
+
+    @torch.no_grad()
+    def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], genre: str | None = None,
+               temperature: float | None = None, start: float | None = None, end: float | None = None,
+               progress: bool = False) -> list[DanceResult]:
+        """One dance per seed for the song, generated as one batch (the features and the frame loop once):
+        ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
+        :meth:`__call__`."""
         temperature = self.temperature if temperature is None else temperature
         if not temperature >= 0:
             raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
+        seeds = [int(s) for s in seeds]
+        if not seeds:
+            raise ParameterError("dances() needs at least one seed")
         requested, danced, probs = self._genre(genre, audio_path, start, end)
         x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, D)
-        index = torch.tensor([self.genres.index(danced) if danced is not None else -1])
-        gen = torch.Generator().manual_seed(int(seed))
+        B = len(seeds)
+        index = torch.full((B,), self.genres.index(danced) if danced is not None else -1)
+        gens = [torch.Generator().manual_seed(s) for s in seeds]
         window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
-        y = self.model.generate(x.to(self.model.genre_embedding.weight.device), index, temperature=temperature,
-                                generator=gen, progress=progress, fmap_window=window)  # (1, T, P)
-        poses = self.stats.denormalize_dance(y[0].cpu().numpy().astype(np.float64))
-        motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
-        return DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
-                           genre=danced, genre_probs=probs, danced_by=self.folder)
+        x = x.to(self.model.genre_embedding.weight.device).expand(B, -1, -1)
+        y = self.model.generate(x, index, temperature=temperature, generator=gens, progress=progress,
+                                fmap_window=window)  # (B, T, P)
+        out = []
+        for k, seed in enumerate(seeds):
+            poses = self.stats.denormalize_dance(y[k].cpu().numpy().astype(np.float64))
+            motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
+            out.append(DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
+                                   genre=danced, genre_probs=probs, danced_by=self.folder))
+        return out
 
 
 def on_the_floor(motion: Motion) -> Motion:
