@@ -398,3 +398,8 @@ def test_a_batch_of_seeds_equals_the_seeds_one_by_one(m2d_folder, song8):
         alone = pipe(song8, seed=r.seed, genre="rumba", end=3.0).motion.to_positions()
         np.testing.assert_allclose(r.motion.to_positions(), alone, rtol=0, atol=1e-4)  # cm (float32 batching)
     assert np.abs(batch[0].motion.to_positions() - batch[1].motion.to_positions()).max() > 1.0
+    mixed = pipe.dances(song8, seeds=[0, 0], genre=["waltz", "rumba"], end=3.0)
+    assert [r.genre for r in mixed] == ["waltz", "rumba"]
+    for r in mixed:
+        alone = pipe(song8, seed=0, genre=r.genre, end=3.0).motion.to_positions()
+        np.testing.assert_allclose(r.motion.to_positions(), alone, rtol=0, atol=1e-4)

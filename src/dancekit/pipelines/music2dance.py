@@ -150,29 +150,33 @@ class Music2DancePipeline:
                            progress=progress)[0]
 
     @torch.no_grad()
-    def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], genre: str | None = None,
+    def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], genre: str | list[str | None] | None = None,
                temperature: float | None = None, start: float | None = None, end: float | None = None,
                progress: bool = False) -> list[DanceResult]:
         """One dance per seed for the song, generated as one batch (the features and the frame loop once):
         ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
-        :meth:`__call__`."""
+        :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type)."""
         temperature = self.temperature if temperature is None else temperature
         if not temperature >= 0:
             raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
         seeds = [int(s) for s in seeds]
         if not seeds:
             raise ParameterError("dances() needs at least one seed")
-        requested, danced, probs = self._genre(genre, audio_path, start, end)
+        wanted = list(genre) if isinstance(genre, (list, tuple)) else [genre] * len(seeds)
+        if len(wanted) != len(seeds):
+            raise ParameterError(f"{len(wanted)} genres for {len(seeds)} seeds")
+        read = {g: self._genre(g, audio_path, start, end) for g in dict.fromkeys(wanted)}  # (requested, danced, probs)
         x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, D)
         B = len(seeds)
-        index = torch.full((B,), self.genres.index(danced) if danced is not None else -1)
+        index = torch.tensor([self.genres.index(read[g][1]) if read[g][1] is not None else -1 for g in wanted])
         gens = [torch.Generator().manual_seed(s) for s in seeds]
         window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
         x = x.to(self.model.genre_embedding.weight.device).expand(B, -1, -1)
         y = self.model.generate(x, index, temperature=temperature, generator=gens, progress=progress,
                                 fmap_window=window)  # (B, T, P)
         out = []
-        for k, seed in enumerate(seeds):
+        for k, (seed, g) in enumerate(zip(seeds, wanted)):
+            requested, danced, probs = read[g]
             poses = self.stats.denormalize_dance(y[k].cpu().numpy().astype(np.float64))
             motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
             out.append(DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
