@@ -403,3 +403,35 @@ def test_a_batch_of_seeds_equals_the_seeds_one_by_one(m2d_folder, song8):
     for r in mixed:
         alone = pipe(song8, seed=0, genre=r.genre, end=3.0).motion.to_positions()
         np.testing.assert_allclose(r.motion.to_positions(), alone, rtol=0, atol=1e-4)
+
+
+def test_the_embedded_model_loads_in_float32_with_its_parts_and_dances(song8):
+    """`--model music2dance` needs no download: a float16 folder (<= 8 MB with its F_map, foot model and
+    music attribute classifier) whose weights load as float32; its sampling settings come from its config."""
+    import json
+
+    from safetensors import safe_open
+
+    from dancekit.checkpoints import available_models, resolve_model
+    from dancekit.pipelines.foot_constraint import foot_constraint_folder, load_foot_constraint
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    folder = resolve_model("music2dance")
+    assert "music2dance" in available_models()
+    assert sum(f.stat().st_size for f in folder.rglob("*") if f.is_file()) <= 8e6
+    with safe_open(str(folder / "model.safetensors"), "pt") as f:
+        assert {f.get_tensor(k).dtype for k in f.keys()} >= {torch.float16}
+    pipe = Music2DancePipeline.from_pretrained("music2dance")
+    assert {p.dtype for p in pipe.model.parameters()} == {torch.float32}
+    assert int(pipe.model.fmap_loaded) == 1 and pipe.genre_reader is not None
+    sampling = json.loads((folder / "config.json").read_text())["sampling"]
+    assert (pipe.temperature, pipe.noise_correlation, pipe.smooth_sigma) == (
+        sampling["temperature"], sampling["noise_correlation"], sampling["smooth_sigma"])
+    assert foot_constraint_folder() == folder / "foot_constraint"
+    fix = load_foot_constraint()
+    assert {p.dtype for p in fix.model.parameters()} == {torch.float32}
+    r = pipe(song8, seed=0, genre="waltz", end=4.0)
+    pos = r.motion.to_positions()
+    assert r.genre == "waltz" and pos.shape[0] == 101 and np.isfinite(pos).all()
+    assert np.linalg.norm(np.diff(pos, axis=0), axis=-1).mean() * 25 > 10.0  # moves (cm/s)
+    assert fix(r.motion).num_frames == 101

@@ -159,14 +159,25 @@ def gmm_nll(logit_w: torch.Tensor, mu: torch.Tensor, log_var: torch.Tensor, x: t
     return -torch.logsumexp(log_w + log_comp, dim=-1)
 
 
+def standard_normal(shape: tuple[int, ...], *, generator: torch.Generator | list[torch.Generator] | None = None,
+                    dtype: torch.dtype = torch.float32, device: torch.device | str = "cpu") -> torch.Tensor:
+    """``N(0, 1)`` noise of ``shape``; with a list of generators, row ``b`` (of the leading dimension) from
+    ``generator[b]``, as a batch of that row alone would draw it."""
+    if isinstance(generator, (list, tuple)):
+        return torch.cat([torch.randn((1, *shape[1:]), generator=g, dtype=dtype, device=device) for g in generator])
+    return torch.randn(shape, generator=generator, dtype=dtype, device=device)
+
+
 def gmm_sample(logit_w: torch.Tensor, mu: torch.Tensor, log_var: torch.Tensor, *, temperature: float = 1.0,
-               generator: torch.Generator | list[torch.Generator] | None = None) -> torch.Tensor:
+               generator: torch.Generator | list[torch.Generator] | None = None,
+               noise: torch.Tensor | None = None) -> torch.Tensor:
     """A sample ``(..., D)`` of the mixture (Eq. 12). ``temperature`` scales the variances and sharpens ω
     (logits / temperature); 0 gives the mean of the most likely component.
 
     ``generator``: one for all, or a list of one per row of the leading dimension (``(B, ...)`` inputs): row
     ``b`` then draws from ``generator[b]`` exactly what a batch of that row alone draws from it, so a batch
-    of seeds equals the seeds one by one.
+    of seeds equals the seeds one by one. ``noise (..., D)``: the standard normal draw to use (e.g. noise
+    correlated over frames, :meth:`Music2DanceModel.generate`) instead of a fresh one.
     """
     if temperature <= 0:
         k = logit_w.argmax(-1)
@@ -175,7 +186,8 @@ def gmm_sample(logit_w: torch.Tensor, mu: torch.Tensor, log_var: torch.Tensor, *
         if len(generator) != logit_w.shape[0]:
             raise ParameterError(f"{len(generator)} generators for a batch of {logit_w.shape[0]}")
         return torch.cat([gmm_sample(logit_w[b : b + 1], mu[b : b + 1], log_var[b : b + 1], temperature=temperature,
-                                     generator=g) for b, g in enumerate(generator)])
+                                     generator=g, noise=None if noise is None else noise[b : b + 1])
+                          for b, g in enumerate(generator)])
     N = logit_w.shape[-1]
     if N == 1:  # one component: nothing to choose (no draw, as with a choice among one)
         k = torch.zeros(logit_w.shape[:-1], dtype=torch.long, device=logit_w.device)
@@ -185,7 +197,7 @@ def gmm_sample(logit_w: torch.Tensor, mu: torch.Tensor, log_var: torch.Tensor, *
     idx = k[..., None, None].expand(*k.shape, 1, mu.shape[-1])
     m = torch.gather(mu, -2, idx)[..., 0, :]
     std = torch.exp(0.5 * torch.gather(log_var, -2, idx)[..., 0, :]) * math.sqrt(temperature)
-    eps = torch.randn(m.shape, generator=generator, dtype=m.dtype, device=m.device)
+    eps = torch.randn(m.shape, generator=generator, dtype=m.dtype, device=m.device) if noise is None else noise
     return m + std * eps
 
 
@@ -373,10 +385,12 @@ class Music2DanceModel(nn.Module):
                       "contact_acc": acc}
 
     def predict(self, params: torch.Tensor, *, temperature: float = 1.0,
-                generator: torch.Generator | list[torch.Generator] | None = None) -> torch.Tensor:
-        """A motion frame ``(..., P)`` from output parameters: a mixture sample and thresholded contacts."""
+                generator: torch.Generator | list[torch.Generator] | None = None,
+                noise: torch.Tensor | None = None) -> torch.Tensor:
+        """A motion frame ``(..., P)`` from output parameters: a mixture sample (``noise``: see
+        :func:`gmm_sample`) and thresholded contacts."""
         logit_w, mu, log_var, contact_logits = split_params(params, self.config)
-        x = gmm_sample(logit_w, mu, log_var, temperature=temperature, generator=generator)
+        x = gmm_sample(logit_w, mu, log_var, temperature=temperature, generator=generator, noise=noise)
         return torch.cat([x, (contact_logits > 0).to(x.dtype)], dim=-1)
 
     # ---------------------------------------------------------------- incremental
@@ -445,8 +459,13 @@ class Music2DanceModel(nn.Module):
     @torch.no_grad()
     def generate(self, music: torch.Tensor, genre: torch.Tensor | None = None, *, temperature: float = 1.0,
                  generator: torch.Generator | list[torch.Generator] | None = None, first: torch.Tensor | None = None,
-                 progress: bool = False, fmap_window: int | None = None) -> torch.Tensor:
+                 progress: bool = False, fmap_window: int | None = None,
+                 noise_correlation: float = 0.0) -> torch.Tensor:
         """A dance ``(B, T, P)`` for ``music (B, T, D_m)``, frame by frame, sampling the mixture.
+
+        ``noise_correlation`` ρ in [0, 1): the standard normal draw of each frame is ``ε_t = ρ ε_{t-1} +
+        √(1-ρ²) η_t`` (η fresh; still N(0, 1) at every frame) instead of independent draws (ρ = 0, the
+        paper's): the deviations from the mixture means then vary slowly, a dance instead of a tremor.
 
         ``first (B, P)``: the input of frame 0 (default zeros: the mean pose, no contacts); ``fmap_window``:
         see :meth:`music_condition` (the pipeline passes the training window); ``generator``: one, or one
@@ -457,11 +476,19 @@ class Music2DanceModel(nn.Module):
         B, T = music.shape[:2]
         cond, g = self._conditions(music, genre, window=fmap_window)
         state = self.init_state(B, device=music.device, dtype=music.dtype)
+        if not 0.0 <= noise_correlation < 1.0:
+            raise ParameterError(f"noise_correlation must be in [0, 1), got {noise_correlation!r}")
         x = first if first is not None else music.new_zeros(B, self.config.pose_dim)
         w = self._step_weights() if self.config.generator == "wavenet" else None
+        rho, eps = float(noise_correlation), None
         frames = []
         for t in tqdm(range(T), disable=not progress, desc="dance", unit="frame"):
-            x = self.predict(self.step(cond[:, t], g, x, state, w), temperature=temperature, generator=generator)
+            if rho > 0 and temperature > 0:
+                eta = standard_normal((B, self.config.gmm_dim), generator=generator, dtype=music.dtype,
+                                      device=music.device)
+                eps = eta if eps is None else rho * eps + math.sqrt(1 - rho * rho) * eta
+            x = self.predict(self.step(cond[:, t], g, x, state, w), temperature=temperature, generator=generator,
+                             noise=eps)
             frames.append(x)
         return torch.stack(frames, dim=1)
 

@@ -69,6 +69,17 @@ class Music2DancePipeline:
         #: sampling temperature when a call names none: the checkpoint's ``"sampling": {"temperature": t}``
         #: (chosen on the validation songs for the embedded model), else 1 (the mixture as trained)
         self.temperature = float(meta.get("sampling", {}).get("temperature", 1.0))
+        #: correlation of the sampling noise from frame to frame (:meth:`Music2DanceModel.generate`), the
+        #: checkpoint's ``"sampling": {"noise_correlation": ρ}`` (default 0: independent, the paper's)
+        self.noise_correlation = float(meta.get("sampling", {}).get("noise_correlation", 0.0))
+        if not 0.0 <= self.noise_correlation < 1.0:
+            raise CheckpointError(f"checkpoint {folder}: sampling noise_correlation must be in [0, 1), "
+                                  f"got {self.noise_correlation!r}")
+        #: Gaussian smoothing (frames) of the sampled features before decoding, contacts excepted (the
+        #: checkpoint's ``"sampling": {"smooth_sigma": s}``; default 0: none)
+        self.smooth_sigma = float(meta.get("sampling", {}).get("smooth_sigma", 0.0))
+        if not self.smooth_sigma >= 0:
+            raise CheckpointError(f"checkpoint {folder}: sampling smooth_sigma must be >= 0, got {self.smooth_sigma!r}")
         if not self.temperature >= 0:
             raise CheckpointError(f"checkpoint {folder}: sampling temperature must be >= 0, got {self.temperature!r}")
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
@@ -173,7 +184,12 @@ class Music2DancePipeline:
         window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
         x = x.to(self.model.genre_embedding.weight.device).expand(B, -1, -1)
         y = self.model.generate(x, index, temperature=temperature, generator=gens, progress=progress,
-                                fmap_window=window)  # (B, T, P)
+                                fmap_window=window, noise_correlation=self.noise_correlation)  # (B, T, P)
+        if self.smooth_sigma > 0:
+            from dancekit.models.foot_constraint import gaussian_smooth
+
+            D = self.model.config.gmm_dim
+            y = torch.cat([gaussian_smooth(y[..., :D], self.smooth_sigma), y[..., D:]], -1)
         out = []
         for k, (seed, g) in enumerate(zip(seeds, wanted)):
             requested, danced, probs = read[g]
