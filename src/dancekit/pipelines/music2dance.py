@@ -163,10 +163,12 @@ class Music2DancePipeline:
     @torch.no_grad()
     def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], genre: str | list[str | None] | None = None,
                temperature: float | None = None, start: float | None = None, end: float | None = None,
-               progress: bool = False) -> list[DanceResult]:
+               progress: bool = False, music: np.ndarray | None = None) -> list[DanceResult]:
         """One dance per seed for the song, generated as one batch (the features and the frame loop once):
         ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
-        :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type)."""
+        :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type). ``music``:
+        the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
+        prepared dataset's), instead of extracting them from ``audio_path``."""
         temperature = self.temperature if temperature is None else temperature
         if not temperature >= 0:
             raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
@@ -177,7 +179,14 @@ class Music2DancePipeline:
         if len(wanted) != len(seeds):
             raise ParameterError(f"{len(wanted)} genres for {len(seeds)} seeds")
         read = {g: self._genre(g, audio_path, start, end) for g in dict.fromkeys(wanted)}  # (requested, danced, probs)
-        x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, D)
+        if music is None:
+            feats = self.features(audio_path, start=start, end=end)
+        else:
+            music = np.asarray(music, np.float32)
+            if music.ndim != 2 or music.shape[1] != self.model.config.music_dim:
+                raise ParameterError(f"music features must be (T, {self.model.config.music_dim}), got {music.shape}")
+            feats = self.stats.normalize_music(music).astype(np.float32)
+        x = torch.from_numpy(feats)[None]  # (1, T, D)
         B = len(seeds)
         index = torch.tensor([self.genres.index(read[g][1]) if read[g][1] is not None else -1 for g in wanted])
         gens = [torch.Generator().manual_seed(s) for s in seeds]
