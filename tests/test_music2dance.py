@@ -435,3 +435,29 @@ def test_the_embedded_model_loads_in_float32_with_its_parts_and_dances(song8):
     assert r.genre == "waltz" and pos.shape[0] == 101 and np.isfinite(pos).all()
     assert np.linalg.norm(np.diff(pos, axis=0), axis=-1).mean() * 25 > 10.0  # moves (cm/s)
     assert fix(r.motion).num_frames == 101
+
+
+def test_sampling_noise_given_and_correlated_over_frames():
+    from dancekit.errors import ParameterError
+    from dancekit.models.music2dance import gmm_sample
+
+    g = torch.Generator().manual_seed(0)
+    logit_w, mu, log_var = torch.zeros(3, 1), torch.randn(3, 1, 4, generator=g), torch.randn(3, 1, 4, generator=g)
+    z = torch.randn(3, 4, generator=g)
+    torch.testing.assert_close(gmm_sample(logit_w, mu, log_var, temperature=0.25, noise=z),
+                               mu[:, 0] + torch.exp(0.5 * log_var[:, 0]) * 0.5 * z)  # σ·√t·ε
+    model = _tiny()
+    music = torch.randn(1, 400, 5, dtype=torch.float64)
+    with torch.no_grad():  # outputs: the means at zero and unit variances, so the dance is the noise itself
+        model.out2.weight.zero_()
+        model.out2.bias.zero_()
+    model.eval()
+    D = model.config.gmm_dim
+
+    def lag1(rho: float) -> float:
+        x = model.generate(music, None, generator=torch.Generator().manual_seed(1), noise_correlation=rho)[0, :, :D]
+        return float(torch.corrcoef(torch.stack([x[1:].reshape(-1), x[:-1].reshape(-1)]))[0, 1])
+
+    assert abs(lag1(0.0)) < 0.1 and lag1(0.9) == pytest.approx(0.9, abs=0.05)
+    with pytest.raises(ParameterError, match="noise_correlation"):
+        model.generate(music, None, noise_correlation=1.0)
