@@ -23,6 +23,7 @@ def lower_body_mse(data: PreparedData, run: str, *, window: int = 240, seed: int
     """(MSE corrected, MSE of the sliding input, windows) of the run's model on the test split."""
     model, _, arrays = load_pretrained(f"{run}/model")
     model.eval()
+    model.config.clean_share = 0.0  # every test window slides (the training's clean share is not scored here)
     stats = NormStats(**{k: arrays[k] for k in ("music_mean", "music_std", "dance_mean", "dance_std")})
     ds = WindowDataset(data, "test", preset="music2dance", window=window, stride=window, stats=stats,
                        representation="rotations_rootdelta")

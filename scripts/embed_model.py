@@ -18,6 +18,12 @@ of the model alone (``--genre none``) to the card. The parts are declared in the
 (``"components": {"genre_reader": "music_attributes", "genres": {"waltz": "genres/waltz", ...}}``,
 :func:`dancekit.checkpoints.declare_components`), which is how the pipeline finds them.
 
+``--float16`` stores the model's own weights as float16 too (the loader copies them into float32
+parameters); ``--foot-constraint DIR`` adds a Foot Constraint Model (``dancekit train foot_constraint``) as
+``foot_constraint/`` (float16), declared as the ``"foot_constraint"`` component that ``dancekit dance
+--foot-constraint`` uses; ``--temperature T`` records the default sampling temperature of a Music2Dance
+model (``"sampling": {"temperature": T}`` in its config.json); ``--card JSON`` merges more entries into the card.
+
 A classifier is embedded the same way (e.g. the style classifier of ``dancekit evaluate``:
 ``python scripts/embed_model.py runs/style/best --name style --description ... --scores scores.json``,
 with the scores of ``dancekit score-classifier runs/style/best --data DIR -o scores.json`` in the card).
@@ -59,6 +65,12 @@ def main(argv: list[str] | None = None) -> int:
                         help="dancekit evaluate report of the model alone (--genre none, test split)")
     parser.add_argument("--scores", default=None, metavar="JSON",
                         help="a classifier's scores (dancekit score-classifier -o) for the card")
+    parser.add_argument("--float16", action="store_true", help="store the model's weights as float16")
+    parser.add_argument("--foot-constraint", default=None, metavar="DIR",
+                        help="add a Foot Constraint Model checkpoint (float16) as foot_constraint/")
+    parser.add_argument("--temperature", type=float, default=None,
+                        help="default sampling temperature (Music2Dance), recorded in config.json")
+    parser.add_argument("--card", default=None, metavar="JSON", help="more card entries (a JSON file)")
     args = parser.parse_args(argv)
 
     from dancekit.checkpoints import declare_components
@@ -72,7 +84,13 @@ def main(argv: list[str] | None = None) -> int:
     dst = MODELS / args.name
     if dst.exists():
         shutil.rmtree(dst)
-    _copy_checkpoint(src, dst)
+    _copy_checkpoint(src, dst, weights=not args.float16)
+    if args.float16:
+        _half_weights(src, dst)
+    if args.temperature is not None:
+        meta = json.loads((dst / "config.json").read_text())
+        meta["sampling"] = {"temperature": args.temperature}
+        (dst / "config.json").write_text(json.dumps(meta, indent=1) + "\n")
     from safetensors.numpy import load_file
 
     n_params = sum(v.size for v in load_file(str(dst / "model.safetensors")).values())
@@ -102,6 +120,10 @@ def main(argv: list[str] | None = None) -> int:
         _copy_checkpoint(Path(args.music_attributes), dst / "music_attributes")
         card["music_attributes"] = args.music_attributes_training
         components["genre_reader"] = "music_attributes"
+    if args.foot_constraint:
+        _copy_checkpoint(Path(args.foot_constraint), dst / "foot_constraint", weights=False)
+        _half_weights(Path(args.foot_constraint), dst / "foot_constraint")
+        components["foot_constraint"] = "foot_constraint"
     if args.genre_model:
         components["genres"] = {g: f"genres/{g}" for g in card["genre_models"]}
     if components:
@@ -111,6 +133,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.scores:
         scores = json.loads(Path(args.scores).read_text())
         card["scores"] = scores[0] if isinstance(scores, list) and len(scores) == 1 else scores
+    if args.card:
+        card.update(json.loads(Path(args.card).read_text()))
     (dst / "card.json").write_text(json.dumps(card, indent=1) + "\n")
     size = sum(f.stat().st_size for f in dst.rglob("*") if f.is_file())
     print(f"embedded {src} as {dst} ({size / 1e6:.2f} MB)")
@@ -119,9 +143,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def _embed_genre_models(dst: Path, items: list[str]) -> list[str]:
     """Copy each ``GENRE=DIR`` checkpoint to ``dst/genres/GENRE`` with float16 weights."""
-    import torch
-    from safetensors.torch import load_file, save_file
-
     genres = []
     for item in items:
         genre, sep, folder = item.partition("=")
@@ -129,12 +150,19 @@ def _embed_genre_models(dst: Path, items: list[str]) -> list[str]:
             raise SystemExit(f"embed_model: --genre-model expects GENRE=DIR, got {item!r}")
         src, out = Path(folder), dst / "genres" / genre
         _copy_checkpoint(src, out, weights=False)
-        state = load_file(str(src / "model.safetensors"))
-        save_file({k: v.half() if v.is_floating_point() else v for k, v in state.items()},
-                  str(out / "model.safetensors"))
-        assert all(torch.isfinite(v.float()).all() for v in load_file(str(out / "model.safetensors")).values())
+        _half_weights(src, out)
         genres.append(genre)
     return genres
+
+
+def _half_weights(src: Path, out: Path) -> None:
+    """``src/model.safetensors`` written to ``out`` with its floating-point tensors as float16."""
+    import torch
+    from safetensors.torch import load_file, save_file
+
+    state = load_file(str(src / "model.safetensors"))
+    save_file({k: v.half() if v.is_floating_point() else v for k, v in state.items()}, str(out / "model.safetensors"))
+    assert all(torch.isfinite(v.float()).all() for v in load_file(str(out / "model.safetensors")).values())
 
 
 def _copy_checkpoint(src: Path, out: Path, *, weights: bool = True) -> None:

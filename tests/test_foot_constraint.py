@@ -49,7 +49,13 @@ def test_output_shape_and_upper_body_untouched(arch):
     lower = list(model.config.lower_idx)
     others = [i for i in range(155) if i not in set(lower)]
     torch.testing.assert_close(y[..., others], x[..., others], rtol=0, atol=0)  # upper body, effectors, contacts
-    assert (y[..., lower] - x[..., lower]).abs().max() > 1e-3  # the lower body is corrected
+    path = [rootdelta_layout(SK).root_cols[i] for i in (0, 2, 3)]  # Δt_x, Δt_z, Δr_y: the root's path
+    assert path == [lower[0], lower[2], lower[3]]
+    torch.testing.assert_close(y[..., path], x[..., path], rtol=0, atol=0)
+    legs = [i for i in lower if i not in path]
+    assert (y[..., legs] - x[..., legs]).abs().min() > 0  # every other lower-body column is corrected
+    free = _model(arch=arch, keep_root_path=False)(x)
+    assert (free[..., path] - x[..., path]).abs().max() > 1e-3
     assert model.increment(x).shape == (2, 40, len(lower))
 
 
@@ -81,10 +87,10 @@ def test_objective_corrupts_the_lower_body_and_the_model_can_undo_it():
     t = torch.linspace(0, 6, 48, dtype=torch.float64)
     x = torch.sin(t[None, :, None] * torch.linspace(0.5, 3, 155, dtype=torch.float64)).repeat(2, 1, 1)
     ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0), config=TrainConfig())
-    identity = FootConstraintModel(FootConstraintConfig(channels=8)).double()
+    identity = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0)).double()
     loss, logs = foot_constraint_step(identity, {"dance": x}, ctx)
     assert logs["mse_input"] > 0.005 and logs["mse"] == pytest.approx(logs["mse_input"])  # identity: no fix
-    model = FootConstraintModel(FootConstraintConfig(channels=16)).double()
+    model = FootConstraintModel(FootConstraintConfig(channels=16, clean_share=0.0)).double()
     opt = torch.optim.Adam(model.parameters(), lr=3e-3)
     first = None
     for _ in range(60):
@@ -94,6 +100,23 @@ def test_objective_corrupts_the_lower_body_and_the_model_can_undo_it():
         loss.backward()
         opt.step()
     assert logs["mse"] < 0.75 * first and logs["mse"] < logs["mse_input"]
+
+
+def test_objective_leaves_a_clean_share_of_the_windows_alone():
+    from dancekit.training import StepContext, TrainConfig
+    from dancekit.training.m2d import foot_constraint_step
+
+    t = torch.linspace(0, 6, 48, dtype=torch.float64)
+    wave = torch.sin(t[None, :, None] * torch.linspace(0.5, 3, 155, dtype=torch.float64))
+    x = wave.repeat(400, 1, 1)
+    ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0), config=TrainConfig())
+    clean = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=1.0)).double()
+    assert foot_constraint_step(clean, {"dance": x[:4]}, ctx)[1]["mse_input"] == 0.0
+    slid = foot_constraint_step(FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0)).double(),
+                                {"dance": x}, ctx)[1]["mse_input"]
+    half = foot_constraint_step(FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.25)).double(),
+                                {"dance": x}, ctx)[1]["mse_input"]
+    assert half / slid == pytest.approx(0.75, abs=0.07)  # 400 windows: 3/4 ± 3 binomial standard deviations
 
 
 def test_pipeline_post_processes_a_motion_in_place(tmp_path, rng):
@@ -121,3 +144,49 @@ def test_pipeline_post_processes_a_motion_in_place(tmp_path, rng):
     np.testing.assert_allclose(out.root_translation[0, [0, 2]], pos[0, SK.root, [0, 2]], atol=1e-3)  # in place
     assert np.abs(out.to_positions() - pos).max() > 1e-3  # the model did correct something
     assert np.abs(out.to_positions() - pos).max() < 20.0
+
+
+def test_dance_cli_foot_constraint_option(tmp_path, capsys):
+    """`dancekit dance --foot-constraint MODEL` corrects the lower body of any model's dance on the skeleton,
+    leaves the upper body's rotations alone; a folder that is no foot model is a one-line error."""
+    from dancekit.audio import save_wav, synth
+    from dancekit.checkpoints import NormStats, save_pretrained
+    from dancekit.cli.main import main
+    from dancekit.models.music2dance import Music2DanceConfig, Music2DanceModel
+    from dancekit.motion.formats import read_motion
+    from dancekit.pipelines.foot_constraint import foot_constraint_folder
+
+    lay = rootdelta_layout(SK)
+    stats = NormStats(music_mean=np.zeros(15, np.float32), music_std=np.ones(15, np.float32),
+                      dance_mean=np.zeros(lay.dim, np.float32), dance_std=np.full(lay.dim, 0.05, np.float32))
+    stats.dance_mean[1], stats.dance_std[1] = 90.0, 1.0  # root height, cm
+    stats.dance_std[list(lay.contact_cols)] = 1.0
+    meta = {"skeleton": SK.to_dict(), "fps": 25.0, "representation": "rotations_rootdelta", "preset": "music2dance",
+            "hop_length": 512}
+    torch.manual_seed(0)
+    cfg = Music2DanceConfig(pose_dim=lay.dim, n_genres=0, n_layers=2, channels=4, skip_channels=4, genre_dim=2,
+                            fmap_channels=(2, 2, 2), fmap_lstm_hidden=2)
+    dancer = save_pretrained(tmp_path / "m2d", Music2DanceModel(cfg), cfg, stats=stats,
+                             extra={**meta, "sampling": {"temperature": 0.0}})
+    fc = _model().float()
+    save_pretrained(tmp_path / "fc", fc, fc.config, stats=stats, extra=meta)
+    assert foot_constraint_folder(tmp_path / "fc") == tmp_path / "fc"
+    song = tmp_path / "tune.wav"
+    save_wav(song, synth.ode_to_joy(sr=22050)[: 2 * 22050], sr=22050)
+    runs = {}
+    for label, extra in (("plain", []), ("fixed", ["--foot-constraint", str(tmp_path / "fc")])):
+        code = main(["dance", str(song), "-o", str(tmp_path / label), "--checkpoint", str(dancer), "--quiet",
+                     "--format", "npz", *extra])
+        assert code == 0
+        runs[label] = read_motion(tmp_path / label / "tune.npz")
+    legs = [j for j in range(SK.rig().num_joints) if "knee" in SK.rig().joint_names[j]]
+    arms = [j for j in range(SK.rig().num_joints) if "elbow" in SK.rig().joint_names[j]]
+    assert legs and arms
+    a, b = runs["plain"].rotations, runs["fixed"].rotations
+    assert np.abs(a[:, legs] - b[:, legs]).max() > 1e-3  # the legs are corrected
+    np.testing.assert_allclose(a[:, arms], b[:, arms], atol=1e-5)  # the arms are not
+    capsys.readouterr()
+    out = tmp_path / "bad"
+    assert main(["dance", str(song), "-o", str(out), "--checkpoint", str(dancer), "--foot-constraint", str(dancer)]) != 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not a Foot Constraint Model" in err and not out.exists()

@@ -60,3 +60,27 @@ def test_default_model_dance_is_pinned(song):
         assert err <= TOL_CM, f"{key}: the dance moved by up to {err:.3g} cm"
     # the cases differ from each other, so the pins are not one dance thrice
     assert np.abs(dances["none_seed3"] - dances["rumba_seed1"]).mean() > 1.0
+
+
+M2D_GOLDEN = Path(__file__).parent / "golden" / "music2dance.npz"
+M2D_CASES = {"waltz_seed0": ("waltz", 0), "auto_seed2": ("auto", 2)}
+
+
+def test_embedded_music2dance_dance_is_pinned(song):
+    """The embedded music2dance model (issue 13) on the same song: sampled dances, pinned like the default's
+    (written with DANCEKIT_WRITE_GOLDEN=1 when the model or its pipeline change on purpose)."""
+    from dancekit.pipelines import load_pipeline
+
+    pipe = load_pipeline("music2dance")
+    dances = {key: np.asarray(pipe(str(song), seed=seed, genre=genre, beat_sync=False, cleanup=False)
+                              .motion.to_positions(), np.float32)
+              for key, (genre, seed) in M2D_CASES.items()}
+    if os.environ.get("DANCEKIT_WRITE_GOLDEN") == "1":
+        np.savez_compressed(M2D_GOLDEN, **dances)
+    ref = np.load(M2D_GOLDEN)
+    assert sorted(ref.files) == sorted(dances)
+    for key, positions in dances.items():
+        assert positions.shape == ref[key].shape, key
+        err = float(np.abs(positions - ref[key]).max())
+        assert err <= TOL_CM, f"music2dance {key}: the dance moved by up to {err:.3g} cm"
+    assert np.abs(dances["waltz_seed0"] - dances["auto_seed2"]).mean() > 1.0

@@ -364,3 +364,100 @@ def test_fmap_on_windows_matches_the_windows_where_it_reads_them():
     torch.testing.assert_close(chunked[:, :30], model.music_condition(music[:, :40])[:, :30])
     torch.testing.assert_close(chunked[:, 30:50], model.music_condition(music[:, 20:60])[:, 10:30])
     torch.testing.assert_close(chunked[:, 70:], model.music_condition(music[:, 60:])[:, 10:])
+
+
+def test_pipeline_takes_its_default_temperature_from_the_checkpoint(m2d_folder, song8, tmp_path):
+    import json
+    import shutil
+
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    folder = tmp_path / "t0"
+    shutil.copytree(m2d_folder, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"temperature": 0.0}}))
+    plain, cold = Music2DancePipeline.from_pretrained(m2d_folder), Music2DancePipeline.from_pretrained(folder)
+    assert plain.temperature == 1.0 and cold.temperature == 0.0
+    means = plain(song8, seed=0, temperature=0.0).motion.to_positions()
+    np.testing.assert_array_equal(cold(song8, seed=0).motion.to_positions(), means)  # no temperature: the folder's
+    np.testing.assert_array_equal(cold(song8, seed=5).motion.to_positions(), means)  # temperature 0: no randomness
+    assert np.abs(plain(song8, seed=0).motion.to_positions() - means).max() > 1.0
+    (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"temperature": -1}}))
+    with pytest.raises(CheckpointError, match="temperature"):
+        Music2DancePipeline.from_pretrained(folder)
+
+
+def test_a_batch_of_seeds_equals_the_seeds_one_by_one(m2d_folder, song8):
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    pipe = Music2DancePipeline.from_pretrained(m2d_folder)
+    batch = pipe.dances(song8, seeds=[3, 0, 7], genre="rumba", end=3.0)
+    assert [r.seed for r in batch] == [3, 0, 7]
+    for r in batch:
+        alone = pipe(song8, seed=r.seed, genre="rumba", end=3.0).motion.to_positions()
+        np.testing.assert_allclose(r.motion.to_positions(), alone, rtol=0, atol=1e-4)  # cm (float32 batching)
+    assert np.abs(batch[0].motion.to_positions() - batch[1].motion.to_positions()).max() > 1.0
+    mixed = pipe.dances(song8, seeds=[0, 0], genre=["waltz", "rumba"], end=3.0)
+    assert [r.genre for r in mixed] == ["waltz", "rumba"]
+    for r in mixed:
+        alone = pipe(song8, seed=0, genre=r.genre, end=3.0).motion.to_positions()
+        np.testing.assert_allclose(r.motion.to_positions(), alone, rtol=0, atol=1e-4)
+
+
+def test_the_embedded_model_loads_in_float32_with_its_parts_and_dances(song8):
+    """`--model music2dance` needs no download: a float16 folder (<= 8 MB with its F_map, foot model and
+    music attribute classifier) whose weights load as float32; its sampling settings come from its config."""
+    import json
+
+    from safetensors import safe_open
+
+    from dancekit.checkpoints import available_models, resolve_model
+    from dancekit.pipelines.foot_constraint import foot_constraint_folder, load_foot_constraint
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    folder = resolve_model("music2dance")
+    assert "music2dance" in available_models()
+    assert sum(f.stat().st_size for f in folder.rglob("*") if f.is_file()) <= 8e6
+    with safe_open(str(folder / "model.safetensors"), "pt") as f:
+        assert {f.get_tensor(k).dtype for k in f.keys()} >= {torch.float16}
+    pipe = Music2DancePipeline.from_pretrained("music2dance")
+    assert {p.dtype for p in pipe.model.parameters()} == {torch.float32}
+    assert int(pipe.model.fmap_loaded) == 1 and pipe.genre_reader is not None
+    sampling = json.loads((folder / "config.json").read_text())["sampling"]
+    assert (pipe.temperature, pipe.noise_correlation, pipe.smooth_sigma) == (
+        sampling["temperature"], sampling["noise_correlation"], sampling["smooth_sigma"])
+    assert foot_constraint_folder() == folder / "foot_constraint"
+    fix = load_foot_constraint()
+    assert {p.dtype for p in fix.model.parameters()} == {torch.float32}
+    r = pipe(song8, seed=0, genre="waltz", end=4.0)
+    pos = r.motion.to_positions()
+    assert r.genre == "waltz" and pos.shape[0] == 101 and np.isfinite(pos).all()
+    assert np.linalg.norm(np.diff(pos, axis=0), axis=-1).mean() * 25 > 10.0  # moves (cm/s)
+    assert fix(r.motion).num_frames == 101
+
+
+def test_sampling_noise_given_and_correlated_over_frames():
+    from dancekit.errors import ParameterError
+    from dancekit.models.music2dance import gmm_sample
+
+    g = torch.Generator().manual_seed(0)
+    logit_w, mu, log_var = torch.zeros(3, 1), torch.randn(3, 1, 4, generator=g), torch.randn(3, 1, 4, generator=g)
+    z = torch.randn(3, 4, generator=g)
+    torch.testing.assert_close(gmm_sample(logit_w, mu, log_var, temperature=0.25, noise=z),
+                               mu[:, 0] + torch.exp(0.5 * log_var[:, 0]) * 0.5 * z)  # σ·√t·ε
+    model = _tiny()
+    music = torch.randn(1, 400, 5, dtype=torch.float64)
+    with torch.no_grad():  # outputs: the means at zero and unit variances, so the dance is the noise itself
+        model.out2.weight.zero_()
+        model.out2.bias.zero_()
+    model.eval()
+    D = model.config.gmm_dim
+
+    def lag1(rho: float) -> float:
+        x = model.generate(music, None, generator=torch.Generator().manual_seed(1), noise_correlation=rho)[0, :, :D]
+        return float(torch.corrcoef(torch.stack([x[1:].reshape(-1), x[:-1].reshape(-1)]))[0, 1])
+
+    assert abs(lag1(0.0)) < 0.1 and lag1(0.9) == pytest.approx(0.9, abs=0.05)
+    with pytest.raises(ParameterError, match="noise_correlation"):
+        model.generate(music, None, noise_correlation=1.0)

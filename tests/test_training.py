@@ -225,8 +225,31 @@ def test_epochs_length_in_steps(tmp_path):
     assert r.step == 2 * (20 // 8) and r.epoch == 2
 
 
+@pytest.mark.parametrize("optimizer,first_step", [("adamw", 1.0), ("rmsprop", 10.0)])
+def test_optimizer_setting_picks_the_update_rule(tmp_path, optimizer, first_step):
+    """Known first updates from a zero state, no weight decay, no clipping: AdamW moves every weight by
+    lr · g / |g| (bias-corrected m / √v); RMSprop (α = 0.99) by lr · g / √(0.01 g²) = 10 · lr · sign(g)."""
+    from dancekit.training import Trainer
+
+    lr = 1e-3
+    cfg = quick_config(steps=1, optimizer=optimizer, lr=lr, warmup_steps=0, grad_clip=None, val_every=100,
+                       ckpt_every=100)
+    torch.manual_seed(0)
+    model = RevolutionModel(tiny(dropout=0.0))
+    trainer = Trainer(model, Windows(n=8), None, cfg, step_fn=revolution_step, out_dir=tmp_path, progress=False)
+    trainer.build()
+    assert type(trainer.optimizer).__name__ == {"adamw": "AdamW", "rmsprop": "RMSprop"}[optimizer]
+    before = {k: v.detach().clone() for k, v in model.named_parameters()}
+    trainer.step(next(iter(trainer.epoch_loader(0))), epoch=0)
+    moved = torch.cat([(p.detach() - before[k]).abs()[p.grad.abs() > 1e-3] for k, p in model.named_parameters()
+                       if p.grad is not None])  # gradients far above the optimisers' eps (1e-8)
+    assert moved.numel() > 100
+    torch.testing.assert_close(moved, torch.full_like(moved, first_step * lr), rtol=2e-3, atol=0)
+
+
 @pytest.mark.parametrize("kw,match", [({"steps": 0}, "steps"), ({"lr": 0.0}, "lr"), ({"curriculum": "sigmoid"}, "curriculum"),
-                                      ({"lr_schedule": "step"}, "lr_schedule"), ({"stride": 0}, "stride")])
+                                      ({"lr_schedule": "step"}, "lr_schedule"), ({"stride": 0}, "stride"),
+                                      ({"optimizer": "sgd"}, "optimizer")])
 def test_train_config_errors_name_the_field(kw, match):
     with pytest.raises(ParameterError, match=match):
         TrainConfig(**kw)

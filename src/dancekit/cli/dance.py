@@ -39,6 +39,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=_seed, default=0,
                    help="random seed: another seed, another dance (default 0); any integer (seeds outside "
                         "[0, 2**63) are hashed to 63 bits)")
+    p.add_argument("--foot-constraint", nargs="?", const="default", default=None, metavar="MODEL",
+                   help="post-process the dance with the Foot Constraint Model of Music2Dance (less foot sliding; "
+                        "the lower body alone is corrected, the path over the floor is kept): the one embedded with "
+                        "the music2dance model, or MODEL (a foot_constraint checkpoint). Any model on the tang2018 "
+                        "skeleton (default: off)")
     p.add_argument("--start", type=float, default=None, help="start of the song excerpt, seconds")
     p.add_argument("--end", type=float, default=None, help="end of the song excerpt, seconds")
     p.add_argument("--beat-sync", choices=("on", "off"), default="on",
@@ -79,8 +84,21 @@ def run(args: argparse.Namespace) -> int:
     options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
     pipe = load_pipeline(args.model, args.checkpoint)
+    fix = None
+    if args.foot_constraint is not None:
+        from dancekit.pipelines.foot_constraint import load_foot_constraint
+
+        fix = load_foot_constraint(args.foot_constraint)  # before the dance: a bad name fails fast
+    stages_on = {"beat_sync": args.beat_sync == "on", "cleanup": args.cleanup == "on"}
     result = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=args.genre,
-                  progress=not args.quiet, beat_sync=args.beat_sync == "on", cleanup=args.cleanup == "on")
+                  progress=not args.quiet, **(stages_on if fix is None else {"beat_sync": False, "cleanup": False}))
+    if fix is not None:  # the foot model sees the model's own dance; the stages come after it
+        import dataclasses
+
+        from dancekit.pipelines.stages import finish
+
+        result = finish(dataclasses.replace(result, motion=fix(result.motion)), str(audio), start=args.start,
+                        end=args.end, beat_sync_on=stages_on["beat_sync"], cleanup_on=stages_on["cleanup"])
     motion = result.motion
     if args.fps is not None and args.fps != motion.fps:
         motion = motion.resample(args.fps)

@@ -46,7 +46,8 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
 
     Parameters
     ----------
-    pipe : a dance pipeline (``pipe(audio, seed=, start=, end=, genre=)`` → :class:`~dancekit.pipelines.DanceResult`)
+    pipe : a dance pipeline (``pipe(audio, seed=, start=, end=, genre=)`` → :class:`~dancekit.pipelines.DanceResult`;
+        when it has ``pipe.dances(audio, seeds=[...], ...)``, the seeds of a song are danced at once)
     data : a :class:`~dancekit.data.PreparedData`
     split : the split whose songs are danced
     seeds : dances per song (seeds ``0 .. seeds-1``)
@@ -75,12 +76,17 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
     kwargs = {} if beat_sync is None and not split_warp else {"beat_sync": bool(beat_sync) and not split_warp}
     t0 = time.perf_counter()
     seconds, files = 0.0, 0
+    batch = getattr(pipe, "dances", None)  # a pipeline that dances several seeds at once (equal results)
     for name in tqdm(names, desc="generate", unit="song", disable=not progress):
         ref = data.audio(name)
         beats = None
-        for k in range(seeds):
-            result = pipe(ref.path, seed=k, start=ref.start, end=ref.end,
-                          genre=requested_genre(genre, data.genre(name)), **kwargs)
+        want = requested_genre(genre, data.genre(name))
+        if batch is not None:
+            results = batch(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, genre=want, **kwargs)
+        else:
+            results = [pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=want, **kwargs)
+                       for k in range(seeds)]
+        for k, result in enumerate(results):
             stem = name if seeds == 1 else f"{name}{SAMPLE_SEP}{k}"
             if split_warp:
                 from dancekit.pipelines import stages

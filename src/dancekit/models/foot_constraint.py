@@ -10,14 +10,18 @@ Architecture
     a receptive field of 27 frames, centred) predict an increment of the lower body (Eq. 14):
     ``x̂'_lrot = x'_lrot + F_post(x'_lrot, p'_fend, c'_foot)``. Every other column (the upper body, the end
     effectors, the contacts) is passed through unchanged. The last convolution starts at zero, so an
-    untrained model is the identity.
+    untrained model is the identity. With ``keep_root_path`` (default) the root's horizontal step and
+    heading change (``Δt_x, Δt_z, Δr_y``, the first, third and fourth of ``lower_idx``, which starts with the
+    root's six columns) get no increment either: the dancer's path over the floor stays the generator's,
+    the legs alone are corrected.
     The paper's baseline (Table 2, ``arch="lstm"``): one fully connected layer, an LSTM, one fully connected
     layer, predicting the same increment.
 Training (``dancekit.training.m2d.foot_constraint_step``)
     Ground-truth windows with simulated foot sliding: the lower body and toe columns are smoothed with a
     Gaussian (``smooth_sigma`` frames) and get Gaussian noise (``noise_std``); the target is the clean lower
-    body. Loss: MSE + ``smooth_weight`` (0.1) x the mean squared second difference (acceleration) of the
-    corrected lower body.
+    body. A share ``clean_share`` of the windows is left clean (the identity is their target), so that the
+    model learns to leave clean feet alone. Loss: MSE + ``smooth_weight`` (0.1) x the mean squared second
+    difference (acceleration) of the corrected lower body.
 """
 
 from __future__ import annotations
@@ -60,6 +64,8 @@ class FootConstraintConfig:
     noise_std: float = 0.1  # simulated sliding: Gaussian noise (normalised units) ...
     smooth_sigma: float = 2.0  # ... after Gaussian smoothing (frames)
     smooth_weight: float = 0.1  # the smoothness loss factor
+    clean_share: float = 0.5  # share of training windows without simulated sliding (identity target)
+    keep_root_path: bool = True  # no increment for the root's Δt_x, Δt_z, Δr_y (lower_idx[0], [2], [3])
 
     def __post_init__(self) -> None:
         if not self.lower_idx and not self.foot_idx and not self.contact_idx:
@@ -78,6 +84,10 @@ class FootConstraintConfig:
             raise ParameterError(f"FootConstraintConfig.arch must be one of {ARCHS}, got {self.arch!r}")
         if self.kernel % 2 == 0 or not self.dilations or min(self.dilations) < 1:
             raise ParameterError("FootConstraintConfig: kernel must be odd and dilations positive")
+        if not 0.0 <= self.clean_share <= 1.0:
+            raise ParameterError(f"FootConstraintConfig.clean_share must be in [0, 1], got {self.clean_share!r}")
+        if self.keep_root_path and len(self.lower_idx) < 4:
+            raise ParameterError("FootConstraintConfig.keep_root_path needs lower_idx to start with the root's 6 columns")
         if min(self.noise_std, self.smooth_sigma, self.smooth_weight) < 0:
             raise ParameterError("FootConstraintConfig.noise_std, smooth_sigma and smooth_weight must be >= 0")
 
@@ -103,6 +113,10 @@ class FootConstraintModel(nn.Module):
         self.config = c = config
         self.register_buffer("inputs", torch.tensor(c.lower_idx + c.foot_idx + c.contact_idx), persistent=False)
         self.register_buffer("lower", torch.tensor(c.lower_idx), persistent=False)
+        mask = torch.ones(len(c.lower_idx))
+        if c.keep_root_path:
+            mask[[0, 2, 3]] = 0.0  # Δt_x, Δt_z, Δr_y of the root (rotations_rootdelta order)
+        self.register_buffer("mask", mask, persistent=False)
         out = len(c.lower_idx)
         if c.arch == "conv":
             widths = [c.in_dim] + [c.channels] * (len(c.dilations) - 1) + [out]
@@ -119,20 +133,21 @@ class FootConstraintModel(nn.Module):
         nn.init.zeros_(last.bias)
 
     def increment(self, x: torch.Tensor) -> torch.Tensor:
-        """``F_post``: the lower-body increment ``(B, T, len(lower_idx))`` for motion ``x (B, T, P)``."""
+        """``F_post``: the lower-body increment ``(B, T, len(lower_idx))`` for motion ``x (B, T, P)`` (zero on
+        the root's path columns with ``keep_root_path``)."""
         c = self.config
         if x.dim() != 3 or x.shape[-1] != c.pose_dim:
             raise ParameterError(f"motion must be (B, T, {c.pose_dim}), got {tuple(x.shape)}")
         h = x[..., self.inputs]  # (B, T, in_dim)
         if c.arch == "lstm":
             h, _ = self.lstm(self.fc_in(h))
-            return self.fc_out(h)
+            return self.fc_out(h) * self.mask
         h = h.transpose(1, 2)  # (B, in_dim, T)
         for i, conv in enumerate(self.convs):
             h = conv(h)
             if i < len(self.convs) - 1:
                 h = F.relu(h)
-        return h.transpose(1, 2)  # (B, T, lower)
+        return h.transpose(1, 2) * self.mask  # (B, T, lower)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Eq. 14: ``x`` with ``x[..., lower_idx] + F_post(...)``; every other column unchanged."""

@@ -159,20 +159,45 @@ def gmm_nll(logit_w: torch.Tensor, mu: torch.Tensor, log_var: torch.Tensor, x: t
     return -torch.logsumexp(log_w + log_comp, dim=-1)
 
 
+def standard_normal(shape: tuple[int, ...], *, generator: torch.Generator | list[torch.Generator] | None = None,
+                    dtype: torch.dtype = torch.float32, device: torch.device | str = "cpu") -> torch.Tensor:
+    """``N(0, 1)`` noise of ``shape``; with a list of generators, row ``b`` (of the leading dimension) from
+    ``generator[b]``, as a batch of that row alone would draw it."""
+    if isinstance(generator, (list, tuple)):
+        return torch.cat([torch.randn((1, *shape[1:]), generator=g, dtype=dtype, device=device) for g in generator])
+    return torch.randn(shape, generator=generator, dtype=dtype, device=device)
+
+
 def gmm_sample(logit_w: torch.Tensor, mu: torch.Tensor, log_var: torch.Tensor, *, temperature: float = 1.0,
-               generator: torch.Generator | None = None) -> torch.Tensor:
+               generator: torch.Generator | list[torch.Generator] | None = None,
+               noise: torch.Tensor | None = None) -> torch.Tensor:
     """A sample ``(..., D)`` of the mixture (Eq. 12). ``temperature`` scales the variances and sharpens ω
-    (logits / temperature); 0 gives the mean of the most likely component."""
+    (logits / temperature); 0 gives the mean of the most likely component.
+
+    ``generator``: one for all, or a list of one per row of the leading dimension (``(B, ...)`` inputs): row
+    ``b`` then draws from ``generator[b]`` exactly what a batch of that row alone draws from it, so a batch
+    of seeds equals the seeds one by one. ``noise (..., D)``: the standard normal draw to use (e.g. noise
+    correlated over frames, :meth:`Music2DanceModel.generate`) instead of a fresh one.
+    """
     if temperature <= 0:
         k = logit_w.argmax(-1)
         return torch.gather(mu, -2, k[..., None, None].expand(*k.shape, 1, mu.shape[-1]))[..., 0, :]
-    probs = F.softmax(logit_w / temperature, dim=-1)
-    flat = probs.reshape(-1, probs.shape[-1])
-    k = torch.multinomial(flat, 1, generator=generator).reshape(probs.shape[:-1])  # (...)
+    if isinstance(generator, (list, tuple)):
+        if len(generator) != logit_w.shape[0]:
+            raise ParameterError(f"{len(generator)} generators for a batch of {logit_w.shape[0]}")
+        return torch.cat([gmm_sample(logit_w[b : b + 1], mu[b : b + 1], log_var[b : b + 1], temperature=temperature,
+                                     generator=g, noise=None if noise is None else noise[b : b + 1])
+                          for b, g in enumerate(generator)])
+    N = logit_w.shape[-1]
+    if N == 1:  # one component: nothing to choose (no draw, as with a choice among one)
+        k = torch.zeros(logit_w.shape[:-1], dtype=torch.long, device=logit_w.device)
+    else:
+        probs = F.softmax(logit_w / temperature, dim=-1)
+        k = torch.multinomial(probs.reshape(-1, N), 1, generator=generator).reshape(probs.shape[:-1])  # (...)
     idx = k[..., None, None].expand(*k.shape, 1, mu.shape[-1])
     m = torch.gather(mu, -2, idx)[..., 0, :]
     std = torch.exp(0.5 * torch.gather(log_var, -2, idx)[..., 0, :]) * math.sqrt(temperature)
-    eps = torch.randn(m.shape, generator=generator, dtype=m.dtype, device=m.device)
+    eps = torch.randn(m.shape, generator=generator, dtype=m.dtype, device=m.device) if noise is None else noise
     return m + std * eps
 
 
@@ -360,10 +385,12 @@ class Music2DanceModel(nn.Module):
                       "contact_acc": acc}
 
     def predict(self, params: torch.Tensor, *, temperature: float = 1.0,
-                generator: torch.Generator | None = None) -> torch.Tensor:
-        """A motion frame ``(..., P)`` from output parameters: a mixture sample and thresholded contacts."""
+                generator: torch.Generator | list[torch.Generator] | None = None,
+                noise: torch.Tensor | None = None) -> torch.Tensor:
+        """A motion frame ``(..., P)`` from output parameters: a mixture sample (``noise``: see
+        :func:`gmm_sample`) and thresholded contacts."""
         logit_w, mu, log_var, contact_logits = split_params(params, self.config)
-        x = gmm_sample(logit_w, mu, log_var, temperature=temperature, generator=generator)
+        x = gmm_sample(logit_w, mu, log_var, temperature=temperature, generator=generator, noise=noise)
         return torch.cat([x, (contact_logits > 0).to(x.dtype)], dim=-1)
 
     # ---------------------------------------------------------------- incremental
@@ -377,27 +404,46 @@ class Music2DanceModel(nn.Module):
         return [[torch.zeros(batch, c.channels, device=device, dtype=dtype) for _ in range((c.kernel - 1) * d)]
                 for d in c.dilations]
 
-    def step(self, cond_t: torch.Tensor, g: torch.Tensor, prev_t: torch.Tensor, state: list) -> torch.Tensor:
+    def _step_weights(self) -> dict[str, list[torch.Tensor] | torch.Tensor]:
+        """The WaveNet's weights arranged for :meth:`step`: per block the taps of the dilated convolution as
+        one ``(k·C, 2C)`` matrix (oldest tap first), the residual 1x1 ``(C, C)``; the skip 1x1s of all blocks
+        stacked ``(L·C, S)`` with their biases summed (the skip sum is one product of the concatenated
+        gated outputs)."""
+        c = self.config
+        return {
+            "in_w": self.input_proj.weight[:, :, 0].T, "in_b": self.input_proj.bias,
+            "conv_w": [conv.weight.permute(2, 1, 0).reshape(c.kernel * c.channels, 2 * c.channels)
+                       for conv in self.dilated],
+            "conv_b": [conv.bias for conv in self.dilated],
+            "res_w": [r.weight[:, :, 0].T for r in self.res], "res_b": [r.bias for r in self.res],
+            "skip_w": torch.cat([s.weight[:, :, 0].T for s in self.skip]),
+            "skip_b": torch.stack([s.bias for s in self.skip]).sum(0),
+        }
+
+    def step(self, cond_t: torch.Tensor, g: torch.Tensor, prev_t: torch.Tensor, state: list,
+             weights: dict | None = None) -> torch.Tensor:
         """One frame: ``cond_t`` the frame's condition (WaveNet ``(B, L, 2C)``, LSTM ``(B, H)``), ``g`` the
         genre vector, ``prev_t (B, P)`` the previous motion frame → parameters ``(B, out_dim)``; ``state``
-        (from :meth:`init_state`) is updated in place. O(layers) per frame."""
+        (from :meth:`init_state`) is updated in place; ``weights``: :meth:`_step_weights` (computed when
+        None; pass them when stepping many frames). O(layers) per frame."""
         c = self.config
         if c.generator == "lstm":
             h, state[0] = self.lstm(self.lstm_in(torch.cat([prev_t, cond_t, g], -1))[:, None], state[0])
             return self.head(h[:, 0])
-        x = F.linear(prev_t, self.input_proj.weight[:, :, 0], self.input_proj.bias)  # (B, C)
-        skips = 0.0
-        for i, (conv, d) in enumerate(zip(self.dilated, c.dilations)):
+        w = self._step_weights() if weights is None else weights
+        C = c.channels
+        x = torch.addmm(w["in_b"], prev_t, w["in_w"])  # (B, C)
+        zs = []
+        for i, d in enumerate(c.dilations):
             queue = state[i]  # inputs at t - (k-1)d, ..., t - 1
-            taps = [queue[j * d] for j in range(c.kernel - 1)] + [x]  # t - (k-1)d, ..., t - d, t
-            h = conv.bias + cond_t[:, i]
-            for j, tap in enumerate(taps):
-                h = h + tap @ conv.weight[:, :, j].T  # (B, 2C)
+            taps = torch.cat([queue[j * d] for j in range(c.kernel - 1)] + [x], -1)  # (B, k·C) t-(k-1)d ... t
+            h = torch.addmm(cond_t[:, i] + w["conv_b"][i], taps, w["conv_w"][i])  # (B, 2C)
             queue.pop(0)
             queue.append(x)
-            z = torch.tanh(h[:, : c.channels]) * torch.sigmoid(h[:, c.channels :])
-            skips = skips + F.linear(z, self.skip[i].weight[:, :, 0], self.skip[i].bias)
-            x = x + F.linear(z, self.res[i].weight[:, :, 0], self.res[i].bias)
+            z = torch.tanh(h[:, :C]) * torch.sigmoid(h[:, C:])  # (B, C)
+            zs.append(z)
+            x = x + torch.addmm(w["res_b"][i], z, w["res_w"][i])
+        skips = torch.addmm(w["skip_b"], torch.cat(zs, -1), w["skip_w"])  # (B, S)
         h = F.relu(F.linear(F.relu(skips), self.out1.weight[:, :, 0], self.out1.bias))
         return F.linear(h, self.out2.weight[:, :, 0], self.out2.bias)
 
@@ -407,26 +453,42 @@ class Music2DanceModel(nn.Module):
         """:meth:`forward` computed frame by frame with :meth:`step` (eval mode; for tests and analysis)."""
         cond, g = self._conditions(music, genre)
         state = self.init_state(prev.shape[0], device=prev.device, dtype=prev.dtype)
-        return torch.stack([self.step(cond[:, t], g, prev[:, t], state) for t in range(prev.shape[1])], dim=1)
+        w = self._step_weights() if self.config.generator == "wavenet" else None
+        return torch.stack([self.step(cond[:, t], g, prev[:, t], state, w) for t in range(prev.shape[1])], dim=1)
 
     @torch.no_grad()
     def generate(self, music: torch.Tensor, genre: torch.Tensor | None = None, *, temperature: float = 1.0,
-                 generator: torch.Generator | None = None, first: torch.Tensor | None = None,
-                 progress: bool = False, fmap_window: int | None = None) -> torch.Tensor:
+                 generator: torch.Generator | list[torch.Generator] | None = None, first: torch.Tensor | None = None,
+                 progress: bool = False, fmap_window: int | None = None,
+                 noise_correlation: float = 0.0) -> torch.Tensor:
         """A dance ``(B, T, P)`` for ``music (B, T, D_m)``, frame by frame, sampling the mixture.
 
+        ``noise_correlation`` ρ in [0, 1): the standard normal draw of each frame is ``ε_t = ρ ε_{t-1} +
+        √(1-ρ²) η_t`` (η fresh; still N(0, 1) at every frame) instead of independent draws (ρ = 0, the
+        paper's): the deviations from the mixture means then vary slowly, a dance instead of a tremor.
+
         ``first (B, P)``: the input of frame 0 (default zeros: the mean pose, no contacts); ``fmap_window``:
-        see :meth:`music_condition` (the pipeline passes the training window). Call in eval mode.
+        see :meth:`music_condition` (the pipeline passes the training window); ``generator``: one, or one
+        per row (:func:`gmm_sample`: a batch of seeds, each row the dance of its seed alone). Call in eval mode.
         """
         from tqdm import tqdm
 
         B, T = music.shape[:2]
         cond, g = self._conditions(music, genre, window=fmap_window)
         state = self.init_state(B, device=music.device, dtype=music.dtype)
+        if not 0.0 <= noise_correlation < 1.0:
+            raise ParameterError(f"noise_correlation must be in [0, 1), got {noise_correlation!r}")
         x = first if first is not None else music.new_zeros(B, self.config.pose_dim)
+        w = self._step_weights() if self.config.generator == "wavenet" else None
+        rho, eps = float(noise_correlation), None
         frames = []
         for t in tqdm(range(T), disable=not progress, desc="dance", unit="frame"):
-            x = self.predict(self.step(cond[:, t], g, x, state), temperature=temperature, generator=generator)
+            if rho > 0 and temperature > 0:
+                eta = standard_normal((B, self.config.gmm_dim), generator=generator, dtype=music.dtype,
+                                      device=music.device)
+                eps = eta if eps is None else rho * eps + math.sqrt(1 - rho * rho) * eta
+            x = self.predict(self.step(cond[:, t], g, x, state, w), temperature=temperature, generator=generator,
+                             noise=eps)
             frames.append(x)
         return torch.stack(frames, dim=1)
 

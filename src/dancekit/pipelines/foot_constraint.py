@@ -7,6 +7,10 @@ Any dance on the checkpoint's skeleton works (Music2Dance's and Dance Revolution
 encoded as ``rotations_rootdelta`` (its IK rotations when it has only positions), normalised with the
 checkpoint's statistics, corrected by the model (lower body only), and decoded from the motion's own
 start (position and heading of frame 0), so the corrected dance stays where it was.
+
+:func:`load_foot_constraint` finds a foot model by name: the default is the one embedded with the
+``music2dance`` model (its ``"foot_constraint"`` component), which ``dancekit dance --foot-constraint``
+applies to the dance of any model on the tang2018 skeleton.
 """
 
 from __future__ import annotations
@@ -18,11 +22,40 @@ from typing import Any
 import numpy as np
 import torch
 
-from dancekit.checkpoints import NormStats, load_pretrained, resolve_model
+from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
+from dancekit.checkpoints.hub import read_meta
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.foot_constraint import FootConstraintModel
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.root_delta import decode_rootdelta, encode_rootdelta
+
+#: the model whose ``"foot_constraint"`` component is the default foot model
+DEFAULT_FOOT_HOST = "music2dance"
+COMPONENT = "foot_constraint"
+
+
+def foot_constraint_folder(model: str | os.PathLike | None = None) -> Path:
+    """The folder of a Foot Constraint Model: ``model`` a foot_constraint checkpoint (folder or name), or a
+    model that declares a ``"foot_constraint"`` component; None or ``"default"``: the embedded music2dance's.
+
+    Raises
+    ------
+    CheckpointError
+        For a folder that is neither a foot model nor declares one.
+    """
+    folder = resolve_model(DEFAULT_FOOT_HOST if model in (None, "default") else model)
+    meta = read_meta(folder)
+    if meta.get("model") == "foot_constraint":
+        return Path(folder)
+    parts = components(folder, meta)
+    if COMPONENT not in parts:
+        raise CheckpointError(f"{folder} is not a Foot Constraint Model and declares none (no {COMPONENT!r} component)")
+    return Path(parts[COMPONENT])
+
+
+def load_foot_constraint(model: str | os.PathLike | None = None, *, device: str = "cpu") -> FootConstraintPipeline:
+    """The :class:`FootConstraintPipeline` of :func:`foot_constraint_folder` ``(model)``."""
+    return FootConstraintPipeline.from_pretrained(foot_constraint_folder(model), device=device)
 
 
 class FootConstraintPipeline:

@@ -67,6 +67,22 @@ class Music2DancePipeline:
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         self.genres = tuple(meta.get("genres", ()))[: model.config.n_genres]
         self.genre_reader = genre_reader
+        #: sampling temperature when a call names none: the checkpoint's ``"sampling": {"temperature": t}``
+        #: (chosen on the validation songs for the embedded model), else 1 (the mixture as trained)
+        self.temperature = float(meta.get("sampling", {}).get("temperature", 1.0))
+        #: correlation of the sampling noise from frame to frame (:meth:`Music2DanceModel.generate`), the
+        #: checkpoint's ``"sampling": {"noise_correlation": ρ}`` (default 0: independent, the paper's)
+        self.noise_correlation = float(meta.get("sampling", {}).get("noise_correlation", 0.0))
+        if not 0.0 <= self.noise_correlation < 1.0:
+            raise CheckpointError(f"checkpoint {folder}: sampling noise_correlation must be in [0, 1), "
+                                  f"got {self.noise_correlation!r}")
+        #: Gaussian smoothing (frames) of the sampled features before decoding, contacts excepted (the
+        #: checkpoint's ``"sampling": {"smooth_sigma": s}``; default 0: none)
+        self.smooth_sigma = float(meta.get("sampling", {}).get("smooth_sigma", 0.0))
+        if not self.smooth_sigma >= 0:
+            raise CheckpointError(f"checkpoint {folder}: sampling smooth_sigma must be >= 0, got {self.smooth_sigma!r}")
+        if not self.temperature >= 0:
+            raise CheckpointError(f"checkpoint {folder}: sampling temperature must be >= 0, got {self.temperature!r}")
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
@@ -84,7 +100,7 @@ class Music2DancePipeline:
         model, meta, arrays = load_pretrained(folder, device=device)
         stats = NormStats.from_arrays(arrays, source=str(folder))
         parts = components(folder, meta)
-        unknown = sorted(set(parts) - {"genre_reader"})
+        unknown = sorted(set(parts) - {"genre_reader", "foot_constraint"})  # the foot model: dancekit dance --foot-constraint
         if unknown:
             raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a Music2Dance model")
         reader = parts.get("genre_reader")
@@ -119,7 +135,7 @@ class Music2DancePipeline:
 
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, genre: str | None = None,
-                 temperature: float = 1.0, start: float | None = None, end: float | None = None,
+                 temperature: float | None = None, start: float | None = None, end: float | None = None,
                  progress: bool = False, beat_sync: bool = True, cleanup: bool = True) -> DanceResult:
         """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
 
@@ -128,7 +144,8 @@ class Music2DancePipeline:
         seed : seeds the mixture sampling; the same seed gives the same dance
         genre : a dance type of :attr:`genres`; "auto"/None: read from the music by the folder's classifier when
             it has one (else "none"); "none": no dance type (the model's own learned "none" condition)
-        temperature : scales the sampled variances (and sharpens the mixture weights); 0 takes the means
+        temperature : scales the sampled variances (and sharpens the mixture weights); 0 takes the means;
+            None: the checkpoint's default (:attr:`temperature`)
         start, end : excerpt in seconds
         beat_sync, cleanup : the shared pipeline stages (:mod:`dancekit.pipelines.stages`)
 
@@ -142,20 +159,58 @@ class Music2DancePipeline:
         ParameterError
             For an unknown genre or a negative temperature.
         """
+        return self.dances(audio_path, seeds=[seed], genre=genre, temperature=temperature, start=start, end=end,
+                           progress=progress, beat_sync=beat_sync, cleanup=cleanup)[0]
+
+    @torch.no_grad()
+    def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], genre: str | list[str | None] | None = None,
+               temperature: float | None = None, start: float | None = None, end: float | None = None,
+               progress: bool = False, music: np.ndarray | None = None, beat_sync: bool = True,
+               cleanup: bool = True) -> list[DanceResult]:
+        """One dance per seed for the song, generated as one batch (the features and the frame loop once):
+        ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
+        :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type). ``music``:
+        the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
+        prepared dataset's), instead of extracting them from ``audio_path``."""
+        temperature = self.temperature if temperature is None else temperature
         if not temperature >= 0:
             raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
-        requested, danced, probs = self._genre(genre, audio_path, start, end)
-        x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, D)
-        index = torch.tensor([self.genres.index(danced) if danced is not None else -1])
-        gen = torch.Generator().manual_seed(int(seed))
+        seeds = [int(s) for s in seeds]
+        if not seeds:
+            raise ParameterError("dances() needs at least one seed")
+        wanted = list(genre) if isinstance(genre, (list, tuple)) else [genre] * len(seeds)
+        if len(wanted) != len(seeds):
+            raise ParameterError(f"{len(wanted)} genres for {len(seeds)} seeds")
+        read = {g: self._genre(g, audio_path, start, end) for g in dict.fromkeys(wanted)}  # (requested, danced, probs)
+        if music is None:
+            feats = self.features(audio_path, start=start, end=end)
+        else:
+            music = np.asarray(music, np.float32)
+            if music.ndim != 2 or music.shape[1] != self.model.config.music_dim:
+                raise ParameterError(f"music features must be (T, {self.model.config.music_dim}), got {music.shape}")
+            feats = self.stats.normalize_music(music).astype(np.float32)
+        x = torch.from_numpy(feats)[None]  # (1, T, D)
+        B = len(seeds)
+        index = torch.tensor([self.genres.index(read[g][1]) if read[g][1] is not None else -1 for g in wanted])
+        gens = [torch.Generator().manual_seed(s) for s in seeds]
         window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
-        y = self.model.generate(x.to(self.model.genre_embedding.weight.device), index, temperature=temperature,
-                                generator=gen, progress=progress, fmap_window=window)  # (1, T, P)
-        poses = self.stats.denormalize_dance(y[0].cpu().numpy().astype(np.float64))
-        motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
-        result = DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
-                             genre=danced, genre_probs=probs, danced_by=self.folder)
-        return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
+        x = x.to(self.model.genre_embedding.weight.device).expand(B, -1, -1)
+        y = self.model.generate(x, index, temperature=temperature, generator=gens, progress=progress,
+                                fmap_window=window, noise_correlation=self.noise_correlation)  # (B, T, P)
+        if self.smooth_sigma > 0:
+            from dancekit.models.foot_constraint import gaussian_smooth
+
+            D = self.model.config.gmm_dim
+            y = torch.cat([gaussian_smooth(y[..., :D], self.smooth_sigma), y[..., D:]], -1)
+        out = []
+        for k, (seed, g) in enumerate(zip(seeds, wanted)):
+            requested, danced, probs = read[g]
+            poses = self.stats.denormalize_dance(y[k].cpu().numpy().astype(np.float64))
+            motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
+            out.append(DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
+                                   genre=danced, genre_probs=probs, danced_by=self.folder))
+            out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
+        return out
 
 
 def on_the_floor(motion: Motion) -> Motion:

@@ -24,6 +24,7 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.training.schedules import CURRICULA, LR_SCHEDULES
 
 PRECISIONS = ("fp32", "bf16", "fp16")
+OPTIMIZERS = ("adamw", "rmsprop")
 
 
 def _positive_int(config: object, names: tuple[str, ...], *, optional: bool = False) -> None:
@@ -42,7 +43,7 @@ class OptimConfig:
     """Generic optimisation and loop settings (any model family).
 
     Length: ``steps`` optimisation steps, or ``epochs`` passes over the training set when set.
-    AdamW with ``lr`` (linear warm-up over ``warmup_steps``, then ``lr_schedule``: cosine down to
+    ``optimizer``: AdamW (default) or RMSprop (the Music2Dance paper's, supplement §1.2), with ``lr`` (linear warm-up over ``warmup_steps``, then ``lr_schedule``: cosine down to
     ``min_lr`` at the last step, or constant), gradient clipping at ``grad_clip``. On GPUs:
     ``grad_accum_steps`` micro-batches per step and mixed ``precision`` (bf16 / fp16 autocast).
     ``batch_size`` is the global batch: under torchrun each of N processes takes ``batch_size / N`` items.
@@ -52,6 +53,7 @@ class OptimConfig:
     epochs: int | None = None
     batch_size: int = 16
     lr: float = 1e-3
+    optimizer: str = "adamw"  # adamw | rmsprop (weight_decay applies to both)
     lr_schedule: str = "cosine"  # cosine | constant
     warmup_steps: int = 100
     min_lr: float = 1e-5
@@ -74,6 +76,8 @@ class OptimConfig:
     def __post_init__(self) -> None:
         _positive_int(self, ("steps", "batch_size", "log_every", "val_every", "ckpt_every", "keep_checkpoints",
                              "grad_accum_steps"))
+        if self.optimizer not in OPTIMIZERS:
+            raise ParameterError(f"{type(self).__name__}.optimizer must be one of {OPTIMIZERS}, got {self.optimizer!r}")
         if self.precision not in PRECISIONS:
             raise ParameterError(f"{type(self).__name__}.precision must be one of {PRECISIONS}, got {self.precision!r}")
         _positive_int(self, ("epochs", "val_batches", "threads"), optional=True)

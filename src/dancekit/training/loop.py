@@ -1,7 +1,7 @@
 """One generic training loop for every model family: :class:`Trainer` (and :func:`train`, its one-call form).
 
 The loop knows nothing about a family: a ``step_fn(model, batch, ctx) -> (loss, logs)`` computes the
-loss of a batch (see :mod:`dancekit.training.objectives`). The trainer owns the optimiser (AdamW), the
+loss of a batch (see :mod:`dancekit.training.objectives`). The trainer owns the optimiser (AdamW or RMSprop), the
 learning-rate schedule, gradient clipping, seeding, the progress bar, validation, checkpoints and
 resumption, in one method each (:meth:`Trainer.build`, :meth:`~Trainer.step`, :meth:`~Trainer.validate`,
 :meth:`~Trainer.save_checkpoint`, :meth:`~Trainer.resume`, :meth:`~Trainer.fit`). It reads only the
@@ -351,8 +351,11 @@ class Trainer:
         self.scaler = torch.amp.GradScaler("cuda") if precision == "fp16" else None
 
     def configure_optimizer(self) -> torch.optim.Optimizer:
-        """AdamW over every parameter (the rate is set each step from the schedule)."""
-        return torch.optim.AdamW(self.model.parameters(), lr=self.config.lr, weight_decay=self.config.weight_decay)
+        """``config.optimizer`` (AdamW or RMSprop) over every parameter (the rate is set each step from the schedule)."""
+        c = self.config
+        if c.optimizer == "rmsprop":
+            return torch.optim.RMSprop(self.model.parameters(), lr=c.lr, weight_decay=c.weight_decay)
+        return torch.optim.AdamW(self.model.parameters(), lr=c.lr, weight_decay=c.weight_decay)
 
     # ---- data --------------------------------------------------------------------------------------------
 

@@ -203,7 +203,8 @@ def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
 
     The lower-body and toe columns of the ground-truth windows are smoothed (Gaussian, ``smooth_sigma``
     frames) and get Gaussian noise (``noise_std``; validation draws it from the trainer's fixed-seed
-    generator, so validation losses compare); the target is the clean lower body. Logs ``mse`` (the
+    generator, so validation losses compare), except in a share ``clean_share`` of the windows, which stay
+    clean; the target is the clean lower body. Logs ``mse`` (the
     corrected lower body) and ``mse_input`` (the corrupted one: what the model starts from).
     """
     c = model.config
@@ -211,8 +212,10 @@ def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
     lower, cols = list(c.lower_idx), list(c.lower_idx) + list(c.foot_idx)
     g = ctx.generator
     noise = torch.randn(x[..., cols].shape, generator=g, device=g.device).to(x)
+    slide = (torch.rand(x.shape[0], generator=g, device=g.device) >= c.clean_share).to(x)[:, None, None]  # (B,1,1)
     corrupted = x.clone()
-    corrupted[..., cols] = gaussian_smooth(x[..., cols], c.smooth_sigma) + c.noise_std * noise
+    sliding = gaussian_smooth(x[..., cols], c.smooth_sigma) + c.noise_std * noise
+    corrupted[..., cols] = slide * sliding + (1 - slide) * x[..., cols]
     pred = model(corrupted)[..., lower]  # (B, T, lower)
     target = x[..., lower]
     mse = F.mse_loss(pred, target)
