@@ -13,10 +13,13 @@ frame (or cut) to ``round(duration * fps)`` frames.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
+import queue
 import subprocess
 import tempfile
+import threading
 from fractions import Fraction
 
 import numpy as np
@@ -66,15 +69,59 @@ _TORSO_RADIUS = 0.075  # rounding of the torso outline
 
 
 
-def _inks() -> tuple[dict, dict, dict] | None:
-    """The body palettes as Pillow's RGB ink values, or None where its drawing core differs from Pillow 10-13's."""
+# BT.601 limited-range R'G'B' -> Y'CbCr: the conversion ffmpeg applies by default to rgb24 frames encoded as
+# yuv420p, so frames drawn in YCbCr (the mp4's) look as the RGB ones did after ffmpeg converted them
+_YCC = np.array([[65.481, 128.553, 24.966], [-37.797, -74.203, 112.0], [112.0, -93.786, -18.214]]) / 255.0
+_YCC_OFFSET = np.array([16.0, 128.0, 128.0])
+MODES = ("RGB", "YCbCr")
+
+
+def _to_mode(rgb: np.ndarray, mode: str) -> np.ndarray:
+    """RGB values (..., 3) in 0..255 as uint8 values of ``mode`` (rounded)."""
+    rgb = np.asarray(rgb, np.float64)
+    out = rgb if mode == "RGB" else rgb @ _YCC.T + _YCC_OFFSET
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+def _image(values: np.ndarray, mode: str) -> Image.Image:
+    """An image of ``mode`` from uint8 values ``(h, w, 3)`` already in that mode."""
+    h, w = values.shape[:2]
+    return Image.frombytes(mode, (w, h), np.ascontiguousarray(values, np.uint8).tobytes())
+
+
+@functools.cache
+def _palettes(mode: str) -> dict:
+    """Every colour of the figures and the shadow, as tuples of ``mode`` (RGB or YCbCr)."""
+
+    def conv(c):
+        if isinstance(c, dict):
+            return {k: conv(v) for k, v in c.items()}
+        if isinstance(c, list):
+            return [conv(v) for v in c]
+        return tuple(int(v) for v in _to_mode(c, mode))
+
+    return {
+        "shadow": conv(_SHADOW), "bone": conv(_PALETTE), "joint": conv(_JOINT_PALETTE), "head": conv(_HEAD_PAL),
+        "head_edge": conv(_HEAD_EDGE_PAL), "centre": conv(_BONE[0]),
+        "body_dark": conv(_BODY_DARK), "body": conv(_BODY_PAL), "body_light": conv(_BODY_LIGHT),
+    }  # fmt: skip
+
+
+def _inks() -> dict | None:
+    """The body palettes as Pillow's ink values per mode, or None where its drawing core differs from Pillow 10-13's."""
     try:
-        core = ImageDraw.Draw(Image.new("RGB", (4, 4))).draw
-        inks = tuple({sd: [core.draw_ink(c) for c in cols] for sd, cols in pal.items()}
-                     for pal in (_BODY_DARK, _BODY_PAL, _BODY_LIGHT))
-        core.draw_lines([(0.0, 0.0), (3.0, 3.0)], inks[0][0][0], 2)
-        core.draw_ellipse([0.0, 0.0, 2.0, 2.0], inks[0][0][0], 1)
-        return inks
+        out = {}
+        for mode in MODES:
+            pal = _palettes(mode)
+            core = ImageDraw.Draw(Image.new(mode, (4, 4))).draw
+            inks = tuple({sd: [core.draw_ink(c) for c in cols] for sd, cols in pal[k].items()}
+                         for k in ("body_dark", "body", "body_light"))
+            core.draw_lines([(0.0, 0.0), (3.0, 3.0)], inks[0][0][0], 2)
+            core.draw_ellipse([0.0, 0.0, 2.0, 2.0], inks[0][0][0], 1)
+            out[mode] = inks
+        if ImageDraw.Draw(Image.new("L", (4, 4))).draw.draw_ink(110) != 110:  # the shadow's ink
+            return None
+        return out
     except Exception:  # noqa: BLE001 - any change of the private API: use the public one
         return None
 
@@ -95,6 +142,11 @@ class FrameRenderer:
         three-quarter angle (or 30 degrees when the front is unknown).
     fov : float
         Vertical field of view in degrees.
+    figure : {"stick", "body"}
+        How the dancer is drawn.
+    mode : {"RGB", "YCbCr"}
+        Pillow mode of the frames: RGB, or YCbCr with BT.601 limited-range values (the mp4's; see
+        :func:`yuv420`).
     """
 
     def __init__(
@@ -107,9 +159,14 @@ class FrameRenderer:
         elevation: float = 12.0,
         fov: float = 40.0,
         figure: str = "stick",
+        mode: str = "RGB",
     ):
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         self.scene = scene
         self.figure = figure
+        self.mode = mode
+        self._pal = _palettes(mode)
         self.W, self.H = int(width), int(height)
         az = default_azimuth(scene) if azimuth is None else float(azimuth)
         self.basis = camera_basis(math.radians(az), math.radians(elevation))
@@ -129,8 +186,8 @@ class FrameRenderer:
         self._bc_all, self._bp_all = self._bc.tolist(), self._bp.tolist()
         sides = scene.sides
         bone_side = [int(sides[c]) if sides[c] == sides[p] or sides[p] == 0 else 0 for c, p in bones]
-        self._bone_pal = [_PALETTE[sd] for sd in bone_side]
-        self._joint_pal = [_JOINT_PALETTE[int(sd)] for sd in sides]
+        self._bone_pal = [self._pal["bone"][sd] for sd in bone_side]
+        self._joint_pal = [self._pal["joint"][int(sd)] for sd in sides]
         # bones that end at the head are drawn behind the head disc
         self._head_bones = np.array(
             [i for i, (c, p) in enumerate(bones) if scene.head in (c, p)], dtype=np.int64
@@ -161,7 +218,7 @@ class FrameRenderer:
         v = np.linspace(0.0, 1.0, self.H, dtype=np.float32)[:, None]
         sky = _SKY_TOP * (1 - v) + _SKY_LOW * v  # (H, 3)
         self.background = np.repeat(sky[:, None, :], self.W, axis=1)  # (H, W, 3) float32
-        self._bg_image = Image.fromarray(self.background.astype(np.uint8), "RGB")
+        self._bg_image = _image(_to_mode(self.background.astype(np.uint8), self.mode), self.mode)
 
     def _build_floor(self) -> None:
         """Per-pixel floor geometry at half resolution (the checker is box-filtered there, then pixel-doubled)."""
@@ -195,9 +252,9 @@ class FrameRenderer:
         self._az = (2.0 * _TILE / np.maximum(gz, 1e-9)).astype(np.float32)
         fog = np.clip(dist / _FOG, 0.0, 1.0)[..., None] ** 1.5
         sky = self.background[self.row0 : self.row0 + 2 * h2 : 2, ::2][:h2, :w2]
-        mid, amp = 0.5 * (_TILE_A + _TILE_B), 0.5 * (_TILE_A - _TILE_B)
-        self._floor_base = (mid * (1 - fog) + sky * fog).astype(np.float32)
-        self._floor_amp = (amp * (1 - fog)).astype(np.float32)
+        # the two tiles faded into the sky; a frame's floor blends them by the filtered checker
+        self._floor_light = _image(_to_mode(_TILE_A * (1 - fog) + sky * fog, self.mode), self.mode)
+        self._floor_dark = _image(_to_mode(_TILE_B * (1 - fog) + sky * fog, self.mode), self.mode)
 
     def _floor(self, t: int) -> Image.Image:
         cx, cz = self.cam[t, 0] / _TILE, self.cam[t, 2] / _TILE
@@ -222,10 +279,13 @@ class FrameRenderer:
             return sign  # the box-filtered square wave
 
         checker = square(self._offx, cx, self._ax)
-        checker *= square(self._offz, cz, self._az)
-        rgb = checker[..., None] * self._floor_amp
-        rgb += self._floor_base
-        img = Image.fromarray(rgb.astype(np.uint8), "RGB")
+        checker *= square(self._offz, cz, self._az)  # -1 (dark tile) .. 1 (light tile)
+        checker += 1.0
+        checker *= 127.5
+        checker += 0.5
+        h2, w2 = checker.shape
+        blend = Image.frombytes("L", (w2, h2), checker.astype(np.uint8).tobytes())
+        img = Image.composite(self._floor_light, self._floor_dark, blend)
         # NEAREST: the checker is already box-filtered, and BILINEAR costs 2 ms a frame
         return img.resize((self.W, self.H - self.row0), Image.NEAREST)
 
@@ -276,14 +336,21 @@ class FrameRenderer:
         draw = ImageDraw.Draw(mask)
         loc = [tuple(v) for v in ((uv - [x0, y0]) / q).tolist()]  # plain floats: numpy scalars are slow here
         width = max(1, int(round(2.6 * _BONE_RADIUS * self.k * self.f / float(np.median(z)) / q)))
-        for c, p in zip(self._bc_all, self._bp_all):
-            draw.line([loc[c], loc[p]], fill=110, width=width)
         r = 0.5 * width
-        for x, y in loc:
-            draw.ellipse([x - r, y - r, x + r, y + r], fill=110)
+        if _INKS is not None:  # Pillow's core, as in _body: the same pixels as the public calls below
+            seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
+            for c, p in zip(self._bc_all, self._bp_all):
+                seg([loc[c], loc[p]], 110, width)
+            for x, y in loc:
+                disc([x - r, y - r, x + r, y + r], 110, 1)
+        else:
+            for c, p in zip(self._bc_all, self._bp_all):
+                draw.line([loc[c], loc[p]], fill=110, width=width)
+            for x, y in loc:
+                draw.ellipse([x - r, y - r, x + r, y + r], fill=110)
         mask = mask.filter(ImageFilter.GaussianBlur(1.2))
         mask = mask.resize((size[0] * q, size[1] * q), Image.BILINEAR).crop((0, 0, x1 - x0, y1 - y0))
-        frame.paste(_SHADOW, (x0, y0, x1, y1), mask)
+        frame.paste(self._pal["shadow"], (x0, y0, x1, y1), mask)
 
     def _figure(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
         """Bones (far to near) and joints drawn at ``_SS`` x resolution on a crop, then reduced."""
@@ -327,14 +394,14 @@ class FrameRenderer:
                 r = rh[j] * _SS
                 draw.ellipse(
                     [loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r],
-                    fill=_HEAD_PAL[level[i]],
-                    outline=_HEAD_EDGE_PAL[level[i]],
+                    fill=self._pal["head"][level[i]],
+                    outline=self._pal["head_edge"][level[i]],
                     width=max(1, int(round(0.12 * r))),
                 )
         if not len(sc.bones):
             for j in range(len(pos)):
                 r = rj[j] * _SS
-                draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=_BONE[0])
+                draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=self._pal["centre"])
         frame.paste(crop.reduce(_SS), (x0, y0))
 
     def _figure_region(self, frame: Image.Image, uv: np.ndarray,
@@ -382,18 +449,20 @@ class FrameRenderer:
         if sc.head is not None:
             items.append((self._head_depth(z), 2, sc.head))
         items.sort(key=lambda it: -it[0])
-        line, ellipse = draw.line, draw.ellipse
         if _INKS is not None:  # Pillow's drawing core with precomputed inks: the same pixels, less overhead
-            seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
-            dark, pal, light = _INKS
+            seg, disc, poly = draw.draw.draw_lines, draw.draw.draw_ellipse, draw.draw.draw_polygon
+            dark, pal, light = _INKS[self.mode]
         else:
             def seg(xy, fill, width):
-                line(xy, fill=fill, width=width)
+                draw.line(xy, fill=fill, width=width)
 
             def disc(box, fill, _):
-                ellipse(box, fill=fill)
+                draw.ellipse(box, fill=fill)
 
-            dark, pal, light = _BODY_DARK, _BODY_PAL, _BODY_LIGHT
+            def poly(xy, fill, _):
+                draw.polygon(xy, fill=fill)
+
+            dark, pal, light = self._pal["body_dark"], self._pal["body"], self._pal["body_light"]
 
         for d, kind, i in items:
             lv = level(d)
@@ -411,20 +480,68 @@ class FrameRenderer:
             elif kind == 1:  # the torso: the outline of its joints, rounded, shaded the same way
                 hull = _convex_hull(loc_np[self._torso])
                 r = _TORSO_RADIUS * self.k * float(pix[self._torso].mean()) * _SS
-                ring = [tuple(q) for q in hull] + [tuple(hull[0]), tuple(hull[1 % len(hull)])]
-                for fill, grow in ((_BODY_DARK[0][lv], 1.0), (_BODY_PAL[0][lv], 0.82)):
-                    # the outline as one wide line with round joints: the hull grown by r, rounded
-                    line(ring, fill=fill, width=max(1, int(round(2 * grow * r))), joint="curve")
-                    draw.polygon(ring[:-2], fill=fill)
+                ring = [tuple(q) for q in hull.tolist()]
+                for fill, grow in ((dark[0][lv], 1.0), (pal[0][lv], 0.82)):
+                    # the hull grown by r: its polygon, a wide line along its edges and a disc on each corner
+                    w = max(1, int(round(2 * grow * r)))
+                    seg(ring + ring[:1], fill, w)
+                    rr = 0.5 * w
+                    for qx, qy in ring:
+                        disc([qx - rr, qy - rr, qx + rr, qy + rr], fill, 1)
+                    if len(ring) >= 3:
+                        poly(ring, fill, 1)
             else:  # the head
                 r = float(rh[i]) * _SS
                 qx, qy = loc[i]
-                ellipse([qx - r, qy - r, qx + r, qy + r], fill=_BODY_DARK[0][lv])
+                disc([qx - r, qy - r, qx + r, qy + r], dark[0][lv], 1)
                 r2 = 0.86 * r
-                ellipse([qx - r2, qy - r2, qx + r2, qy + r2], fill=_BODY_PAL[0][lv])
+                disc([qx - r2, qy - r2, qx + r2, qy + r2], pal[0][lv], 1)
                 r3, o = 0.35 * r, 0.3 * r
-                ellipse([qx - o - r3, qy - o - r3, qx - o + r3, qy - o + r3], fill=_BODY_LIGHT[0][lv])
+                disc([qx - o - r3, qy - o - r3, qx - o + r3, qy - o + r3], light[0][lv], 1)
         frame.paste(crop.reduce(_SS), (x0, y0))
+
+
+def yuv420(frame: Image.Image) -> bytes:
+    """A YCbCr frame (H, W) as raw yuv420p bytes: the Y plane (H, W), then Cb and Cr averaged over 2 x 2 pixels
+    (H/2, W/2 each); H and W even."""
+    y, cb, cr = frame.split()
+    return b"".join((y.tobytes(), cb.reduce(2).tobytes(), cr.reduce(2).tobytes()))
+
+
+class _PipeWriter(threading.Thread):
+    """Writes byte strings to a pipe from its own thread, so that the next frame is drawn while ffmpeg reads.
+
+    After a write fails (ffmpeg died) the rest is read and dropped, so :meth:`put` never blocks for good;
+    ``error`` holds the failure.
+    """
+
+    def __init__(self, pipe, depth: int = 8):
+        super().__init__(name="dancekit-mp4-writer", daemon=True)
+        self.pipe = pipe
+        self.queue: queue.Queue = queue.Queue(depth)
+        self.error: OSError | None = None
+        try:  # a larger pipe (Linux): fewer waits on each side
+            import fcntl
+
+            fcntl.fcntl(pipe.fileno(), fcntl.F_SETPIPE_SZ, 1 << 20)
+        except (ImportError, AttributeError, OSError):
+            pass
+
+    def run(self) -> None:
+        while (data := self.queue.get()) is not None:
+            if self.error is None:
+                try:
+                    self.pipe.write(data)
+                except OSError as exc:  # BrokenPipeError: ffmpeg died; its message is read by the caller
+                    self.error = exc
+
+    def put(self, data: bytes) -> None:
+        self.queue.put(data)
+
+    def finish(self) -> None:
+        """Write what is queued, then stop the thread."""
+        self.queue.put(None)
+        self.join()
 
 
 def body_parts(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -558,22 +675,23 @@ def render_mp4(
         n_frames = max(1, int(round(span.duration * scene.fps)))
     else:
         n_frames = scene.num_frames
+    # frames are drawn in YCbCr and sent as yuv420p: ffmpeg has no colour conversion to do
     renderer = FrameRenderer(
         scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
-        figure=options.figure,
+        figure=options.figure, mode="YCbCr",
     )
     rate = Fraction(scene.fps).limit_denominator(1001)
 
     cmd = [
         ffmpeg_exe(), "-hide_banner", "-nostdin", "-nostats", "-loglevel", "error", "-y",
-        "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", f"{rate.numerator}/{rate.denominator}",
+        "-f", "rawvideo", "-pix_fmt", "yuv420p", "-s", f"{width}x{height}", "-r", f"{rate.numerator}/{rate.denominator}",
         "-i", "pipe:0",
     ]  # fmt: skip
     if span is not None:
         cmd += ["-ss", f"{span.start:.6f}", "-t", f"{span.duration:.6f}", "-i", str(span.path)]
         cmd += ["-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-b:a", "160k"]
     cmd += [
-        "-c:v", "libx264", "-preset", "ultrafast", "-tune", "animation", "-crf", str(options.crf),
+        "-c:v", "libx264", "-preset", "ultrafast", "-tune", "animation", "-crf", str(options.crf), "-threads", "1",
         "-pix_fmt", "yuv420p", "-movflags", "+faststart", "-f", "mp4",
     ]  # fmt: skip
 
@@ -590,16 +708,22 @@ def render_mp4(
             )
         except OSError as exc:
             raise ExternalToolError(f"cannot start ffmpeg ({cmd[0]}): {exc}") from exc
+        writer = _PipeWriter(proc.stdin)
+        writer.start()
         try:
+            for t in frames:
+                if writer.error is not None:
+                    break  # ffmpeg died; its message is read below
+                writer.put(yuv420(renderer.render(t)))
+            writer.finish()
             try:
-                for t in frames:
-                    proc.stdin.write(renderer.render(t).tobytes())
                 proc.stdin.close()
             except BrokenPipeError:
-                pass  # ffmpeg died; its message is read below
+                pass
             rc = proc.wait()
         except BaseException:
             proc.kill()
+            writer.finish()
             proc.wait()
             raise
         if rc != 0:
