@@ -218,7 +218,15 @@ class FrameRenderer:
         v = np.linspace(0.0, 1.0, self.H, dtype=np.float32)[:, None]
         sky = _SKY_TOP * (1 - v) + _SKY_LOW * v  # (H, 3)
         self.background = np.repeat(sky[:, None, :], self.W, axis=1)  # (H, W, 3) float32
-        self._bg_image = _image(_to_mode(self.background.astype(np.uint8), self.mode), self.mode)
+        # a frame's sky and floor are made at half resolution and pixel-doubled (the sky changes by one level in
+        # about 16 rows, the floor's checker is box-filtered at half resolution)
+        self._half = ((self.W + 1) // 2, (self.H + 1) // 2)
+        self._bg_half = _image(_to_mode(self.background[::2, ::2].astype(np.uint8), self.mode), self.mode)
+        self._bg_image = self._double(self._bg_half)
+
+    def _double(self, half: Image.Image) -> Image.Image:
+        """A half-resolution image pixel-doubled to the frame's size."""
+        return half.resize((self.W, self.H), Image.NEAREST, box=(0, 0, 0.5 * self.W, 0.5 * self.H))
 
     def _build_floor(self) -> None:
         """Per-pixel floor geometry at half resolution (the checker is box-filtered there, then pixel-doubled)."""
@@ -228,7 +236,7 @@ class FrameRenderer:
         v_h = 0.5 * self.H - self.f * math.tan(el)
         self.row0 = int(max(0, min(self.H, math.floor(v_h) + 1)))
         self.row0 -= self.row0 % 2
-        w2, h2 = self.W // 2, (self.H - self.row0) // 2
+        w2, h2 = self._half[0], (self.H - self.row0 + 1) // 2
         if h2 <= 0 or self.cam_h <= 0:
             self.has_floor = False
             return
@@ -252,42 +260,48 @@ class FrameRenderer:
         self._az = (2.0 * _TILE / np.maximum(gz, 1e-9)).astype(np.float32)
         fog = np.clip(dist / _FOG, 0.0, 1.0)[..., None] ** 1.5
         sky = self.background[self.row0 : self.row0 + 2 * h2 : 2, ::2][:h2, :w2]
-        # the two tiles faded into the sky; a frame's floor blends them by the filtered checker
-        self._floor_light = _image(_to_mode(_TILE_A * (1 - fog) + sky * fog, self.mode), self.mode)
-        self._floor_dark = _image(_to_mode(_TILE_B * (1 - fog) + sky * fog, self.mode), self.mode)
+        # the sky above two floors of one tile colour each, faded into the sky; a frame blends them by the
+        # filtered checker (its blending weights, 0..255, are kept in self._blend: 0 on the sky)
+        r2 = self.row0 // 2
+        self._floor_light, self._floor_dark = self._bg_half.copy(), self._bg_half.copy()
+        self._floor_light.paste(_image(_to_mode(_TILE_A * (1 - fog) + sky * fog, self.mode), self.mode), (0, r2))
+        self._floor_dark.paste(_image(_to_mode(_TILE_B * (1 - fog) + sky * fog, self.mode), self.mode), (0, r2))
+        self._blend = np.zeros(self._half[::-1], np.uint8)
 
-    def _floor(self, t: int) -> Image.Image:
+    def _base(self, t: int) -> Image.Image:
+        """The sky and the floor of frame ``t``, at full resolution."""
+        if not self.has_floor:
+            return self._bg_image.copy()
         cx, cz = self.cam[t, 0] / _TILE, self.cam[t, 2] / _TILE
 
         def square(off: np.ndarray, c: float, a: np.ndarray) -> np.ndarray:
-            # in place, with the arithmetic of the plain expressions in the comments (same pixels, fewer arrays)
-            x = off + np.float32(c)
-            fl = np.floor(x)
-            x -= fl  # fr = x - fl
-            x -= 0.5
+            """The box-filtered square wave of period 2 tiles, +1 on even tiles: clip(a h(x), -1, 1) with the
+            triangle wave h(x) = |((x + 1.5) mod 2) - 1| - 0.5, the signed distance to the nearest tile edge."""
+            x = off + np.float32(c + 1.5)  # in place from here: fewer arrays
+            fl = np.multiply(x, 0.5)
+            np.floor(fl, out=fl)
+            fl *= 2.0
+            x -= fl  # (x + 1.5) mod 2
+            x -= 1.0
             np.abs(x, out=x)
-            np.subtract(0.5, x, out=x)  # edge = 0.5 - |fr - 0.5|: distance to the nearest tile edge (tiles)
+            x -= 0.5
             x *= a
-            np.minimum(x, 1.0, out=x)  # min(edge * a, 1)
-            sign = np.multiply(fl, 0.5)  # sign = 1 - 2 (fl - 2 floor(fl / 2)): +1 on even tiles, -1 on odd
-            np.floor(sign, out=sign)
-            sign *= 2.0
-            np.subtract(fl, sign, out=sign)
-            sign *= 2.0
-            np.subtract(1.0, sign, out=sign)
-            sign *= x
-            return sign  # the box-filtered square wave
+            np.minimum(x, 1.0, out=x)
+            np.maximum(x, -1.0, out=x)
+            return x
 
         checker = square(self._offx, cx, self._ax)
         checker *= square(self._offz, cz, self._az)  # -1 (dark tile) .. 1 (light tile)
-        checker += 1.0
         checker *= 127.5
-        checker += 0.5
-        h2, w2 = checker.shape
-        blend = Image.frombytes("L", (w2, h2), checker.astype(np.uint8).tobytes())
-        img = Image.composite(self._floor_light, self._floor_dark, blend)
+        checker += 128.0  # rounded by the cast below: 0 (dark) .. 255 (light)
+        np.copyto(self._blend[self.row0 // 2 :], checker, casting="unsafe")
+        blend = Image.frombuffer("L", self._half, self._blend, "raw", "L", 0, 1)
         # NEAREST: the checker is already box-filtered, and BILINEAR costs 2 ms a frame
-        return img.resize((self.W, self.H - self.row0), Image.NEAREST)
+        return self._double(Image.composite(self._floor_light, self._floor_dark, blend))
+
+    def _floor(self, t: int) -> Image.Image:
+        """The floor of frame ``t``: rows ``row0`` and below, at full resolution."""
+        return self._base(t).crop((0, self.row0, self.W, self.H))
 
     # ---------------------------------------------------------------- per frame
     def project(self, t: int, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -303,9 +317,7 @@ class FrameRenderer:
     def render(self, t: int) -> Image.Image:
         """Frame ``t`` as an RGB image (``t`` is clipped to the motion's frames)."""
         t = int(min(max(t, 0), self.scene.num_frames - 1))
-        frame = self._bg_image.copy()
-        if self.has_floor:
-            frame.paste(self._floor(t), (0, self.row0))
+        frame = self._base(t)
         pos = self.scene.positions[t]
         self._shadow(frame, t, pos)
         if self.figure == "body" and len(self.scene.bones):
