@@ -108,16 +108,17 @@ def _palettes(mode: str) -> dict:
 
 
 def _inks() -> dict | None:
-    """The body palettes as Pillow's ink values per mode, or None where its drawing core differs from Pillow 10-13's."""
+    """The figures' palettes as Pillow's ink values, ``{mode: {name: {side: [ink per level]}}}``, or None where
+    Pillow's drawing core differs from Pillow 10-13's."""
     try:
         out = {}
         for mode in MODES:
             pal = _palettes(mode)
             core = ImageDraw.Draw(Image.new(mode, (4, 4))).draw
-            inks = tuple({sd: [core.draw_ink(c) for c in cols] for sd, cols in pal[k].items()}
-                         for k in ("body_dark", "body", "body_light"))
-            core.draw_lines([(0.0, 0.0), (3.0, 3.0)], inks[0][0][0], 2)
-            core.draw_ellipse([0.0, 0.0, 2.0, 2.0], inks[0][0][0], 1)
+            inks = {k: {sd: [core.draw_ink(c) for c in cols] for sd, cols in pal[k].items()}
+                    for k in ("body_dark", "body", "body_light", "bone", "joint")}
+            core.draw_lines([(0.0, 0.0), (3.0, 3.0)], inks["bone"][0][0], 2)
+            core.draw_ellipse([0.0, 0.0, 2.0, 2.0], inks["bone"][0][0], 1)
             out[mode] = inks
         if ImageDraw.Draw(Image.new("L", (4, 4))).draw.draw_ink(110) != 110:  # the shadow's ink
             return None
@@ -361,7 +362,7 @@ class FrameRenderer:
             for x, y in loc:
                 draw.ellipse([x - r, y - r, x + r, y + r], fill=110)
         mask = mask.filter(ImageFilter.GaussianBlur(1.2))
-        mask = mask.resize((size[0] * q, size[1] * q), Image.BILINEAR).crop((0, 0, x1 - x0, y1 - y0))
+        mask = mask.resize((x1 - x0, y1 - y0), Image.BILINEAR, box=(0, 0, (x1 - x0) / q, (y1 - y0) / q))
         frame.paste(self._pal["shadow"], (x0, y0, x1, y1), mask)
 
     def _figure(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
@@ -394,13 +395,26 @@ class FrameRenderer:
         rs = rj * _SS
         boxes = np.stack([loc[:, 0] - rs, loc[:, 1] - rs, loc[:, 0] + rs, loc[:, 1] + rs], axis=1).tolist()
         bc, bp = self._bc_all, self._bp_all
+        if _INKS is not None:  # Pillow's drawing core with precomputed inks, as in _body
+            seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
+            ink = _INKS[self.mode]
+            bone_pal = [ink["bone"][sd] for sd in self._bone_side]
+            joint_pal = [ink["joint"][sd] for sd in sc.sides.tolist()]
+        else:
+            def seg(xy, fill, width):
+                draw.line(xy, fill=fill, width=width)
+
+            def disc(box, fill, _):
+                draw.ellipse(box, fill=fill)
+
+            bone_pal, joint_pal = self._bone_pal, self._joint_pal
         for i in order:
             if i < nb:
                 c, p = bc[i], bp[i]
                 lv = level[i]
-                draw.line([pts[c], pts[p]], fill=self._bone_pal[i][lv], width=widths[i])
-                draw.ellipse(boxes[c], fill=self._joint_pal[c][lv])
-                draw.ellipse(boxes[p], fill=self._joint_pal[p][lv])
+                seg([pts[c], pts[p]], bone_pal[i][lv], widths[i])
+                disc(boxes[c], joint_pal[c][lv], 1)
+                disc(boxes[p], joint_pal[p][lv], 1)
             elif sc.head is not None:
                 j = sc.head
                 r = rh[j] * _SS
@@ -427,7 +441,7 @@ class FrameRenderer:
         y1 = int(min(math.ceil(uv[:, 1].max() + reach), self.H))
         if x1 - x0 < 2 or y1 - y0 < 2:
             return None
-        crop = frame.crop((x0, y0, x1, y1)).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
+        crop = frame.resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST, box=(x0, y0, x1, y1))
         return crop, x0, y0
 
     def _body(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
@@ -463,7 +477,7 @@ class FrameRenderer:
         items.sort(key=lambda it: -it[0])
         if _INKS is not None:  # Pillow's drawing core with precomputed inks: the same pixels, less overhead
             seg, disc, poly = draw.draw.draw_lines, draw.draw.draw_ellipse, draw.draw.draw_polygon
-            dark, pal, light = _INKS[self.mode]
+            dark, pal, light = (_INKS[self.mode][k] for k in ("body_dark", "body", "body_light"))
         else:
             def seg(xy, fill, width):
                 draw.line(xy, fill=fill, width=width)
