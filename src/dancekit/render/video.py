@@ -270,9 +270,9 @@ class FrameRenderer:
         self._blend = np.zeros(self._half[::-1], np.uint8)
 
     def _base(self, t: int) -> Image.Image:
-        """The sky and the floor of frame ``t``, at full resolution."""
+        """The sky and the floor of frame ``t`` at half resolution (a new image)."""
         if not self.has_floor:
-            return self._bg_image.copy()
+            return self._bg_half.copy()
         cx, cz = self.cam[t, 0] / _TILE, self.cam[t, 2] / _TILE
 
         def square(off: np.ndarray, c: float, a: np.ndarray) -> np.ndarray:
@@ -297,12 +297,11 @@ class FrameRenderer:
         checker += 128.0  # rounded by the cast below: 0 (dark) .. 255 (light)
         np.copyto(self._blend[self.row0 // 2 :], checker, casting="unsafe")
         blend = Image.frombuffer("L", self._half, self._blend, "raw", "L", 0, 1)
-        # NEAREST: the checker is already box-filtered, and BILINEAR costs 2 ms a frame
-        return self._double(Image.composite(self._floor_light, self._floor_dark, blend))
+        return Image.composite(self._floor_light, self._floor_dark, blend)
 
     def _floor(self, t: int) -> Image.Image:
         """The floor of frame ``t``: rows ``row0`` and below, at full resolution."""
-        return self._base(t).crop((0, self.row0, self.W, self.H))
+        return self._double(self._base(t)).crop((0, self.row0, self.W, self.H))
 
     # ---------------------------------------------------------------- per frame
     def project(self, t: int, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -318,17 +317,20 @@ class FrameRenderer:
     def render(self, t: int) -> Image.Image:
         """Frame ``t`` as an RGB image (``t`` is clipped to the motion's frames)."""
         t = int(min(max(t, 0), self.scene.num_frames - 1))
-        frame = self._base(t)
         pos = self.scene.positions[t]
-        self._shadow(frame, t, pos)
+        half = self._base(t)
+        self._shadow(half, t, pos)
+        # NEAREST: the checker is already box-filtered, the shadow soft (BILINEAR would cost 2 ms a frame)
+        frame = self._double(half)
         if self.figure == "body" and len(self.scene.bones):
             self._body(frame, t, pos)
         else:
             self._figure(frame, t, pos)
         return frame
 
-    def _shadow(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
-        """Bones projected straight down, drawn at quarter resolution and upsampled (soft edges)."""
+    def _shadow(self, half: Image.Image, t: int, pos: np.ndarray) -> None:
+        """Bones projected straight down, drawn at quarter resolution, blurred and upsampled to ``half``: the frame's
+        sky and floor at half resolution (soft edges)."""
         if not self.has_floor or len(self.scene.bones) == 0:
             return
         ground = pos.copy()
@@ -336,19 +338,20 @@ class FrameRenderer:
         uv, z = self.project(t, ground)
         if np.any(z <= 1e-3):
             return
-        q = 4
-        pad = 40
+        uv = uv * 0.5  # half-resolution pixels
+        q = 2  # half-resolution pixels per pixel of the mask
+        pad = 20
         x0, y0 = np.floor(uv.min(axis=0)).astype(int) - pad
         x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + pad
-        x0, y0 = max(x0, 0), max(y0, self.row0)
-        x1, y1 = min(x1, self.W), min(y1, self.H)
+        x0, y0 = max(x0, 0), max(y0, self.row0 // 2)
+        x1, y1 = min(x1, half.width), min(y1, half.height)
         if x1 - x0 < q or y1 - y0 < q:
             return
         size = ((x1 - x0 + q - 1) // q, (y1 - y0 + q - 1) // q)
         mask = Image.new("L", size, 0)
         draw = ImageDraw.Draw(mask)
         loc = [tuple(v) for v in ((uv - [x0, y0]) / q).tolist()]  # plain floats: numpy scalars are slow here
-        width = max(1, int(round(2.6 * _BONE_RADIUS * self.k * self.f / float(np.median(z)) / q)))
+        width = max(1, int(round(2.6 * _BONE_RADIUS * self.k * self.f / float(np.median(z)) / (2 * q))))
         r = 0.5 * width
         if _INKS is not None:  # Pillow's core, as in _body: the same pixels as the public calls below
             seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
@@ -363,7 +366,7 @@ class FrameRenderer:
                 draw.ellipse([x - r, y - r, x + r, y + r], fill=110)
         mask = mask.filter(ImageFilter.GaussianBlur(1.2))
         mask = mask.resize((x1 - x0, y1 - y0), Image.BILINEAR, box=(0, 0, (x1 - x0) / q, (y1 - y0) / q))
-        frame.paste(self._pal["shadow"], (x0, y0, x1, y1), mask)
+        half.paste(self._pal["shadow"], (x0, y0, x1, y1), mask)
 
     def _figure(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
         """Bones (far to near) and joints drawn at ``_SS`` x resolution on a crop, then reduced."""
@@ -530,8 +533,8 @@ class FrameRenderer:
 def yuv420(frame: Image.Image) -> bytes:
     """A YCbCr frame (H, W) as raw yuv420p bytes: the Y plane (H, W), then Cb and Cr averaged over 2 x 2 pixels
     (H/2, W/2 each); H and W even."""
-    y, cb, cr = frame.split()
-    return b"".join((y.tobytes(), cb.reduce(2).tobytes(), cr.reduce(2).tobytes()))
+    half = frame.reduce(2)  # box filter: each pixel the mean of 2 x 2 (rounded)
+    return b"".join((frame.tobytes("raw", "Y"), half.tobytes("raw", "Cb"), half.tobytes("raw", "Cr")))
 
 
 class _PipeWriter(threading.Thread):
