@@ -81,6 +81,18 @@ def test_ycbcr_frames_show_the_rgb_frames(fig):
         assert err.mean() < 1.2 and err.max() < 6.0
 
 
+@pytest.mark.parametrize("fig", ["stick", "body"])
+def test_render_yuv420_is_yuv420_of_the_frame(fig):
+    """The mp4 path averages the chroma of the figure's region only: the same bytes as the whole frame's average."""
+    sc = prepare_scene(figure(2.0, speed=1.5), parents=PARENTS, fps=FPS, unit_scale=1.0, sides=SIDES, head=2)
+    r = FrameRenderer(sc, width=160, height=120, figure=fig, mode="YCbCr", azimuth=90.0)
+    for t in range(0, sc.num_frames, 7):
+        assert r.render_yuv420(t) == yuv420(r.render(t)), t
+    # a camera so close that the figure leaves the frame on some side
+    r = FrameRenderer(sc, width=64, height=48, figure=fig, mode="YCbCr", fov=5.0)
+    assert r.render_yuv420(20) == yuv420(r.render(20))
+
+
 def test_mp4_colours_are_the_rgb_frames(tmp_path):
     """A decoded frame of the mp4 (ffmpeg's own yuv420p -> RGB) against the RGB drawing of the same frame."""
     out = tmp_path / "c.mp4"
