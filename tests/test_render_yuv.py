@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 from test_render import FPS, PARENTS, SIDES, figure
 
-from dancekit.errors import ExternalToolError
+from dancekit.errors import ExternalToolError, ParameterError
 from dancekit.render import RenderOptions, render_mp4
 from dancekit.render._ffmpeg import ffmpeg_exe
 from dancekit.render._scene import prepare_scene
@@ -64,6 +64,12 @@ def test_yuv420_plane_layout():
     assert np.array_equal(out[: h * w].reshape(h, w), y)
     assert np.array_equal(out[h * w : h * w * 5 // 4].reshape(2, 3), 25 + off)
     assert np.array_equal(out[h * w * 5 // 4 :].reshape(2, 3), 255 - 25 - off)
+
+
+def test_renderer_mode_is_checked():
+    sc = prepare_scene(figure(0.2), parents=PARENTS, fps=FPS, unit_scale=1.0)
+    with pytest.raises(ParameterError, match="mode must be one of RGB, YCbCr, got 'RGBA'"):
+        FrameRenderer(sc, width=64, height=48, mode="RGBA")
 
 
 @pytest.mark.parametrize("fig", ["stick", "body"])

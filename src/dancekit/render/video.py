@@ -35,7 +35,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFilter
 
 from dancekit._io import atomic_path
-from dancekit.errors import ExternalToolError
+from dancekit.errors import ExternalToolError, ParameterError
 from dancekit.render._ffmpeg import AudioSpan, audio_span, ffmpeg_exe, last_line
 from dancekit.render._scene import Scene, camera_basis, default_azimuth, fit_distance, prepare_scene
 from dancekit.render.options import AudioClip, RenderOptions, resolve
@@ -172,7 +172,7 @@ class FrameRenderer:
         mode: str = "RGB",
     ):
         if mode not in MODES:
-            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+            raise ParameterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
         self.scene = scene
         self.figure = figure
         self.mode = mode
