@@ -126,3 +126,12 @@ def test_mp4_ffmpeg_dying_at_once_is_reported(tmp_path, monkeypatch):
         render_mp4(tmp_path / "x.mp4", figure(4.0), parents=PARENTS, fps=FPS, unit_scale=1.0,
                    options=RenderOptions(width=320, height=240), progress=False)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fake-ffmpeg"]
+
+
+def test_mp4_writer_thread_failure_is_raised(tmp_path, monkeypatch):
+    """A failure in the writer thread other than a broken pipe reaches the caller; no partial mp4 is left."""
+    monkeypatch.setattr(FrameRenderer, "render_yuv420", lambda self, t: "not bytes")
+    with pytest.raises(TypeError):
+        render_mp4(tmp_path / "x.mp4", figure(0.4), parents=PARENTS, fps=FPS, unit_scale=1.0,
+                   options=RenderOptions(width=64, height=48), progress=False)
+    assert list(tmp_path.iterdir()) == []

@@ -570,7 +570,8 @@ class _PipeWriter(threading.Thread):
     """Writes byte strings to a pipe from its own thread, so that the next frame is drawn while ffmpeg reads.
 
     After a write fails (ffmpeg died) the rest is read and dropped, so :meth:`put` never blocks for good;
-    ``error`` holds the failure.
+    ``error`` holds the failure (an ``OSError`` such as ``BrokenPipeError``, or anything else for the caller to
+    raise).
     """
 
     def __init__(self, pipe, depth: int = 8):
@@ -590,7 +591,7 @@ class _PipeWriter(threading.Thread):
             if self.error is None:
                 try:
                     self.pipe.write(data)
-                except OSError as exc:  # BrokenPipeError: ffmpeg died; its message is read by the caller
+                except Exception as exc:  # noqa: BLE001 - BrokenPipeError: ffmpeg died; others are raised by the caller
                     self.error = exc
 
     def put(self, data: bytes) -> None:
@@ -767,21 +768,24 @@ def render_mp4(
         except OSError as exc:
             raise ExternalToolError(f"cannot start ffmpeg ({cmd[0]}): {exc}") from exc
         writer = _PipeWriter(proc.stdin)
-        writer.start()
         try:
+            writer.start()
             for t in frames:
                 if writer.error is not None:
                     break  # ffmpeg died; its message is read below
                 writer.put(renderer.render_yuv420(t))
             writer.finish()
+            if writer.error is not None and not isinstance(writer.error, OSError):
+                raise writer.error
             try:
                 proc.stdin.close()
             except BrokenPipeError:
                 pass
             rc = proc.wait()
         except BaseException:
-            proc.kill()
-            writer.finish()
+            proc.kill()  # first: a write blocked on ffmpeg's pipe fails, and the writer thread ends
+            if writer.ident is not None:
+                writer.finish()
             proc.wait()
             raise
         if rc != 0:
