@@ -4,13 +4,19 @@ Target: at most 10 s of rendering per minute of music on the 2-core CI machine.
 Uses the first 60 s of tang2018 DANCE_T_5 (100 s long) when ``../shared`` is beside the repository,
 otherwise a synthetic stick figure and a synthetic tone. Run by hand::
 
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_render.py [--seconds 60] [--figure body] [--html]
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/bench_render.py [--seconds 60] [--figure body] [--html] [--repeats 3]
+
+Each run prints its wall time, the CPU time of the Python process and of its ffmpeg children (user + sys:
+comparable on a shared machine, where wall time is not) and the 1-minute load average when it started.
+The exit status says whether the best run met the target.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import resource
 import sys
 import tempfile
 import time
@@ -56,6 +62,12 @@ def _synthetic(seconds: float, fps: float, tmp: Path) -> tuple[np.ndarray, Path]
     return pos.astype(np.float32), song
 
 
+def _cpu() -> tuple[float, float]:
+    """CPU seconds (user + sys) used so far by this process and by its waited-for children (ffmpeg)."""
+    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime, kids.ru_utime + kids.ru_stime
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0)
@@ -64,6 +76,7 @@ def main() -> int:
     ap.add_argument("--figure", choices=("stick", "body"), default="stick",
                     help="stick figure (default) or the volumetric body")
     ap.add_argument("--html", action="store_true", help="also time render_html")
+    ap.add_argument("--repeats", type=int, default=1, help="render this many times (the best run is judged)")
     args = ap.parse_args()
     fps = 25.0
     with tempfile.TemporaryDirectory() as d:
@@ -80,25 +93,32 @@ def main() -> int:
             source = "synthetic"
         seconds = pos.shape[0] / fps
         out = tmp / "bench.mp4"
-        t0 = time.perf_counter()
-        render_mp4(
-            out,
-            pos,
-            parents=_PARENTS,
-            fps=fps,
-            sides=_SIDES,
-            head=0,
-            audio=AudioClip(song, start=start),
-            options=RenderOptions(width=args.width, height=args.height, figure=args.figure),
-            progress=False,
-        )
-        took = time.perf_counter() - t0
-        per_min = took / seconds * 60
-        print(
-            f"render_mp4 {source}, {args.figure} figure: {seconds:.1f} s of dance at {fps:g} fps, {args.width}x{args.height}: "
-            f"{took:.2f} s ({per_min:.2f} s per minute of music; target <= {TARGET_S_PER_MIN:g}); "
-            f"{out.stat().st_size / 1e6:.1f} MB"
-        )
+        best = float("inf")
+        for _ in range(max(1, args.repeats)):
+            load = os.getloadavg()[0]
+            cpu0 = _cpu()
+            t0 = time.perf_counter()
+            render_mp4(
+                out,
+                pos,
+                parents=_PARENTS,
+                fps=fps,
+                sides=_SIDES,
+                head=0,
+                audio=AudioClip(song, start=start),
+                options=RenderOptions(width=args.width, height=args.height, figure=args.figure),
+                progress=False,
+            )
+            took = time.perf_counter() - t0
+            py, ff = (b - a for a, b in zip(cpu0, _cpu(), strict=True))
+            per_min = took / seconds * 60
+            best = min(best, per_min)
+            print(
+                f"render_mp4 {source}, {args.figure} figure: {seconds:.1f} s of dance at {fps:g} fps, "
+                f"{args.width}x{args.height}: {took:.2f} s ({per_min:.2f} s per minute of music; target <= "
+                f"{TARGET_S_PER_MIN:g}); CPU python {py:.2f} s + ffmpeg {ff:.2f} s; load {load:.2f} at start; "
+                f"{out.stat().st_size / 1e6:.1f} MB"
+            )
         if args.html:
             t0 = time.perf_counter()
             render_html(
@@ -113,7 +133,7 @@ def main() -> int:
             print(
                 f"render_html: {time.perf_counter() - t0:.2f} s, {(tmp / 'bench.html').stat().st_size / 1e6:.1f} MB"
             )
-    return 0 if per_min <= TARGET_S_PER_MIN else 1
+    return 0 if best <= TARGET_S_PER_MIN else 1
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ import json
 import re
 
 import numpy as np
+import pytest
 from _media import chromium as _chromium
 from _media import run_chromium as _run_chromium
 from test_render import FPS, PARENTS, SIDES, _cli, figure
@@ -87,8 +88,10 @@ def test_body_figure_draws_in_headless_chromium(tmp_path):
     assert counts["body"] > 3000 and counts["body"] > 4 * counts["stick"]
 
 
-def test_mp4_body_fast_drawing_equals_the_public_api(monkeypatch):
-    """The mp4 body figure draws with Pillow's core and precomputed inks; the public API gives the same pixels."""
+@pytest.mark.parametrize("mode", ["RGB", "YCbCr"])
+@pytest.mark.parametrize("fig", ["body", "stick"])
+def test_mp4_fast_drawing_equals_the_public_api(monkeypatch, fig, mode):
+    """The mp4 figures and shadow draw with Pillow's core and precomputed inks; the public API gives the same pixels."""
     from test_render import figure as stick_dance
 
     import dancekit.render.video as video
@@ -96,7 +99,7 @@ def test_mp4_body_fast_drawing_equals_the_public_api(monkeypatch):
 
     assert video._INKS is not None  # the fast path is in use with this Pillow
     scene = prepare_scene(stick_dance(1.0, speed=0.5), parents=PARENTS, fps=FPS, unit_scale=1.0, sides=SIDES, head=2)
-    r = video.FrameRenderer(scene, width=160, height=120, figure="body")
+    r = video.FrameRenderer(scene, width=160, height=120, figure=fig, mode=mode)
     fast = [np.asarray(r.render(t)) for t in (0, 12, 24)]
     monkeypatch.setattr(video, "_INKS", None)
     slow = [np.asarray(r.render(t)) for t in (0, 12, 24)]

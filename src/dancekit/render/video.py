@@ -9,21 +9,33 @@ under the figure.
 
 The video lasts exactly as long as the song slice: the dance is padded with its last
 frame (or cut) to ``round(duration * fps)`` frames.
+
+Speed (a minute of dance in a few seconds on two cores): the mp4's frames are drawn in
+Y'CbCr (BT.601, limited range: the values ffmpeg's own rgb24 -> yuv420p conversion gives)
+and piped as yuv420p, half the bytes of RGB and no conversion in ffmpeg; the sky, the floor
+and the soft shadow are made at half resolution and pixel-doubled once, and only the
+figure's region has its chroma averaged; the figures are drawn with Pillow's drawing core
+(a private API, checked at import, with the public one as fallback); a writer thread feeds
+ffmpeg while the next frame is drawn; x264 runs ``ultrafast`` on one thread, beside the
+drawing. :meth:`FrameRenderer.render` gives RGB frames by default (tests, stills).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import os
+import queue
 import subprocess
 import tempfile
+import threading
 from fractions import Fraction
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFilter
 
 from dancekit._io import atomic_path
-from dancekit.errors import ExternalToolError
+from dancekit.errors import ExternalToolError, ParameterError
 from dancekit.render._ffmpeg import AudioSpan, audio_span, ffmpeg_exe, last_line
 from dancekit.render._scene import Scene, camera_basis, default_azimuth, fit_distance, prepare_scene
 from dancekit.render.options import AudioClip, RenderOptions, resolve
@@ -66,15 +78,60 @@ _TORSO_RADIUS = 0.075  # rounding of the torso outline
 
 
 
-def _inks() -> tuple[dict, dict, dict] | None:
-    """The body palettes as Pillow's RGB ink values, or None where its drawing core differs from Pillow 10-13's."""
+# BT.601 limited-range R'G'B' -> Y'CbCr: the conversion ffmpeg applies by default to rgb24 frames encoded as
+# yuv420p, so frames drawn in YCbCr (the mp4's) look as the RGB ones did after ffmpeg converted them
+_YCC = np.array([[65.481, 128.553, 24.966], [-37.797, -74.203, 112.0], [112.0, -93.786, -18.214]]) / 255.0
+_YCC_OFFSET = np.array([16.0, 128.0, 128.0])
+MODES = ("RGB", "YCbCr")
+
+
+def _to_mode(rgb: np.ndarray, mode: str) -> np.ndarray:
+    """RGB values (..., 3) in 0..255 as uint8 values of ``mode`` (rounded)."""
+    rgb = np.asarray(rgb, np.float64)
+    out = rgb if mode == "RGB" else rgb @ _YCC.T + _YCC_OFFSET
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+def _image(values: np.ndarray, mode: str) -> Image.Image:
+    """An image of ``mode`` from uint8 values ``(h, w, 3)`` already in that mode."""
+    h, w = values.shape[:2]
+    return Image.frombytes(mode, (w, h), np.ascontiguousarray(values, np.uint8).tobytes())
+
+
+@functools.cache
+def _palettes(mode: str) -> dict:
+    """Every colour of the figures and the shadow, as tuples of ``mode`` (RGB or YCbCr)."""
+
+    def conv(c):
+        if isinstance(c, dict):
+            return {k: conv(v) for k, v in c.items()}
+        if isinstance(c, list):
+            return [conv(v) for v in c]
+        return tuple(int(v) for v in _to_mode(c, mode))
+
+    return {
+        "shadow": conv(_SHADOW), "bone": conv(_PALETTE), "joint": conv(_JOINT_PALETTE), "head": conv(_HEAD_PAL),
+        "head_edge": conv(_HEAD_EDGE_PAL), "centre": conv(_BONE[0]),
+        "body_dark": conv(_BODY_DARK), "body": conv(_BODY_PAL), "body_light": conv(_BODY_LIGHT),
+    }  # fmt: skip
+
+
+def _inks() -> dict | None:
+    """The figures' palettes as Pillow's ink values, ``{mode: {name: {side: [ink per level]}}}``, or None where
+    Pillow's drawing core differs from Pillow 10-13's."""
     try:
-        core = ImageDraw.Draw(Image.new("RGB", (4, 4))).draw
-        inks = tuple({sd: [core.draw_ink(c) for c in cols] for sd, cols in pal.items()}
-                     for pal in (_BODY_DARK, _BODY_PAL, _BODY_LIGHT))
-        core.draw_lines([(0.0, 0.0), (3.0, 3.0)], inks[0][0][0], 2)
-        core.draw_ellipse([0.0, 0.0, 2.0, 2.0], inks[0][0][0], 1)
-        return inks
+        out = {}
+        for mode in MODES:
+            pal = _palettes(mode)
+            core = ImageDraw.Draw(Image.new(mode, (4, 4))).draw
+            inks = {k: {sd: [core.draw_ink(c) for c in cols] for sd, cols in pal[k].items()}
+                    for k in ("body_dark", "body", "body_light", "bone", "joint")}
+            core.draw_lines([(0.0, 0.0), (3.0, 3.0)], inks["bone"][0][0], 2)
+            core.draw_ellipse([0.0, 0.0, 2.0, 2.0], inks["bone"][0][0], 1)
+            out[mode] = inks
+        if ImageDraw.Draw(Image.new("L", (4, 4))).draw.draw_ink(110) != 110:  # the shadow's ink
+            return None
+        return out
     except Exception:  # noqa: BLE001 - any change of the private API: use the public one
         return None
 
@@ -95,6 +152,11 @@ class FrameRenderer:
         three-quarter angle (or 30 degrees when the front is unknown).
     fov : float
         Vertical field of view in degrees.
+    figure : {"stick", "body"}
+        How the dancer is drawn.
+    mode : {"RGB", "YCbCr"}
+        Pillow mode of the frames: RGB, or YCbCr with BT.601 limited-range values (the mp4's; see
+        :func:`yuv420`).
     """
 
     def __init__(
@@ -107,9 +169,15 @@ class FrameRenderer:
         elevation: float = 12.0,
         fov: float = 40.0,
         figure: str = "stick",
+        mode: str = "RGB",
     ):
+        if mode not in MODES:
+            raise ParameterError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
         self.scene = scene
         self.figure = figure
+        self.mode = mode
+        self._box, self._last = None, (None, None, None)  # the figure's region; the last frame (render_yuv420)
+        self._pal = _palettes(mode)
         self.W, self.H = int(width), int(height)
         az = default_azimuth(scene) if azimuth is None else float(azimuth)
         self.basis = camera_basis(math.radians(az), math.radians(elevation))
@@ -129,8 +197,8 @@ class FrameRenderer:
         self._bc_all, self._bp_all = self._bc.tolist(), self._bp.tolist()
         sides = scene.sides
         bone_side = [int(sides[c]) if sides[c] == sides[p] or sides[p] == 0 else 0 for c, p in bones]
-        self._bone_pal = [_PALETTE[sd] for sd in bone_side]
-        self._joint_pal = [_JOINT_PALETTE[int(sd)] for sd in sides]
+        self._bone_pal = [self._pal["bone"][sd] for sd in bone_side]
+        self._joint_pal = [self._pal["joint"][int(sd)] for sd in sides]
         # bones that end at the head are drawn behind the head disc
         self._head_bones = np.array(
             [i for i, (c, p) in enumerate(bones) if scene.head in (c, p)], dtype=np.int64
@@ -161,7 +229,15 @@ class FrameRenderer:
         v = np.linspace(0.0, 1.0, self.H, dtype=np.float32)[:, None]
         sky = _SKY_TOP * (1 - v) + _SKY_LOW * v  # (H, 3)
         self.background = np.repeat(sky[:, None, :], self.W, axis=1)  # (H, W, 3) float32
-        self._bg_image = Image.fromarray(self.background.astype(np.uint8), "RGB")
+        # a frame's sky and floor are made at half resolution and pixel-doubled (the sky changes by one level in
+        # about 16 rows, the floor's checker is box-filtered at half resolution)
+        self._half = ((self.W + 1) // 2, (self.H + 1) // 2)
+        self._bg_half = _image(_to_mode(self.background[::2, ::2].astype(np.uint8), self.mode), self.mode)
+        self._bg_image = self._double(self._bg_half)
+
+    def _double(self, half: Image.Image) -> Image.Image:
+        """A half-resolution image pixel-doubled to the frame's size."""
+        return half.resize((self.W, self.H), Image.NEAREST, box=(0, 0, 0.5 * self.W, 0.5 * self.H))
 
     def _build_floor(self) -> None:
         """Per-pixel floor geometry at half resolution (the checker is box-filtered there, then pixel-doubled)."""
@@ -171,7 +247,7 @@ class FrameRenderer:
         v_h = 0.5 * self.H - self.f * math.tan(el)
         self.row0 = int(max(0, min(self.H, math.floor(v_h) + 1)))
         self.row0 -= self.row0 % 2
-        w2, h2 = self.W // 2, (self.H - self.row0) // 2
+        w2, h2 = self._half[0], (self.H - self.row0 + 1) // 2
         if h2 <= 0 or self.cam_h <= 0:
             self.has_floor = False
             return
@@ -195,39 +271,47 @@ class FrameRenderer:
         self._az = (2.0 * _TILE / np.maximum(gz, 1e-9)).astype(np.float32)
         fog = np.clip(dist / _FOG, 0.0, 1.0)[..., None] ** 1.5
         sky = self.background[self.row0 : self.row0 + 2 * h2 : 2, ::2][:h2, :w2]
-        mid, amp = 0.5 * (_TILE_A + _TILE_B), 0.5 * (_TILE_A - _TILE_B)
-        self._floor_base = (mid * (1 - fog) + sky * fog).astype(np.float32)
-        self._floor_amp = (amp * (1 - fog)).astype(np.float32)
+        # the sky above two floors of one tile colour each, faded into the sky; a frame blends them by the
+        # filtered checker (its blending weights, 0..255, are kept in self._blend: 0 on the sky)
+        r2 = self.row0 // 2
+        self._floor_light, self._floor_dark = self._bg_half.copy(), self._bg_half.copy()
+        self._floor_light.paste(_image(_to_mode(_TILE_A * (1 - fog) + sky * fog, self.mode), self.mode), (0, r2))
+        self._floor_dark.paste(_image(_to_mode(_TILE_B * (1 - fog) + sky * fog, self.mode), self.mode), (0, r2))
+        self._blend = np.zeros(self._half[::-1], np.uint8)
 
-    def _floor(self, t: int) -> Image.Image:
+    def _base(self, t: int) -> Image.Image:
+        """The sky and the floor of frame ``t`` at half resolution (a new image)."""
+        if not self.has_floor:
+            return self._bg_half.copy()
         cx, cz = self.cam[t, 0] / _TILE, self.cam[t, 2] / _TILE
 
         def square(off: np.ndarray, c: float, a: np.ndarray) -> np.ndarray:
-            # in place, with the arithmetic of the plain expressions in the comments (same pixels, fewer arrays)
-            x = off + np.float32(c)
-            fl = np.floor(x)
-            x -= fl  # fr = x - fl
-            x -= 0.5
+            """The box-filtered square wave of period 2 tiles, +1 on even tiles: clip(a h(x), -1, 1) with the
+            triangle wave h(x) = |((x + 1.5) mod 2) - 1| - 0.5, the signed distance to the nearest tile edge."""
+            x = off + np.float32(c + 1.5)  # in place from here: fewer arrays
+            fl = np.multiply(x, 0.5)
+            np.floor(fl, out=fl)
+            fl *= 2.0
+            x -= fl  # (x + 1.5) mod 2
+            x -= 1.0
             np.abs(x, out=x)
-            np.subtract(0.5, x, out=x)  # edge = 0.5 - |fr - 0.5|: distance to the nearest tile edge (tiles)
+            x -= 0.5
             x *= a
-            np.minimum(x, 1.0, out=x)  # min(edge * a, 1)
-            sign = np.multiply(fl, 0.5)  # sign = 1 - 2 (fl - 2 floor(fl / 2)): +1 on even tiles, -1 on odd
-            np.floor(sign, out=sign)
-            sign *= 2.0
-            np.subtract(fl, sign, out=sign)
-            sign *= 2.0
-            np.subtract(1.0, sign, out=sign)
-            sign *= x
-            return sign  # the box-filtered square wave
+            np.minimum(x, 1.0, out=x)
+            np.maximum(x, -1.0, out=x)
+            return x
 
         checker = square(self._offx, cx, self._ax)
-        checker *= square(self._offz, cz, self._az)
-        rgb = checker[..., None] * self._floor_amp
-        rgb += self._floor_base
-        img = Image.fromarray(rgb.astype(np.uint8), "RGB")
-        # NEAREST: the checker is already box-filtered, and BILINEAR costs 2 ms a frame
-        return img.resize((self.W, self.H - self.row0), Image.NEAREST)
+        checker *= square(self._offz, cz, self._az)  # -1 (dark tile) .. 1 (light tile)
+        checker *= 127.5
+        checker += 128.0  # rounded by the cast below: 0 (dark) .. 255 (light)
+        np.copyto(self._blend[self.row0 // 2 :], checker, casting="unsafe")
+        blend = Image.frombuffer("L", self._half, self._blend, "raw", "L", 0, 1)
+        return Image.composite(self._floor_light, self._floor_dark, blend)
+
+    def _floor(self, t: int) -> Image.Image:
+        """The floor of frame ``t``: rows ``row0`` and below, at full resolution."""
+        return self._double(self._base(t)).crop((0, self.row0, self.W, self.H))
 
     # ---------------------------------------------------------------- per frame
     def project(self, t: int, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -241,21 +325,37 @@ class FrameRenderer:
         return uv, z
 
     def render(self, t: int) -> Image.Image:
-        """Frame ``t`` as an RGB image (``t`` is clipped to the motion's frames)."""
+        """Frame ``t`` as an image of the renderer's mode, RGB by default (``t`` is clipped to the motion's frames)."""
         t = int(min(max(t, 0), self.scene.num_frames - 1))
-        frame = self._bg_image.copy()
-        if self.has_floor:
-            frame.paste(self._floor(t), (0, self.row0))
         pos = self.scene.positions[t]
-        self._shadow(frame, t, pos)
+        half = self._base(t)
+        self._shadow(half, t, pos)
+        # NEAREST: the checker is already box-filtered, the shadow soft (BILINEAR would cost 2 ms a frame)
+        frame = self._double(half)
+        self._box = None  # set by _figure_region
         if self.figure == "body" and len(self.scene.bones):
             self._body(frame, t, pos)
         else:
             self._figure(frame, t, pos)
+        self._last = (frame, half, self._box)
         return frame
 
-    def _shadow(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
-        """Bones projected straight down, drawn at quarter resolution and upsampled (soft edges)."""
+    def render_yuv420(self, t: int) -> bytes:
+        """Frame ``t`` as raw yuv420p bytes, equal to ``yuv420(self.render(t))`` (a renderer in YCbCr mode, even
+        width and height): outside the figure's region the frame is the pixel-doubled ``half``, whose chroma is
+        already the 2 x 2 mean, so only the figure's region is averaged."""
+        frame = self.render(t)
+        last, half, box = self._last
+        if last is not frame or self.mode != "YCbCr":  # not this renderer's frame (a wrapped render)
+            return yuv420(frame)
+        if box is not None:
+            x0, y0, x1, y1 = box
+            half.paste(frame.reduce(2, box=box), (x0 // 2, y0 // 2))
+        return b"".join((frame.tobytes("raw", "Y"), half.tobytes("raw", "Cb"), half.tobytes("raw", "Cr")))
+
+    def _shadow(self, half: Image.Image, t: int, pos: np.ndarray) -> None:
+        """Bones projected straight down, drawn at quarter resolution, blurred and upsampled to ``half``: the frame's
+        sky and floor at half resolution (soft edges)."""
         if not self.has_floor or len(self.scene.bones) == 0:
             return
         ground = pos.copy()
@@ -263,27 +363,35 @@ class FrameRenderer:
         uv, z = self.project(t, ground)
         if np.any(z <= 1e-3):
             return
-        q = 4
-        pad = 40
+        uv = uv * 0.5  # half-resolution pixels
+        q = 2  # half-resolution pixels per pixel of the mask
+        pad = 20
         x0, y0 = np.floor(uv.min(axis=0)).astype(int) - pad
         x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + pad
-        x0, y0 = max(x0, 0), max(y0, self.row0)
-        x1, y1 = min(x1, self.W), min(y1, self.H)
+        x0, y0 = max(x0, 0), max(y0, self.row0 // 2)
+        x1, y1 = min(x1, half.width), min(y1, half.height)
         if x1 - x0 < q or y1 - y0 < q:
             return
         size = ((x1 - x0 + q - 1) // q, (y1 - y0 + q - 1) // q)
         mask = Image.new("L", size, 0)
         draw = ImageDraw.Draw(mask)
         loc = [tuple(v) for v in ((uv - [x0, y0]) / q).tolist()]  # plain floats: numpy scalars are slow here
-        width = max(1, int(round(2.6 * _BONE_RADIUS * self.k * self.f / float(np.median(z)) / q)))
-        for c, p in zip(self._bc_all, self._bp_all):
-            draw.line([loc[c], loc[p]], fill=110, width=width)
+        width = max(1, int(round(2.6 * _BONE_RADIUS * self.k * self.f / float(np.median(z)) / (2 * q))))
         r = 0.5 * width
-        for x, y in loc:
-            draw.ellipse([x - r, y - r, x + r, y + r], fill=110)
+        if _INKS is not None:  # Pillow's core, as in _body: the same pixels as the public calls below
+            seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
+            for c, p in zip(self._bc_all, self._bp_all):
+                seg([loc[c], loc[p]], 110, width)
+            for x, y in loc:
+                disc([x - r, y - r, x + r, y + r], 110, 1)
+        else:
+            for c, p in zip(self._bc_all, self._bp_all):
+                draw.line([loc[c], loc[p]], fill=110, width=width)
+            for x, y in loc:
+                draw.ellipse([x - r, y - r, x + r, y + r], fill=110)
         mask = mask.filter(ImageFilter.GaussianBlur(1.2))
-        mask = mask.resize((size[0] * q, size[1] * q), Image.BILINEAR).crop((0, 0, x1 - x0, y1 - y0))
-        frame.paste(_SHADOW, (x0, y0, x1, y1), mask)
+        mask = mask.resize((x1 - x0, y1 - y0), Image.BILINEAR, box=(0, 0, (x1 - x0) / q, (y1 - y0) / q))
+        half.paste(self._pal["shadow"], (x0, y0, x1, y1), mask)
 
     def _figure(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
         """Bones (far to near) and joints drawn at ``_SS`` x resolution on a crop, then reduced."""
@@ -315,26 +423,39 @@ class FrameRenderer:
         rs = rj * _SS
         boxes = np.stack([loc[:, 0] - rs, loc[:, 1] - rs, loc[:, 0] + rs, loc[:, 1] + rs], axis=1).tolist()
         bc, bp = self._bc_all, self._bp_all
+        if _INKS is not None:  # Pillow's drawing core with precomputed inks, as in _body
+            seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
+            ink = _INKS[self.mode]
+            bone_pal = [ink["bone"][sd] for sd in self._bone_side]
+            joint_pal = [ink["joint"][sd] for sd in sc.sides.tolist()]
+        else:
+            def seg(xy, fill, width):
+                draw.line(xy, fill=fill, width=width)
+
+            def disc(box, fill, _):
+                draw.ellipse(box, fill=fill)
+
+            bone_pal, joint_pal = self._bone_pal, self._joint_pal
         for i in order:
             if i < nb:
                 c, p = bc[i], bp[i]
                 lv = level[i]
-                draw.line([pts[c], pts[p]], fill=self._bone_pal[i][lv], width=widths[i])
-                draw.ellipse(boxes[c], fill=self._joint_pal[c][lv])
-                draw.ellipse(boxes[p], fill=self._joint_pal[p][lv])
+                seg([pts[c], pts[p]], bone_pal[i][lv], widths[i])
+                disc(boxes[c], joint_pal[c][lv], 1)
+                disc(boxes[p], joint_pal[p][lv], 1)
             elif sc.head is not None:
                 j = sc.head
                 r = rh[j] * _SS
                 draw.ellipse(
                     [loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r],
-                    fill=_HEAD_PAL[level[i]],
-                    outline=_HEAD_EDGE_PAL[level[i]],
+                    fill=self._pal["head"][level[i]],
+                    outline=self._pal["head_edge"][level[i]],
                     width=max(1, int(round(0.12 * r))),
                 )
         if not len(sc.bones):
             for j in range(len(pos)):
                 r = rj[j] * _SS
-                draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=_BONE[0])
+                draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=self._pal["centre"])
         frame.paste(crop.reduce(_SS), (x0, y0))
 
     def _figure_region(self, frame: Image.Image, uv: np.ndarray,
@@ -348,7 +469,11 @@ class FrameRenderer:
         y1 = int(min(math.ceil(uv[:, 1].max() + reach), self.H))
         if x1 - x0 < 2 or y1 - y0 < 2:
             return None
-        crop = frame.crop((x0, y0, x1, y1)).resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST)
+        # even corners: the region is whole 2 x 2 blocks of the half-resolution sky and floor (render_yuv420)
+        x0, y0 = x0 - x0 % 2, y0 - y0 % 2
+        x1, y1 = min(x1 + x1 % 2, self.W), min(y1 + y1 % 2, self.H)
+        self._box = (x0, y0, x1, y1)
+        crop = frame.resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST, box=(x0, y0, x1, y1))
         return crop, x0, y0
 
     def _body(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
@@ -382,18 +507,20 @@ class FrameRenderer:
         if sc.head is not None:
             items.append((self._head_depth(z), 2, sc.head))
         items.sort(key=lambda it: -it[0])
-        line, ellipse = draw.line, draw.ellipse
         if _INKS is not None:  # Pillow's drawing core with precomputed inks: the same pixels, less overhead
-            seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
-            dark, pal, light = _INKS
+            seg, disc, poly = draw.draw.draw_lines, draw.draw.draw_ellipse, draw.draw.draw_polygon
+            dark, pal, light = (_INKS[self.mode][k] for k in ("body_dark", "body", "body_light"))
         else:
             def seg(xy, fill, width):
-                line(xy, fill=fill, width=width)
+                draw.line(xy, fill=fill, width=width)
 
             def disc(box, fill, _):
-                ellipse(box, fill=fill)
+                draw.ellipse(box, fill=fill)
 
-            dark, pal, light = _BODY_DARK, _BODY_PAL, _BODY_LIGHT
+            def poly(xy, fill, _):
+                draw.polygon(xy, fill=fill)
+
+            dark, pal, light = self._pal["body_dark"], self._pal["body"], self._pal["body_light"]
 
         for d, kind, i in items:
             lv = level(d)
@@ -411,20 +538,69 @@ class FrameRenderer:
             elif kind == 1:  # the torso: the outline of its joints, rounded, shaded the same way
                 hull = _convex_hull(loc_np[self._torso])
                 r = _TORSO_RADIUS * self.k * float(pix[self._torso].mean()) * _SS
-                ring = [tuple(q) for q in hull] + [tuple(hull[0]), tuple(hull[1 % len(hull)])]
-                for fill, grow in ((_BODY_DARK[0][lv], 1.0), (_BODY_PAL[0][lv], 0.82)):
-                    # the outline as one wide line with round joints: the hull grown by r, rounded
-                    line(ring, fill=fill, width=max(1, int(round(2 * grow * r))), joint="curve")
-                    draw.polygon(ring[:-2], fill=fill)
+                ring = [tuple(q) for q in hull.tolist()]
+                for fill, grow in ((dark[0][lv], 1.0), (pal[0][lv], 0.82)):
+                    # the hull grown by r: its polygon, a wide line along its edges and a disc on each corner
+                    w = max(1, int(round(2 * grow * r)))
+                    seg(ring + ring[:1], fill, w)
+                    rr = 0.5 * w
+                    for qx, qy in ring:
+                        disc([qx - rr, qy - rr, qx + rr, qy + rr], fill, 1)
+                    if len(ring) >= 3:
+                        poly(ring, fill, 1)
             else:  # the head
                 r = float(rh[i]) * _SS
                 qx, qy = loc[i]
-                ellipse([qx - r, qy - r, qx + r, qy + r], fill=_BODY_DARK[0][lv])
+                disc([qx - r, qy - r, qx + r, qy + r], dark[0][lv], 1)
                 r2 = 0.86 * r
-                ellipse([qx - r2, qy - r2, qx + r2, qy + r2], fill=_BODY_PAL[0][lv])
+                disc([qx - r2, qy - r2, qx + r2, qy + r2], pal[0][lv], 1)
                 r3, o = 0.35 * r, 0.3 * r
-                ellipse([qx - o - r3, qy - o - r3, qx - o + r3, qy - o + r3], fill=_BODY_LIGHT[0][lv])
+                disc([qx - o - r3, qy - o - r3, qx - o + r3, qy - o + r3], light[0][lv], 1)
         frame.paste(crop.reduce(_SS), (x0, y0))
+
+
+def yuv420(frame: Image.Image) -> bytes:
+    """A YCbCr frame (H, W) as raw yuv420p bytes: the Y plane (H, W), then Cb and Cr averaged over 2 x 2 pixels
+    (H/2, W/2 each); H and W even."""
+    half = frame.reduce(2)  # box filter: each pixel the mean of 2 x 2 (rounded)
+    return b"".join((frame.tobytes("raw", "Y"), half.tobytes("raw", "Cb"), half.tobytes("raw", "Cr")))
+
+
+class _PipeWriter(threading.Thread):
+    """Writes byte strings to a pipe from its own thread, so that the next frame is drawn while ffmpeg reads.
+
+    After a write fails (ffmpeg died) the rest is read and dropped, so :meth:`put` never blocks for good;
+    ``error`` holds the failure (an ``OSError`` such as ``BrokenPipeError``, or anything else for the caller to
+    raise).
+    """
+
+    def __init__(self, pipe, depth: int = 8):
+        super().__init__(name="dancekit-mp4-writer", daemon=True)
+        self.pipe = pipe
+        self.queue: queue.Queue = queue.Queue(depth)
+        self.error: OSError | None = None
+        try:  # a larger pipe (Linux): fewer waits on each side
+            import fcntl
+
+            fcntl.fcntl(pipe.fileno(), fcntl.F_SETPIPE_SZ, 1 << 20)
+        except (ImportError, AttributeError, OSError):
+            pass
+
+    def run(self) -> None:
+        while (data := self.queue.get()) is not None:
+            if self.error is None:
+                try:
+                    self.pipe.write(data)
+                except Exception as exc:  # noqa: BLE001 - BrokenPipeError: ffmpeg died; others are raised by the caller
+                    self.error = exc
+
+    def put(self, data: bytes) -> None:
+        self.queue.put(data)
+
+    def finish(self) -> None:
+        """Write what is queued, then stop the thread."""
+        self.queue.put(None)
+        self.join()
 
 
 def body_parts(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -558,22 +734,23 @@ def render_mp4(
         n_frames = max(1, int(round(span.duration * scene.fps)))
     else:
         n_frames = scene.num_frames
+    # frames are drawn in YCbCr and sent as yuv420p: ffmpeg has no colour conversion to do
     renderer = FrameRenderer(
         scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
-        figure=options.figure,
+        figure=options.figure, mode="YCbCr",
     )
     rate = Fraction(scene.fps).limit_denominator(1001)
 
     cmd = [
         ffmpeg_exe(), "-hide_banner", "-nostdin", "-nostats", "-loglevel", "error", "-y",
-        "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-r", f"{rate.numerator}/{rate.denominator}",
+        "-f", "rawvideo", "-pix_fmt", "yuv420p", "-s", f"{width}x{height}", "-r", f"{rate.numerator}/{rate.denominator}",
         "-i", "pipe:0",
     ]  # fmt: skip
     if span is not None:
         cmd += ["-ss", f"{span.start:.6f}", "-t", f"{span.duration:.6f}", "-i", str(span.path)]
         cmd += ["-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-b:a", "160k"]
     cmd += [
-        "-c:v", "libx264", "-preset", "ultrafast", "-tune", "animation", "-crf", str(options.crf),
+        "-c:v", "libx264", "-preset", "ultrafast", "-tune", "animation", "-crf", str(options.crf), "-threads", "1",
         "-pix_fmt", "yuv420p", "-movflags", "+faststart", "-f", "mp4",
     ]  # fmt: skip
 
@@ -590,16 +767,25 @@ def render_mp4(
             )
         except OSError as exc:
             raise ExternalToolError(f"cannot start ffmpeg ({cmd[0]}): {exc}") from exc
+        writer = _PipeWriter(proc.stdin)
         try:
+            writer.start()
+            for t in frames:
+                if writer.error is not None:
+                    break  # ffmpeg died; its message is read below
+                writer.put(renderer.render_yuv420(t))
+            writer.finish()
+            if writer.error is not None and not isinstance(writer.error, OSError):
+                raise writer.error
             try:
-                for t in frames:
-                    proc.stdin.write(renderer.render(t).tobytes())
                 proc.stdin.close()
             except BrokenPipeError:
-                pass  # ffmpeg died; its message is read below
+                pass
             rc = proc.wait()
         except BaseException:
-            proc.kill()
+            proc.kill()  # first: a write blocked on ffmpeg's pipe fails, and the writer thread ends
+            if writer.ident is not None:
+                writer.finish()
             proc.wait()
             raise
         if rc != 0:
