@@ -11,7 +11,6 @@ against them; 4 clicks a second put a click in every 1-s bin (G = bins per clip)
 from __future__ import annotations
 
 import json
-import math
 import shutil
 
 import numpy as np
@@ -110,7 +109,7 @@ def test_metronome_rows_are_computed_from_click_times(baseline_report):
             assert [c[1] for c in per["dense_clicks"][name]["counts"][f"{proto}_2s"]] == [2, 2, 2, 2]
             assert [c[1] for c in per["dense_clicks"][name]["counts"][f"{proto}_5s"]] == [5]
             assert [c[1] for c in per["dense_clicks"][name]["counts"][f"{proto}_whole"]] == [8]
-        assert math.isnan(per["metronome"][name]["notes_accuracy"])  # a click track has no notes
+        assert per["metronome"][name]["notes_accuracy"] is None  # a click track has no notes (NaN, None in JSON)
     cols = baseline_report["columns"]
     assert cols["metronome"]["tempo_hit_share"] == 1.0 and cols["metronome_fast"]["tempo_hit_share"] == 0.0
     assert cols["dense_clicks"]["bhs_a_whole"] == 1.0  # dense clicks game the bins: every reference bin is hit
@@ -173,3 +172,36 @@ def test_cli_music_needs_data(tmp_path, capsys):
 
     rc = main(["evaluate", "--music", str(tmp_path), "-o", str(tmp_path / "r.json")])
     assert rc == 2 and "--data" in capsys.readouterr().err
+
+
+def test_cli_composes_and_scores_with_a_dual_checkpoint(tiny_data, tmp_path, capsys):
+    """``--compose``: an untrained tiny dual model composes music for both dances, which is then scored."""
+    import torch
+
+    from dancekit.checkpoints import save_pretrained
+    from dancekit.cli.main import main
+    from dancekit.models.dual import DualConfig, DualModel
+    from dancekit.motion import get_skeleton
+
+    root, _ = tiny_data
+    cfg = DualConfig(music_dim=53, music_raw_from=40, pose_dim=171, window=10, m2d_d_model=16, m2d_layers=1,
+                     m2d_heads=2, m2d_ff=16, d2m_d_model=16, d2m_layers=1, d2m_heads=2, d2m_ff=16)
+    torch.manual_seed(0)
+    stats = {"music_mean": np.zeros(53, np.float32), "music_std": np.ones(53, np.float32),
+             "dance_mean": np.zeros(171, np.float32), "dance_std": np.ones(171, np.float32)}
+    ckpt = tmp_path / "dual"
+    save_pretrained(ckpt, DualModel(cfg), cfg, stats=stats,
+                    extra={"representation": "rot6d", "preset": "dual", "fps": 25.0, "hop_length": 512,
+                           "skeleton": get_skeleton("tang2018").to_dict()})
+    out = tmp_path / "eval"
+    rc = main(["evaluate", "--compose", str(ckpt), "--data", str(root), "--clip-lengths", "whole", "--quiet",
+               "-o", str(out)])
+    assert rc == 0
+    for name in DANCES:
+        assert (out / "music" / f"{name}.mid").is_file() and (out / "music" / f"{name}.wav").is_file()
+    report = json.loads((out / "report.json").read_text())
+    assert report["generation"]["seconds"] == pytest.approx(2 * DUR)
+    assert list(report["columns"])[:2] == ["composed", "real_music"]
+    assert set(report["per_dance"]["composed"]) == set(DANCES)
+    assert (out / "table.md").read_text().startswith("| metric | composed (dual) | real music |")
+    assert "composed 16 s of music" in capsys.readouterr().out

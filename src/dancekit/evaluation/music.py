@@ -381,7 +381,7 @@ def evaluate_music(data_root: str | os.PathLike, *, music: Mapping[str, MusicPie
     only) for the dances of ``split`` of a prepared dataset, with the baselines.
 
     Returns the report: ``columns`` {column: pooled scores}, ``labels`` {column: title}, ``per_dance``
-    {column: {NAME: scores}}, ``settings``, ``counts``, ``notes``.
+    {column: {NAME: scores}}, ``settings``, ``counts``, ``sources``, ``notes``; undefined scores (NaN) are None.
     """
     from dancekit.data import PreparedData
 
@@ -419,11 +419,13 @@ def evaluate_music(data_root: str | os.PathLike, *, music: Mapping[str, MusicPie
         notes.append("no metronome baselines: the real music's tempo could not be measured")
     settings_out = asdict(settings)
     settings_out["clip_lengths"] = [clip_label(c) for c in settings.clip_lengths]
+    from dancekit.evaluation.score import _clean
+
     return {
         "kind": "music",
-        "columns": pooled,
+        "columns": _clean(pooled),
         "labels": {k: labels[k] for k in pooled},
-        "per_dance": per_dance,
+        "per_dance": _clean(per_dance),
         "settings": settings_out,
         "counts": {"dances": len(dances), "seconds": sum(d.duration for d in dances), "split": split},
         "sources": {k: {n: p.source for n, p in v.items() if p.source} for k, v in columns.items()},
