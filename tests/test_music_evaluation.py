@@ -205,3 +205,25 @@ def test_cli_composes_and_scores_with_a_dual_checkpoint(tiny_data, tmp_path, cap
     assert set(report["per_dance"]["composed"]) == set(DANCES)
     assert (out / "table.md").read_text().startswith("| metric | composed (dual) | real music |")
     assert "composed 16 s of music" in capsys.readouterr().out
+
+
+def test_composer_targets_name_the_best_click_track_and_the_lost_measures():
+    from dancekit.evaluation.music import BASELINE_COLUMNS, composer_targets
+
+    s = MusicSettings(clip_lengths=(None,))
+    base = {"bcs_a_whole": 1.0, "bhs_a_whole": 1.0, "bcs_b_whole": 0.5, "bhs_b_whole": 1.0, "f1_b_whole": 0.6,
+            "csd_b_whole": 0.1, "hsd_b_whole": 0.0, "beat_f1_dance": 0.2, "tempo_bpm": 100.0, "tempo_error": 0.0,
+            "tempo_hit_share": 1.0, "notes_accuracy": float("nan")}
+    pooled = {"composed": {**base, "beat_f1_music": 0.50, "tempo_error": 0.02, "tempo_hit_share": 0.5,
+                           "bhs_a_whole": 0.7, "beat_f1_dance": 0.3, "bcs_a_whole": 3.0},
+              "metronome": {**base, "beat_f1_music": 0.45},
+              "dense_clicks": {**base, "beat_f1_music": 0.55},
+              "kinematic_clicks": {**base, "beat_f1_music": 0.20}}
+    t = composer_targets(pooled, dict(BASELINE_COLUMNS), s)
+    assert t["best_click_baseline"] == "dense_clicks"
+    assert t["beat_f1_margin"] == pytest.approx(-0.05)
+    # worse than the metronome: BHS A (0.7 < 1), tempo error (0.02 > 0), tempo hits (0.5 < 1); not beat F1 (0.5 >
+    # 0.45), not the dance's beats (0.3 > 0.2), and BCS A (3 vs 1) has no better direction
+    assert t["loses_to_metronome_on"] == ["BHS, A (whole dances)", "Tempo error vs real music (relative)",
+                                          "Tempo within ±5 % (share of dances)"]
+    assert any("margin -0.050" in n for n in t["notes"])

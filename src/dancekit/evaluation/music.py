@@ -415,6 +415,9 @@ def evaluate_music(data_root: str | os.PathLike, *, music: Mapping[str, MusicPie
         if progress:
             progress(f"scored {key}")
     notes = [f"{len(dances)} dances of the {split} split, {sum(d.duration for d in dances):.0f} s."]
+    targets = composer_targets(pooled, labels, settings) if "composed" in pooled and settings.baselines else None
+    if targets is not None:
+        notes += targets["notes"]
     if "metronome" not in pooled and settings.baselines:
         notes.append("no metronome baselines: the real music's tempo could not be measured")
     settings_out = asdict(settings)
@@ -429,8 +432,42 @@ def evaluate_music(data_root: str | os.PathLike, *, music: Mapping[str, MusicPie
         "settings": settings_out,
         "counts": {"dances": len(dances), "seconds": sum(d.duration for d in dances), "split": split},
         "sources": {k: {n: p.source for n, p in v.items() if p.source} for k, v in columns.items()},
+        "targets": _clean(targets),
         "notes": notes,
     }
+
+
+def composer_targets(pooled: Mapping[str, Mapping[str, float]], labels: Mapping[str, str],
+                     settings: MusicSettings) -> dict[str, Any]:
+    """The composer against its targets (issue 20): tempo within the tolerance on every dance, beat F1 against
+    the real music above every click-track baseline; and the measures on which it loses to the metronome."""
+    comp = pooled["composed"]
+    clicks = {k: pooled[k]["beat_f1_music"] for k in CLICK_BASELINES if k in pooled}
+    best = max(clicks, key=lambda k: -np.inf if not math.isfinite(clicks[k]) else clicks[k]) if clicks else None
+    margin = comp["beat_f1_music"] - clicks[best] if best else float("nan")
+    notes = [
+        f"composer tempo within ±{settings.tempo_tolerance * 100:g} % of the real music on "
+        f"{comp['tempo_hit_share'] * 100:.0f} % of the dances (target: all; mean relative error "
+        f"{comp['tempo_error']:.3f})."]
+    if best:
+        notes.append(f"composer beat F1 vs real music {comp['beat_f1_music']:.3f}; best click track: {labels[best]} "
+                     f"{clicks[best]:.3f}; margin {margin:+.3f} (target: > 0).")
+    lost = []
+    if "metronome" in pooled:
+        met = pooled["metronome"]
+        for key, label, _ in music_rows(settings.clip_lengths):
+            if key.startswith("bcs_a") or key.startswith(("csd", "hsd")) or key in ("tempo_bpm", "notes_accuracy"):
+                continue  # no better direction (BCS under A, spreads, tempo itself) or no metronome value
+            c, m = comp.get(key), met.get(key)
+            if c is None or m is None or not (math.isfinite(c) and math.isfinite(m)):
+                continue
+            if (c > m + 1e-12) if key == "tempo_error" else (c < m - 1e-12):
+                lost.append(label)
+        notes.append("composer loses to the metronome (real tempo, random phase) on: "
+                     + ("; ".join(lost) if lost else "no measure") + ".")
+    return {"tempo_hit_share": comp["tempo_hit_share"], "beat_f1_music": comp["beat_f1_music"],
+            "best_click_baseline": best, "best_click_beat_f1": clicks.get(best, float("nan")) if best else None,
+            "beat_f1_margin": margin, "loses_to_metronome_on": lost, "notes": notes}
 
 
 # ---------------------------------------------------------------------------------------------
