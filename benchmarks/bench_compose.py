@@ -6,7 +6,8 @@
 The first ``--seconds`` of a tang2018 dance (default: the first test dance of the prepared dataset) are composed
 in a fresh child process: model load, composition (G_D→M's chroma + beats and the arrangement) and writing
 (the MIDI and the WAV rendered with ``--render``) are timed separately over ``--repeats`` runs (the first run also
-pays librosa / numba imports; the best is reported), and the child's peak resident memory (``ru_maxrss``) is
+pays librosa / numba imports; the best is reported; process CPU times and the 1-minute load average are printed
+beside the wall times, as the machine is shared), and the child's peak resident memory (``ru_maxrss``) is
 printed with its resident memory before the model was loaded. Threads: ``torch.set_num_threads(--threads)``.
 """
 
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -53,12 +55,13 @@ def child(args: argparse.Namespace) -> dict:
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.repeats):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             piece = pipe(motion, seed=k)
-            t1 = time.perf_counter()
+            t1, c1 = time.perf_counter(), time.process_time()
             files = piece.write(tmp, stem=f"run{k}", render=args.render)
-            t2 = time.perf_counter()
-            runs.append({"compose_s": t1 - t0, "write_s": t2 - t1, "total_s": t2 - t0,
+            t2, c2 = time.perf_counter(), time.process_time()
+            runs.append({"compose_s": t1 - t0, "write_s": t2 - t1, "total_s": t2 - t0, "compose_cpu_s": c1 - c0,
+                         "write_cpu_s": c2 - c1, "load_avg": os.getloadavg()[0],
                          "beats": len(piece.arrangement.beat_times), "tempo_bpm": piece.arrangement.tempo,
                          "wav_bytes": files["wav"].stat().st_size, "mid_bytes": files["midi"].stat().st_size})
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -87,10 +90,11 @@ def main() -> int:
     best = min(res["runs"], key=lambda r: r["total_s"])
     print(f"dance {res['dance']} ({res['seconds']:.0f} s), model {res['model']}, render {res['render']}, "
           f"{res['threads']} thread(s)")
-    print("| run | compose (s) | MIDI + WAV (s) | total (s) | beats | tempo (BPM) |")
-    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    print("| run | compose (s) | MIDI + WAV (s) | total (s) | CPU compose / write (s) | load avg | beats | tempo (BPM) |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for k, r in enumerate(res["runs"]):
-        print(f"| {k} | {r['compose_s']:.2f} | {r['write_s']:.2f} | {r['total_s']:.2f} | {r['beats']} | "
+        print(f"| {k} | {r['compose_s']:.2f} | {r['write_s']:.2f} | {r['total_s']:.2f} | "
+              f"{r['compose_cpu_s']:.2f} / {r['write_cpu_s']:.2f} | {r['load_avg']:.1f} | {r['beats']} | "
               f"{r['tempo_bpm']:.1f} |")
     print(f"model load {res['load_s']:.2f} s; best total {best['total_s']:.2f} s for {res['seconds']:.0f} s of dance; "
           f"peak RSS {res['peak_rss_mib']:.0f} MiB ({res['rss_before_model_mib']:.0f} MiB before the model was loaded)")
