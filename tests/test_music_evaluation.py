@@ -203,7 +203,7 @@ def test_cli_composes_and_scores_with_a_dual_checkpoint(tiny_data, tmp_path, cap
     assert report["generation"]["seconds"] == pytest.approx(2 * DUR)
     assert list(report["columns"])[:2] == ["composed", "real_music"]
     assert set(report["per_dance"]["composed"]) == set(DANCES)
-    assert (out / "table.md").read_text().startswith("| metric | composed (dual) | real music |")
+    assert (out / "table.md").read_text().startswith(f"| metric | composed ({ckpt}) | real music |")
     assert "composed 16 s of music" in capsys.readouterr().out
 
 

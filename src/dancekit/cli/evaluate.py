@@ -121,7 +121,7 @@ def run_music(args: argparse.Namespace) -> int:
         gen = compose_split(args.compose, args.data, out / "music", split=args.split, seed=args.seed,
                             render=args.render, progress=say)
         report = evaluate_music(args.data, music=out / "music", split=args.split, settings=settings,
-                                label=f"composed ({Path(gen['model']).name})", progress=say)
+                                label=f"composed ({args.compose})", progress=say)
         report["generation"] = gen
         print(f"composed {gen['seconds']:.0f} s of music in {gen['elapsed_s']:.1f} s")
         path = out / "report.json"
