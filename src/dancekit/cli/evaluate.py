@@ -32,10 +32,13 @@ from dancekit.errors import ParameterError
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "evaluate",
-        help="score dances against real ones (FID_k/g, BAS, style FID/ACC, ...), a model's or a folder's",
+        help="score dances against real ones (FID_k/g, BAS, style FID/ACC, ...), or composed music against the "
+             "real music (BCS/BHS, beat F1, tempo)",
         description="Dance every song of a split with a model (--checkpoint) and score the dances, or score a "
         "folder of generated dances (--pred: NAME.npz or NAME__k.npz, NAME = a reference dance) against the "
-        "reference dances; prints a markdown table, every metric goes to the JSON report.",
+        "reference dances; or compose music for the dances of a split with a dual model (--compose) or score a "
+        "folder of composed music (--music) against the real music, next to click-track baselines; prints a "
+        "markdown table, every metric goes to the JSON report.",
     )
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--checkpoint", metavar="MODEL",
@@ -75,7 +78,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                    help="style classifier checkpoint (default: the one shipped with dancekit)")
     p.add_argument("--no-style", action="store_true", help="skip the style-classifier metrics")
     p.add_argument("--preset", default=None, help="feature preset whose beat_times to use (default revolution)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the random pairs of Diversity (default 0)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the random pairs of Diversity; with --compose / --music: of the start chords and "
+                        "the metronome phases (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     mus = p.add_argument_group("music (--compose, --music)")
     mus.add_argument("--clip-lengths", default="2,5,25,whole",
