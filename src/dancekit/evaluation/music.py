@@ -352,25 +352,27 @@ def load_music_dir(folder: str | os.PathLike, names: Sequence[str], settings: Mu
 def compose_split(model: str | os.PathLike, data_root: str | os.PathLike, out: str | os.PathLike, *,
                   split: str = "test", seed: int = 0, tempo: str | float = "auto", render: str = "builtin",
                   progress: Callable[[str], None] | None = None) -> dict[str, Any]:
-    """Compose music for every dance of ``split`` with a ``dual`` model: ``out/NAME.mid`` and ``out/NAME.wav``.
+    """Compose music for every dance of ``split`` with a ``dual`` model: ``out/NAME.mid`` and ``out/NAME.wav``
+    (``out`` is written as a whole: it appears, or replaces an earlier one, once every piece is written).
 
     Returns ``{"seconds": dance seconds, "elapsed_s": composing + writing time, "model": folder}``.
     """
+    from dancekit._io import atomic_dir
     from dancekit.data import PreparedData
     from dancekit.pipelines.dual import ComposePipeline
 
     data = PreparedData(data_root)
     pipe = ComposePipeline.from_pretrained(model)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     seconds, t0 = 0.0, time.perf_counter()
-    for n in data.names(split):
-        motion = data.motion(n)
-        piece = pipe(motion, seed=seed, tempo=tempo)
-        piece.write(out, stem=n, render=render)
-        seconds += motion.num_frames / motion.fps
-        if progress:
-            progress(f"composed {n}: {piece.arrangement.tempo:.1f} BPM, {len(piece.arrangement.beat_times)} beats")
+    with atomic_dir(out) as tmp:  # the folder appears once every piece is written
+        for n in data.names(split):
+            motion = data.motion(n)
+            piece = pipe(motion, seed=seed, tempo=tempo)
+            piece.write(tmp, stem=n, render=render)
+            seconds += motion.num_frames / motion.fps
+            if progress:
+                progress(f"composed {n}: {piece.arrangement.tempo:.1f} BPM, "
+                         f"{len(piece.arrangement.beat_times)} beats")
     return {"seconds": seconds, "elapsed_s": time.perf_counter() - t0, "model": str(pipe.folder)}
 
 
