@@ -116,13 +116,17 @@ def test_metronome_rows_are_computed_from_click_times(baseline_report):
     assert cols["dense_clicks"]["bcs_a_whole"] >= 1.0
     # another dance's music: the other piece (100 vs 120 BPM) is a tempo miss
     assert cols["other_music"]["tempo_hit_share"] == 0.0
+    # the real music (itself an arrangement) re-arranged from its dual target keeps its tempo and its notes
+    assert cols["arranged_target"]["tempo_hit_share"] == 1.0
+    assert cols["arranged_target"]["notes_accuracy"] == 1.0
 
 
 def test_report_lists_every_baseline_in_one_table(baseline_report):
     table = format_music_markdown(baseline_report)
     header = table.splitlines()[0]
     for label in ("real music", "metronome (real tempo, random phase)", "metronome +20 %", "metronome −20 %",
-                  "dense clicks (4/s)", "clicks on kinematic beats", "another dance's music"):
+                  "dense clicks (4/s)", "clicks on kinematic beats", "another dance's music",
+                  "real music's dual target, arranged"):
         assert f" {label} |" in header
     for row in ("BCS, A (2-s clips)", "BHS, B (whole dances)", "HSD, B (5-s clips)", "F1, B (2-s clips)",
                 "Beat F1 vs real music", "Beat F1 vs dance kinematic beats", "Tempo error vs real music",

@@ -35,7 +35,9 @@ Baselines (columns of the same table; ``BASELINE_COLUMNS``)
     ``real_music`` (the real music against itself: BCS = BHS = 1 under A), ``metronome`` (clicks at the real
     music's tempo with a random phase, seeded per dance), ``metronome_fast`` / ``metronome_slow`` (tempo
     × 1.2 / × 0.8), ``dense_clicks`` (4 clicks a second), ``kinematic_clicks`` (clicks on the dance's own
-    kinematic beats) and ``other_music`` (the real music of the next dance of the split, cyclically).
+    kinematic beats), ``other_music`` (the real music of the next dance of the split, cyclically) and
+    ``arranged_target`` (what ``dancekit compose`` would make of a perfect G_D→M output: the real music's
+    ``dual`` target arranged and rendered like composed music; ``render_target=False`` leaves it out).
 """
 
 from __future__ import annotations
@@ -59,6 +61,7 @@ __all__ = [
     "BASELINE_COLUMNS",
     "MusicPiece",
     "MusicSettings",
+    "arranged_target",
     "audio_piece",
     "click_piece",
     "compose_split",
@@ -80,6 +83,7 @@ BASELINE_COLUMNS: tuple[tuple[str, str], ...] = (
     ("dense_clicks", "dense clicks (4/s)"),
     ("kinematic_clicks", "clicks on kinematic beats"),
     ("other_music", "another dance's music"),
+    ("arranged_target", "real music's dual target, arranged"),
 )
 CLICK_BASELINES = ("metronome", "metronome_fast", "metronome_slow", "dense_clicks", "kinematic_clicks")
 MUSIC_SUFFIXES = (".mid", ".midi", ".wav", ".mp3", ".ogg", ".flac")
@@ -100,6 +104,7 @@ class MusicSettings:
     render: str = "builtin"  # MIDI → audio: builtin | fluidsynth | auto
     seed: int = 0  # metronome phases
     baselines: bool = True
+    render_target: bool = True  # the arranged_target baseline (a perfect G_D→M output, arranged and rendered)
 
     def __post_init__(self) -> None:
         if not self.clip_lengths:
@@ -153,14 +158,15 @@ class MusicPiece:
         return self._onsets[key]
 
 
-def _arranged_notes(y: np.ndarray, sr: int) -> np.ndarray:
-    """Audio → notes as compose writes G_D→M's output: its ``dual`` chroma + beats arranged into triads."""
+def arranged_target(y: np.ndarray, sr: int) -> Any:
+    """Audio → a ``pretty_midi.PrettyMIDI`` written as compose writes G_D→M's output: the audio's ``dual``
+    target (harmonic chroma + percussive beats, 25 fps) arranged by :func:`dancekit.audio.midi.arrange`."""
     from dancekit.audio.midi import arrange
     from dancekit.features import extract
 
     fs = extract(y, sr=sr, fps=25.0, preset="dual")
     chroma, beat = fs.block("chroma_harmonic"), fs.block("beat_percussive")[:, 0]
-    return note_array(arrange(chroma, beat, fps=fs.fps).midi)
+    return arrange(chroma, beat, fps=fs.fps).midi
 
 
 def audio_piece(y: np.ndarray, *, sr: int, notes: Any = None, with_notes: bool = True,
@@ -176,7 +182,7 @@ def audio_piece(y: np.ndarray, *, sr: int, notes: Any = None, with_notes: bool =
     if notes is not None:
         n = note_array(notes)
     elif with_notes and np.any(y) and len(y) >= sr:
-        n = _arranged_notes(y, sr)
+        n = note_array(arranged_target(y, sr))
     else:
         n = None
     return MusicPiece(duration=len(y) / sr, beats=np.asarray(beats, np.float64), y=y, sr=sr, notes=n, source=source)
@@ -310,6 +316,12 @@ def music_baselines(dance: _Dance, other: _Dance, index: int, settings: MusicSet
     out["dense_clicks"] = click_piece(mb.dense_clicks(duration=d, rate=settings.dense_rate), duration=d)
     out["kinematic_clicks"] = click_piece(dance.kinematic, duration=d)
     out["other_music"] = other.music
+    if settings.render_target:
+        from dancekit.audio.midi import render
+
+        midi = arranged_target(ref.y, ref.sr)
+        y, _ = render(midi, sr=ref.sr, backend=settings.render)
+        out["arranged_target"] = audio_piece(y, sr=ref.sr, notes=midi, source="arranged dual target")
     return out
 
 
