@@ -138,7 +138,7 @@ def run_music(args: argparse.Namespace) -> int:
         if not out.parent.exists():
             raise ParameterError(f"output folder does not exist: {out.parent}")
         report = evaluate_music(args.data, music=args.music, split=args.split, settings=settings,
-                                label=f"composed ({Path(args.music).name})", progress=say)
+                                label=f"composed ({args.music})", progress=say)
         path = out
     write_report(report, path)
     print(format_music_markdown(report), end="")
