@@ -124,6 +124,24 @@ def test_a_two_second_clip_works(tmp_path, checkpoint, song):
     assert read_motion(out / "ode.npz").num_frames == 51
 
 
+def test_stage_switches_reach_the_pipeline(tmp_path, capsys, checkpoint, song):
+    from dancekit.pipelines.revolution import RevolutionPipeline
+
+    pipe = RevolutionPipeline.from_pretrained(checkpoint)
+    for flags, kwargs in (((), {}), (("--beat-sync", "off", "--cleanup", "off"), {"beat_sync": False, "cleanup": False}),
+                          (("--beat-sync", "off"), {"beat_sync": False})):
+        out = tmp_path / "_".join(flags or ("default",))
+        assert main(["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint), "--quiet",
+                     "--format", "npz", *flags]) == 0
+        want = pipe(song, seed=0, **kwargs)
+        np.testing.assert_allclose(read_motion(out / "ode.npz").positions, want.motion.positions, atol=1e-4)
+        printed = capsys.readouterr().out
+        assert ("beat-synced" in printed or "not beat-synced" in printed) == ("beat_sync" not in kwargs)
+    with pytest.raises(SystemExit) as bad:  # argparse: a usage error, exit 2
+        main(["dance", str(song), "-o", str(tmp_path / "x"), "--beat-sync", "maybe"])
+    assert bad.value.code == 2
+
+
 def test_fps_and_the_animator_formats(tmp_path, checkpoint, song):
     out = tmp_path / "fps"
     code = main(["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint), "--quiet",

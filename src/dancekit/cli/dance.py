@@ -41,6 +41,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "[0, 2**63) are hashed to 63 bits)")
     p.add_argument("--start", type=float, default=None, help="start of the song excerpt, seconds")
     p.add_argument("--end", type=float, default=None, help="end of the song excerpt, seconds")
+    p.add_argument("--beat-sync", choices=("on", "off"), default="on",
+                   help="time-warp the dance so its movement beats land on the song's beats (speed kept within "
+                        "±15 %%; default on; a song without a clear beat is left as it is, with a note)")
+    p.add_argument("--cleanup", choices=("on", "off"), default="on",
+                   help="physical clean-up: lowest joint on the floor, the figure kept within a dance floor "
+                        "(turned back beyond 4 m from its start; default on)")
     p.add_argument("--format", default=",".join(DEFAULT_FORMATS),
                    help=f"comma-separated outputs from {', '.join(FORMATS)}")
     p.add_argument("--bvh-rig", choices=("exact", "humanoid"), default="exact",
@@ -74,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     out = check_output_folder(args.out)  # before the dance is made, not after
     pipe = load_pipeline(args.model, args.checkpoint)
     result = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=args.genre,
-                  progress=not args.quiet)
+                  progress=not args.quiet, beat_sync=args.beat_sync == "on", cleanup=args.cleanup == "on")
     motion = result.motion
     if args.fps is not None and args.fps != motion.fps:
         motion = motion.resample(args.fps)

@@ -65,6 +65,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                      help="auto (the genre read from the music when the model has a music attribute classifier, "
                           "else the model alone; default), none (the model alone), true (each song's own genre), "
                           "or a genre name for every song")
+    gen.add_argument("--beat-sync", choices=("on", "off"), default=None,
+                     help="the pipeline's beat-synchronous stage (default on); when on, the report also compares "
+                          "the beat metrics before and after the warp (OUT/pred_unwarped holds the dances before it)")
     p.add_argument("--sigma", type=float, default=0.05, help="BAS Gaussian sigma in seconds (default 0.05)")
     p.add_argument("--tolerance", type=float, default=0.1,
                    help="beat hit tolerance in seconds for coverage / hit rate (default 0.1)")
@@ -171,23 +174,41 @@ def run(args: argparse.Namespace) -> int:
         seeds = 5 if args.seeds is None else args.seeds
         report = evaluate_checkpoint(args.checkpoint, args.data, out, split=args.split, seeds=seeds,
                                      genre=args.genre or "auto", settings=settings, classifier=classifier,
-                                     progress=not args.quiet)
+                                     progress=not args.quiet, beat_sync=args.beat_sync != "off")
         g = report["generation"]
         print(f"generated {g['seconds']:.0f} s of dance in {g['elapsed_s']:.1f} s "
               f"({g['elapsed_s'] / max(g['seconds'], 1e-9) * 60:.2f} s per minute)")
         print(format_markdown(report), end="")
+        _print_stages(report)
         print(f"report: {out / 'report.json'}")
         return 0
     if args.ref is None:
         raise ParameterError("--pred needs --ref (the real dances)")
-    if args.seeds is not None or args.genre is not None:
-        raise ParameterError("--seeds and --genre go with --checkpoint")
+    if args.seeds is not None or args.genre is not None or args.beat_sync is not None:
+        raise ParameterError("--seeds, --genre and --beat-sync go with --checkpoint")
     if not out.parent.exists():
         raise ParameterError(f"output folder does not exist: {out.parent}")
     report = evaluate_dirs(args.pred, args.ref, data=args.data, audio_dir=args.audio, classifier=classifier,
                            settings=settings, preset=args.preset, split=args.split)
     print(format_markdown(report), end="")
+    _print_stages(report)
     with atomic_path(out) as tmp:
         tmp.write_text(json.dumps(report, indent=1))
     print(f"report: {out}")
     return 0
+
+
+def _print_stages(report: dict) -> None:
+    """The beat-sync comparison and the seed distance of a report, a few lines."""
+    bs = report.get("beat_sync")
+    if bs:
+        b, a = bs["before"], bs["after"]
+        print(f"beat sync: BAS {b['bas_bailando']:.4f} -> {a['bas_bailando']:.4f}, beat hit rate "
+              f"{b['beat_hit_rate']:.3f} -> {a['beat_hit_rate']:.3f} (before -> after the warp, {a['n_dances']} dances)")
+    sd = report.get("seed_distance")
+    if sd and sd.get("pairs", {}).get("seed"):
+        conv = sd["converged_after_s"]
+        when = "never" if conv is None else f"after {conv:g} s"
+        print(f"seeds: mean pose distance between two seeds' dances {sd['seed_mean_cm']:.1f} cm "
+              f"(after 2 s: {sd['seed_after_2s_cm']:.1f} cm), between two songs' dances {sd['song_mean_cm']:.1f} cm; "
+              f"below half the between-song distance to the end: {when}")

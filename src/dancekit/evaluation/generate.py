@@ -14,6 +14,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from dancekit._io import atomic_path
 from dancekit.errors import ParameterError
 from dancekit.evaluation.score import SAMPLE_SEP, EvalSettings, evaluate_dirs
@@ -32,9 +34,15 @@ def requested_genre(genre: str, song_genre: str) -> str | None:
 
 
 def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *, seeds: int = 5,
-                genre: str = "auto", progress: bool = True) -> dict[str, float]:
+                genre: str = "auto", progress: bool = True, beat_sync: bool | None = None,
+                unwarped_dir: str | os.PathLike | None = None) -> dict[str, float]:
     """Generate ``seeds`` dances for every song of ``split`` into ``out_dir`` (its old ``.npz`` files are
     removed first).
+
+    ``beat_sync``: None leaves the pipeline's default; True / False switch its beat-synchronous stage.
+    With ``unwarped_dir`` (and ``beat_sync`` not False) every dance is also written there as it was
+    before the warp (the pipeline dances without it, then :func:`dancekit.pipelines.stages.beat_sync`
+    warps it: the same dance as with the stage on).
 
     Parameters
     ----------
@@ -58,17 +66,30 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
     if not names:
         raise ParameterError(f"the {split!r} split of {data.root} has no dances")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    for old in out.glob("*.npz"):
-        old.unlink()
+    split_warp = unwarped_dir is not None and beat_sync is not False
+    dirs = [out] + ([Path(unwarped_dir)] if split_warp else [])
+    for d in dirs:
+        d.mkdir(parents=True, exist_ok=True)
+        for old in d.glob("*.npz"):
+            old.unlink()
+    kwargs = {} if beat_sync is None and not split_warp else {"beat_sync": bool(beat_sync) and not split_warp}
     t0 = time.perf_counter()
     seconds, files = 0.0, 0
     for name in tqdm(names, desc="generate", unit="song", disable=not progress):
         ref = data.audio(name)
+        beats = None
         for k in range(seeds):
-            motion = pipe(ref.path, seed=k, start=ref.start, end=ref.end,
-                          genre=requested_genre(genre, data.genre(name))).motion
+            result = pipe(ref.path, seed=k, start=ref.start, end=ref.end,
+                          genre=requested_genre(genre, data.genre(name)), **kwargs)
             stem = name if seeds == 1 else f"{name}{SAMPLE_SEP}{k}"
+            if split_warp:
+                from dancekit.pipelines import stages
+
+                write_motion(Path(unwarped_dir) / f"{stem}.npz", result.motion)
+                if beats is None:
+                    beats = stages.song_beats_for(ref.path, start=ref.start, end=ref.end)
+                result = stages.beat_sync(result, ref.path, start=ref.start, end=ref.end, beats=beats)
+            motion = result.motion
             write_motion(out / f"{stem}.npz", motion)
             seconds += motion.duration
             files += 1
@@ -86,6 +107,7 @@ def evaluate_checkpoint(
     settings: EvalSettings | None = None,
     classifier: Any = "default",
     progress: bool = True,
+    beat_sync: bool = True,
 ) -> dict[str, Any]:
     """Dance every song of ``split`` with a model and score the dances against the real ones.
 
@@ -100,6 +122,9 @@ def evaluate_checkpoint(
     out_dir : output folder
     split, seeds, genre : see :func:`dance_split`
     settings, classifier : see :func:`~dancekit.evaluation.evaluate_dirs`
+    beat_sync : the pipeline's beat-synchronous stage on (default) or off; when on, the dances before the
+        warp go to ``OUT/pred_unwarped`` and the report's ``beat_sync`` entry compares the beat metrics
+        before and after it (:func:`dancekit.evaluation.stages.beat_sync_comparison`)
     """
     from dancekit.data import PreparedData
     from dancekit.pipelines import load_pipeline
@@ -108,11 +133,34 @@ def evaluate_checkpoint(
     pipe = load_pipeline(checkpoint)
     out = Path(out_dir)
     pred = out / "pred"
-    gen = dance_split(pipe, prepared, split, pred, seeds=seeds, genre=genre, progress=progress)
+    unwarped = out / "pred_unwarped"
+    gen = dance_split(pipe, prepared, split, pred, seeds=seeds, genre=genre, progress=progress, beat_sync=beat_sync,
+                      unwarped_dir=unwarped if beat_sync else None)
     report = evaluate_dirs(pred, data, data=data, classifier=classifier, settings=settings, split=split)
+    if beat_sync:
+        report["beat_sync"] = _beat_sync_section(pred, unwarped, prepared, report)
     report["generation"] = {"checkpoint": str(checkpoint), "split": split, "seeds": seeds, "genre": genre,
+                            "beat_sync": bool(beat_sync),
                             "files": gen["files"], "seconds": round(gen["seconds"], 3),
                             "elapsed_s": round(gen["elapsed_s"], 3)}
     with atomic_path(out / "report.json") as tmp:
         tmp.write_text(json.dumps(report, indent=1))
     return report
+
+
+def _beat_sync_section(pred: Path, unwarped: Path, prepared: Any, report: dict[str, Any]) -> dict[str, Any]:
+    """The report's ``beat_sync`` entry: beat metrics before / after the warp, the prepared beat times."""
+    from dancekit.evaluation.score import group_predictions
+    from dancekit.evaluation.stages import beat_sync_comparison
+    from dancekit.motion import read_motion
+
+    def load(folder: Path) -> dict[str, list]:
+        groups = group_predictions(sorted(folder.glob("*.npz")))
+        return {n: [read_motion(p) for p in ps] for n, ps in groups.items()}
+
+    settings = report.get("settings", {})
+    preset = "revolution" if "revolution" in prepared.presets else prepared.presets[0]
+    after = load(pred)
+    beats = {n: np.asarray(prepared.features(n, preset)["beat_times"], np.float64) for n in after}
+    return beat_sync_comparison(load(unwarped), after, beats, sigma=settings.get("sigma", 0.05),
+                                tolerance=settings.get("tolerance", 0.1))

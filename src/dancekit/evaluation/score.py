@@ -415,6 +415,7 @@ def evaluate_dirs(
     model, clf_note = load_classifier(classifier)
     report = evaluate_motions(pred, ref, music_beats=music_beats, genres=genres, fid_reference=fid_reference,
                               classifier=model, settings=dataclasses.replace(settings, fid_reference=mode))
+    report["seed_distance"] = _seed_distance(pred)
     report["settings"].update({
         "pred_dir": str(pred_dir), "ref": ref_source, "data": str(data) if data is not None else None,
         "audio_dir": str(audio_dir) if audio_dir is not None else None,
@@ -443,3 +444,10 @@ def load_classifier(classifier: Any = "default") -> tuple[Any, str | None]:
     if isinstance(classifier, str | os.PathLike):
         return StylePipeline.from_pretrained(classifier), None
     return classifier, None
+
+
+def _seed_distance(pred: Mapping[str, Sequence[Any]]) -> dict[str, Any]:
+    """The report's ``seed_distance`` entry (:func:`dancekit.evaluation.stages.seed_distance`)."""
+    from dancekit.evaluation.stages import seed_distance
+
+    return seed_distance(pred)

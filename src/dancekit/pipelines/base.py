@@ -35,6 +35,8 @@ class DanceResult:
     genre : the genre danced (None: the model alone, its style left to the music)
     genre_probs : the probability of each genre read from the music (empty unless read)
     danced_by : the folder of the model that generated the motion (the genre model's, or ``model``)
+    notes : what the pipeline stages did (:mod:`dancekit.pipelines.stages`), e.g. ``"beat-synced (52 of
+        109 beats at 129 BPM)"`` or why the dance was left unwarped; part of :meth:`summary`
     """
 
     motion: Motion
@@ -44,6 +46,7 @@ class DanceResult:
     genre: str | None = None
     genre_probs: dict[str, float] = field(default_factory=dict)
     danced_by: str = ""
+    notes: list[str] = field(default_factory=list)
 
     @property
     def genre_source(self) -> str | None:
@@ -53,12 +56,14 @@ class DanceResult:
         return "music" if self.genre_probs and self.genre_requested in ("auto", None) else "given"
 
     def summary(self) -> str:
-        """A few words on the decision, e.g. ``"as waltz (read from the music, p = 0.46)"`` (empty: no genre)."""
-        if self.genre is None:
-            return ""
-        if self.genre_source == "music":
-            return f"as {self.genre} (read from the music, p = {self.genre_probs[self.genre]:.2f})"
-        return f"as {self.genre}"
+        """A few words on the decisions, e.g. ``"as waltz (read from the music, p = 0.46); beat-synced (52 of
+        109 beats at 129 BPM)"`` (empty: no genre and no notes)."""
+        parts = []
+        if self.genre is not None and self.genre_source == "music":
+            parts.append(f"as {self.genre} (read from the music, p = {self.genre_probs[self.genre]:.2f})")
+        elif self.genre is not None:
+            parts.append(f"as {self.genre}")
+        return "; ".join(parts + list(self.notes))
 
 
 def load_pipeline(model: str | os.PathLike | None = None, checkpoint: str | os.PathLike | None = None,

@@ -25,6 +25,7 @@ from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, encode_motion
 from dancekit.pipelines.base import DanceResult, song_features
+from dancekit.pipelines.stages import finish
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -85,8 +86,10 @@ class DualPipeline:
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
                  end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
-                 progress: bool = False) -> DanceResult:
+                 progress: bool = False, beat_sync: bool = True, cleanup: bool = True) -> DanceResult:
         """A dance for the song (excerpt ``[start, end)`` s), one frame per feature frame.
+
+        ``beat_sync``, ``cleanup``: the shared pipeline stages (:mod:`dancekit.pipelines.stages`).
 
         ``seed`` draws the start pose from the model's pool (the paper's diverse generation) unless
         ``start_pose`` is given. The model has no genre input: ``genre`` must be None, "auto" or "none".
@@ -97,8 +100,9 @@ class DualPipeline:
         s = self.start_pose(start_pose, seed)[None]  # (1, P)
         y = self.model.generate_dance(x, start=s)[0].cpu().numpy()  # (T, P)
         motion = decode_motion(self.stats.denormalize_dance(y), self.skeleton, self.fps, "rot6d")
-        return DanceResult(motion=motion, model=self.folder, seed=int(seed),
-                           genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
+        result = DanceResult(motion=motion, model=self.folder, seed=int(seed),
+                             genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
+        return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
 
 
 @dataclass

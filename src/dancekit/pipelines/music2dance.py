@@ -35,6 +35,7 @@ from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
 from dancekit.pipelines.base import DanceResult, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
+from dancekit.pipelines.stages import finish
 
 
 class Music2DancePipeline:
@@ -119,7 +120,7 @@ class Music2DancePipeline:
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, genre: str | None = None,
                  temperature: float = 1.0, start: float | None = None, end: float | None = None,
-                 progress: bool = False) -> DanceResult:
+                 progress: bool = False, beat_sync: bool = True, cleanup: bool = True) -> DanceResult:
         """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
 
         Parameters
@@ -129,6 +130,7 @@ class Music2DancePipeline:
             it has one (else "none"); "none": no dance type (the model's own learned "none" condition)
         temperature : scales the sampled variances (and sharpens the mixture weights); 0 takes the means
         start, end : excerpt in seconds
+        beat_sync, cleanup : the shared pipeline stages (:mod:`dancekit.pipelines.stages`)
 
         Returns
         -------
@@ -151,8 +153,9 @@ class Music2DancePipeline:
                                 generator=gen, progress=progress, fmap_window=window)  # (1, T, P)
         poses = self.stats.denormalize_dance(y[0].cpu().numpy().astype(np.float64))
         motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
-        return DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
-                           genre=danced, genre_probs=probs, danced_by=self.folder)
+        result = DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
+                             genre=danced, genre_probs=probs, danced_by=self.folder)
+        return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
 
 
 def on_the_floor(motion: Motion) -> Motion:

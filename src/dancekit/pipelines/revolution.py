@@ -37,6 +37,7 @@ from dancekit.motion.kinematics import normalize_bone_lengths
 from dancekit.motion.representations import decode_motion, get_representation
 from dancekit.pipelines.base import DanceResult, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
+from dancekit.pipelines.stages import finish
 
 
 class RevolutionPipeline:
@@ -133,6 +134,8 @@ class RevolutionPipeline:
         genre: str | None = None,
         progress: bool = False,
         postprocess: bool = True,
+        beat_sync: bool = True,
+        cleanup: bool = True,
     ) -> DanceResult:
         """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
 
@@ -148,6 +151,8 @@ class RevolutionPipeline:
         postprocess : for 3D positions, set every bone to the skeleton's rest length (keeping the
             generated bone directions, so IK/BVH export reproduces the positions exactly) and put the
             feet on the floor (the running floor of :func:`dancekit.motion.analysis.floor_curve` moved to 0)
+        beat_sync, cleanup : the shared pipeline stages (:mod:`dancekit.pipelines.stages`): the dance
+            time-warped onto the song's beats, and its root path and floor contact cleaned up
 
         Returns
         -------
@@ -179,8 +184,9 @@ class RevolutionPipeline:
             motion = self.generate(audio_path, seed=seed, start=start, end=end, progress=progress,
                                    postprocess=postprocess, genre_index=genre_index)
             danced_by = self.folder
-        return DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested, genre=genre,
-                           genre_probs=probs, danced_by=danced_by)
+        result = DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
+                             genre=genre, genre_probs=probs, danced_by=danced_by)
+        return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,

@@ -1,0 +1,334 @@
+"""Beat-synchronous time warp: move a dance's kinematic beats onto the music's beats.
+
+NumPy in, NumPy out (keyword-only arguments). A *warp* is the source time ``s(τ)`` of every output time
+``τ``: output frame ``t`` (at ``t / fps`` s) shows the source dance at fractional frame ``s_t``. It is
+monotone, keeps the dance's length (``s_0 = 0``, ``s_{T-1} = T - 1``) and its local speed ``ds/dτ`` (the
+*rate*) stays within ``1 ± max_rate_change`` (default ±15 %) at every frame.
+
+Three steps (:func:`beat_warp` runs them):
+
+1. :func:`match_beats` — dynamic programming over candidate pairings ``(music beat m_i, kinematic beat
+   k_j)`` with ``|k_j - m_i| <= max_shift``: the longest chain of pairs, increasing in both times, whose
+   consecutive pairs (and the anchors ``(0, 0)`` and ``(D, D)``) need a mean rate within
+   ``1 ± pair_rate_change`` (default ±13 %, below the frame bound so that the smoothing has room); ties
+   go to the gentlest warp (sum of squared rate changes).
+2. :func:`warp_rates` — the rate per output frame: the smoothest rate (least first and second
+   differences: no speed jumps, the dance's speed changes gradually) that puts every matched pair
+   exactly on its beat, an equality-constrained quadratic programme solved with a sparse KKT system;
+   rates that leave ``1 ± max_rate_change`` are fixed at the bound and the rest solved again (active set).
+3. :func:`warp_motion` — the dance sampled at the fractional source frames: rotations slerped, 3D
+   positions bone by bone (:func:`warp_bones`, bone lengths kept), anything else linearly
+   (:func:`warp_frames`, the toolkit's resampling rule).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dancekit.errors import ParameterError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from dancekit.motion.motion import Motion
+    from dancekit.motion.skeleton import Skeleton
+
+__all__ = [
+    "DEFAULT_MAX_RATE_CHANGE",
+    "DEFAULT_MAX_SHIFT",
+    "DEFAULT_PAIR_RATE_CHANGE",
+    "beat_warp",
+    "match_beats",
+    "warp_bones",
+    "warp_frames",
+    "warp_motion",
+    "warp_rates",
+]
+
+#: Bound on the local speed change of the warp, per frame: the rate stays in ``[0.85, 1.15]``.
+DEFAULT_MAX_RATE_CHANGE = 0.15
+#: Bound on the mean rate between two matched beat pairs (room for the smoothing within the frame bound).
+DEFAULT_PAIR_RATE_CHANGE = 0.13
+#: A kinematic beat is paired only with music beats at most this many seconds away.
+DEFAULT_MAX_SHIFT = 0.6
+
+
+def _times(x: np.ndarray, name: str) -> np.ndarray:
+    t = np.asarray(x, dtype=np.float64).reshape(-1)
+    if not np.isfinite(t).all():
+        raise ParameterError(f"{name} contain NaN or inf")
+    return np.sort(t)
+
+
+def match_beats(
+    *,
+    kinematic: np.ndarray,
+    music: np.ndarray,
+    duration: float,
+    pair_rate_change: float = DEFAULT_PAIR_RATE_CHANGE,
+    max_shift: float = DEFAULT_MAX_SHIFT,
+    min_gap: float = 0.0,
+    window: float = 30.0,
+) -> np.ndarray:
+    """Pair kinematic beats with music beats by dynamic programming.
+
+    Parameters
+    ----------
+    kinematic : (K,) kinematic beat times of the dance, seconds (source times)
+    music : (M,) music beat times, seconds (output times)
+    duration : the dance's duration ``D`` in seconds; ``(0, 0)`` and ``(D, D)`` are fixed anchors
+    pair_rate_change : consecutive pairs ``(m, k)``, ``(m', k')`` need ``|(k' - k) / (m' - m) - 1| <= this``
+    max_shift : only pairs with ``|k - m| <= max_shift`` seconds are candidates
+    min_gap : consecutive pairs at least this many seconds apart (output time)
+    window : a pair's predecessor lies at most ``window`` seconds before it (the start anchor always counts)
+
+    Returns
+    -------
+    (P, 2) float64 ``[[m, k], ...]``: the chosen pairs (music time, kinematic time), increasing in both,
+    anchors excluded; ``(0, 2)`` when none can be paired.
+    """
+    if not 0 < pair_rate_change < 1:
+        raise ParameterError(f"pair_rate_change must be in (0, 1), got {pair_rate_change}")
+    if not max_shift > 0:
+        raise ParameterError(f"max_shift must be positive seconds, got {max_shift}")
+    k = _times(kinematic, "kinematic beats")
+    m = _times(music, "music beats")
+    D = float(duration)
+    k = k[(k > 0) & (k < D)]
+    m = m[(m > 0) & (m < D)]
+    nodes = [(0.0, 0.0)]
+    for mi in m:
+        lo, hi = np.searchsorted(k, [mi - max_shift, mi + max_shift], side="left")
+        nodes.extend((float(mi), float(kj)) for kj in k[lo:hi] if abs(kj - mi) <= max_shift)
+    nodes.append((D, D))
+    node = np.asarray(nodes, dtype=np.float64)  # sorted by music time (the anchors first and last)
+    N = len(node)
+    if N == 2:
+        return np.zeros((0, 2))
+    lo_r, hi_r = 1.0 - pair_rate_change, 1.0 + pair_rate_change
+    score = np.full(N, -np.inf)
+    back = np.full(N, -1, dtype=np.int64)
+    score[0] = 0.0
+    starts = np.searchsorted(node[:, 0], node[:, 0] - window, side="left")
+    for n in range(1, N):
+        first = 0 if n == N - 1 else int(starts[n])
+        prev = np.arange(first, n) if first > 0 else np.arange(n)
+        if first > 0:
+            prev = np.concatenate([[0], prev])
+        dm = node[n, 0] - node[prev, 0]
+        dk = node[n, 1] - node[prev, 1]
+        ok = (dm > max(min_gap, 1e-9)) & (dk > 1e-9) & np.isfinite(score[prev])
+        if n == N - 1:
+            ok |= (prev == 0) & (dm > 0)  # the identity warp is always allowed
+        rate = np.where(ok, dk / np.where(dm > 0, dm, 1.0), 1.0)
+        ok &= (rate >= lo_r - 1e-12) & (rate <= hi_r + 1e-12)
+        if not ok.any():
+            continue
+        gain = 0.0 if n == N - 1 else 1.0
+        cand = np.where(ok, score[prev] + gain - 1e-3 * ((rate - 1.0) / pair_rate_change) ** 2, -np.inf)
+        best = int(np.argmax(cand))
+        score[n] = cand[best]
+        back[n] = prev[best]
+    chain = []
+    n = int(back[N - 1])
+    while n > 0:
+        chain.append(node[n])
+        n = int(back[n])
+    return np.asarray(chain[::-1], dtype=np.float64).reshape(-1, 2)
+
+
+def _overlap_row(xa: float, xb: float, n_rates: int) -> tuple[np.ndarray, np.ndarray]:
+    """Columns and coefficients of ``s(xb) - s(xa)`` in the rates (``s`` integrates the rate)."""
+    u0 = max(0, int(math.floor(xa)))
+    u1 = min(n_rates - 1, int(math.ceil(xb)) - 1)
+    cols = np.arange(u0, u1 + 1)
+    coef = np.minimum(cols + 1.0, xb) - np.maximum(cols.astype(np.float64), xa)
+    keep = coef > 0
+    return cols[keep], coef[keep]
+
+
+def warp_rates(
+    *,
+    pairs: np.ndarray,
+    n_frames: int,
+    fps: float,
+    max_rate_change: float = DEFAULT_MAX_RATE_CHANGE,
+    smooth_s: float = 0.5,
+) -> np.ndarray:
+    """The warp's source frame for every output frame, from matched beat pairs.
+
+    Parameters
+    ----------
+    pairs : (P, 2) ``[music time, kinematic time]`` in seconds (:func:`match_beats`)
+    n_frames : T, the number of frames (output and source alike)
+    fps : frames per second
+    max_rate_change : the rate (source frames per output frame) stays within ``1 ± max_rate_change``
+    smooth_s : time scale of the smoothness penalty, seconds (larger: gentler rate changes)
+
+    Returns
+    -------
+    (T,) float64 source frames ``s``: ``s[0] = 0``, ``s[-1] = T - 1``, increasing, with
+    ``s[t + 1] - s[t]`` in ``[1 - max_rate_change, 1 + max_rate_change]``; matched pairs land on
+    their beats (``s(m · fps) = k · fps``, interpolated linearly between frames) to ~1e-6 frame.
+    """
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    T = int(n_frames)
+    if T < 2:
+        return np.zeros(max(T, 0))
+    if not 0 < max_rate_change < 1:
+        raise ParameterError(f"max_rate_change must be in (0, 1), got {max_rate_change}")
+    pairs = np.asarray(pairs, dtype=np.float64).reshape(-1, 2)
+    D = (T - 1) / float(fps)
+    knots = np.concatenate([[[0.0, 0.0]], pairs, [[D, D]]]) * float(fps)  # frames
+    n = T - 1  # one rate per output interval
+    rows, cols, vals, rhs = [], [], [], []
+    for (xa, ya), (xb, yb) in zip(knots[:-1], knots[1:], strict=True):
+        c, v = _overlap_row(xa, xb, n)
+        if len(c):
+            rows.append(np.full(len(c), len(rhs)))
+            cols.append(c)
+            vals.append(v)
+            rhs.append(yb - ya)
+    C = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(len(rhs), n))
+    c = np.asarray(rhs)
+    # quadratic form: a0 |r - 1|^2 + a1 |D1 r|^2 + a2 |D2 r|^2 (first and second differences of the rate)
+    L = max(1.0, smooth_s * fps)
+    a0, a1, a2 = 1e-3, L**2, L**4 / 4.0
+    Q = a0 * sparse.identity(n, format="csr")
+    if n >= 2:
+        d1 = sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
+        Q = Q + a1 * (d1.T @ d1)
+    if n >= 3:
+        d2 = sparse.diags([np.ones(n - 2), -2 * np.ones(n - 2), np.ones(n - 2)], [0, 1, 2], shape=(n - 2, n))
+        Q = Q + a2 * (d2.T @ d2)
+    q = a0 * np.ones(n)
+    lo, hi = 1.0 - max_rate_change, 1.0 + max_rate_change
+    fixed = np.zeros(n, dtype=bool)
+    fixed_val = np.zeros(n)
+    rates = np.ones(n)
+    for _ in range(50):  # active set: rates that leave the box are fixed at the bound, then solve again
+        F = np.flatnonzero(fixed)
+        E = sparse.csr_matrix((np.ones(len(F)), (np.arange(len(F)), F)), shape=(len(F), n))
+        A = sparse.vstack([C, E]).tocsr()
+        rhs_all = np.concatenate([c, fixed_val[F]])
+        K = sparse.bmat([[Q, A.T], [A, None]], format="csc")
+        sol = spsolve(K, np.concatenate([q, rhs_all]))
+        rates = sol[:n]
+        bad = ((rates < lo - 1e-9) | (rates > hi + 1e-9)) & ~fixed
+        if not bad.any():
+            break
+        fixed |= bad
+        fixed_val[bad] = np.where(rates[bad] < lo, lo, hi)
+    rates = np.clip(rates, lo, hi)
+    return np.concatenate([[0.0], np.cumsum(rates)])
+
+
+def warp_frames(x: np.ndarray, *, source_frames: np.ndarray) -> np.ndarray:
+    """Frames ``(T, ...)`` sampled at fractional source frames ``(T',)`` by linear interpolation (a new
+    array in the dtype of ``x``; frames outside ``[0, T - 1]`` are clamped)."""
+    x = np.asarray(x)
+    s = np.clip(np.asarray(source_frames, dtype=np.float64), 0, len(x) - 1)
+    i0 = np.floor(s).astype(int)
+    i1 = np.minimum(i0 + 1, len(x) - 1)
+    w = (s - i0).reshape((-1,) + (1,) * (x.ndim - 1)).astype(x.dtype)
+    return x[i0] * (1 - w) + x[i1] * w
+
+
+def warp_bones(positions: np.ndarray, *, skeleton: Skeleton, source_frames: np.ndarray) -> np.ndarray:
+    """3D joint positions ``(T, J, 3)`` sampled at fractional source frames ``(T',)`` bone by bone: the
+    root's position interpolated linearly, every bone vector (parent → child) interpolated linearly,
+    then scaled to the linear interpolation of its two lengths (normalised lerp, close to slerp for the
+    small turns between neighbouring frames), chained from the root. Bones keep their lengths (a
+    straight lerp of positions shortens a turning bone). Returns float64 ``(T', J, 3)``."""
+    p = np.asarray(positions, dtype=np.float64)
+    s = np.clip(np.asarray(source_frames, dtype=np.float64), 0, len(p) - 1)
+    i0 = np.floor(s).astype(int)
+    i1 = np.minimum(i0 + 1, len(p) - 1)
+    w = (s - i0)[:, None]
+    out = np.empty((len(s),) + p.shape[1:])
+    for j in skeleton.topological_order:
+        parent = skeleton.parents[j]
+        if parent < 0:
+            out[:, j] = p[i0, j] * (1 - w) + p[i1, j] * w
+            continue
+        b0, b1 = p[i0, j] - p[i0, parent], p[i1, j] - p[i1, parent]
+        v = b0 * (1 - w) + b1 * w
+        length = np.linalg.norm(b0, axis=-1, keepdims=True) * (1 - w) + np.linalg.norm(b1, axis=-1, keepdims=True) * w
+        norm = np.linalg.norm(v, axis=-1, keepdims=True)
+        v = np.where(norm > 1e-12, v / np.maximum(norm, 1e-12) * length, v)
+        out[:, j] = out[:, parent] + v
+    return out
+
+
+def warp_motion(motion: Motion, *, source_frames: np.ndarray) -> Motion:
+    """The :class:`~dancekit.motion.Motion` sampled at fractional source frames ``(T',)`` (same fps and
+    skeleton): rotations by quaternion slerp and the root translation linearly; a 3D motion of positions
+    alone bone by bone (:func:`warp_bones`: bone lengths kept), a 2D one linearly."""
+    from dancekit.motion.motion import Motion
+
+    s = np.clip(np.asarray(source_frames, dtype=np.float64), 0, motion.num_frames - 1)
+
+    def lerp(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else warp_frames(a, source_frames=s)
+
+    if motion.rotations is None and motion.positions is not None and motion.positions.shape[-1] == 3:
+        pos = warp_bones(motion.positions, skeleton=motion.skeleton, source_frames=s)
+        return Motion(motion.skeleton, motion.fps, pos.astype(motion.positions.dtype), None,
+                      lerp(motion.root_translation))
+
+    rot = None
+    if motion.rotations is not None:
+        import torch
+
+        from dancekit.motion.rotations import matrix_to_quaternion, quaternion_slerp, quaternion_to_matrix
+
+        i0 = np.floor(s).astype(int)
+        i1 = np.minimum(i0 + 1, motion.num_frames - 1)
+        q = matrix_to_quaternion(torch.from_numpy(motion.rotations.astype(np.float64)))
+        tt = torch.from_numpy(s - i0)[:, None].expand(len(s), q.shape[1])
+        rot = quaternion_to_matrix(quaternion_slerp(q[i0], q[i1], tt)).numpy().astype(motion.rotations.dtype)
+    return Motion(motion.skeleton, motion.fps, lerp(motion.positions), rot, lerp(motion.root_translation))
+
+
+def beat_warp(
+    positions: np.ndarray,
+    *,
+    music_beats: np.ndarray,
+    fps: float,
+    max_rate_change: float = DEFAULT_MAX_RATE_CHANGE,
+    pair_rate_change: float = DEFAULT_PAIR_RATE_CHANGE,
+    max_shift: float = DEFAULT_MAX_SHIFT,
+    smooth: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The beat-synchronous warp of a dance: its source frames and the matched beat pairs.
+
+    Parameters
+    ----------
+    positions : (T, J, 3) (or (T, J, 2)) joint positions at ``fps``, any units
+    music_beats : (M,) music beat times, seconds from the dance's first frame
+    fps : frames per second
+    max_rate_change, pair_rate_change, max_shift : see :func:`warp_rates` and :func:`match_beats`
+    smooth : speed smoothing of the kinematic beats, seconds (default that of
+        :func:`dancekit.motion.analysis.kinematic_beats`)
+
+    Returns
+    -------
+    ``(source_frames, pairs)``: (T,) float64 fractional source frames (:func:`warp_frames` applies
+    them) and (P, 2) matched ``[music, kinematic]`` times in seconds. Without a pair the warp is the
+    identity (``source_frames == arange(T)``).
+    """
+    from dancekit.motion.analysis import DEFAULT_BEAT_SMOOTH, kinematic_beats
+
+    p = np.asarray(positions, dtype=np.float64)
+    T = len(p)
+    if T < 3:
+        return np.arange(T, dtype=np.float64), np.zeros((0, 2))
+    kin = kinematic_beats(p, fps=fps, smooth=DEFAULT_BEAT_SMOOTH if smooth is None else smooth)
+    pairs = match_beats(kinematic=kin, music=music_beats, duration=(T - 1) / fps,
+                        pair_rate_change=pair_rate_change, max_shift=max_shift)
+    if len(pairs) == 0:
+        return np.arange(T, dtype=np.float64), pairs
+    return warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change), pairs

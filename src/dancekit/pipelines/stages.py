@@ -1,0 +1,117 @@
+"""Pipeline stages every dance model shares: beat-synchronous output and the physical clean-up.
+
+Both run on the :class:`~dancekit.pipelines.DanceResult` of any dance pipeline (the model's motion on its
+own skeleton, 3D positions), on by default (``pipe(song, beat_sync=False, cleanup=False)`` gives the
+model's own output):
+
+* **beat sync** (:func:`beat_sync`): the song (excerpt) is beat-tracked on the fine grid
+  (:func:`dancekit.features.pulse.song_beats`); a song without a clear pulse (speech, a bird, a whale's
+  song) is left unwarped, with a note. Otherwise the dance is time-warped so that its kinematic beats
+  (speed minima) land on the song's beats: :func:`dancekit.motion.timewarp.beat_warp` (dynamic
+  programming over candidate pairings, the local speed kept within ±15 %, a smooth rate).
+* **clean-up** (:func:`clean_up`): the figure's root path is kept within a dance floor (turned back
+  toward its start beyond 4 m, never farther than 12 m) and its lowest joint put on the floor
+  (:mod:`dancekit.motion.cleanup`).
+
+:func:`finish` runs both (clean-up first, then the warp) and records what happened in ``result.notes`` (the summary line).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+
+from dancekit.motion import Motion
+from dancekit.pipelines.base import DanceResult
+
+__all__ = ["beat_sync", "clean_up", "finish", "song_beats_for"]
+
+
+def _is_3d(motion: Motion) -> bool:
+    p = motion.positions if motion.positions is not None else None
+    return motion.num_frames >= 3 and (p is None or (p.ndim == 3 and p.shape[-1] == 3))
+
+
+def song_beats_for(audio_path: str | os.PathLike, *, start: float | None = None, end: float | None = None):
+    """The :class:`~dancekit.features.pulse.SongBeats` of the song (excerpt), times from the excerpt's start."""
+    from dancekit.features.pulse import song_beats_file
+
+    return song_beats_file(audio_path, start=start, end=end)
+
+
+def beat_sync(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
+              end: float | None = None, beats=None) -> DanceResult:
+    """The result with its motion time-warped onto the song's beats (a new :class:`DanceResult`; a note
+    in ``notes`` says how many beats were matched, or why the dance was left unwarped).
+
+    ``beats``: a :class:`~dancekit.features.pulse.SongBeats` already tracked (else the song is tracked).
+    """
+    from dancekit.motion.timewarp import beat_warp, warp_motion
+
+    motion = result.motion
+    if not _is_3d(motion):
+        return _with_note(result, "not beat-synced (not a 3D dance)")
+    beats = song_beats_for(audio_path, start=start, end=end) if beats is None else beats
+    if not beats.has_beat:
+        from dancekit.features.pulse import MIN_BEATS
+
+        clarity = 0.0 if abs(beats.clarity) < 0.005 else beats.clarity
+        why = (f"only {len(beats.times)} beats found" if len(beats.times) < MIN_BEATS
+               else f"pulse clarity {clarity:.2f}")
+        return _with_note(result, f"not beat-synced: the song has no clear beat ({why})")
+    source, pairs = beat_warp(motion.to_positions(), music_beats=beats.times, fps=motion.fps)
+    n_music = int(np.sum((beats.times > 0) & (beats.times < motion.duration)))
+    if len(pairs) == 0:
+        return _with_note(result, f"not beat-synced: no movement beat near the song's {n_music} beats")
+    warped = warp_motion(motion, source_frames=source)
+    note = f"beat-synced ({len(pairs)} of {n_music} beats at {beats.tempo:.0f} BPM)"
+    return _with_note(dataclasses.replace(result, motion=warped), note)
+
+
+def clean_up(result: DanceResult) -> DanceResult:
+    """The result with its motion cleaned up (:mod:`dancekit.motion.cleanup`: the root path turned back
+    within a dance floor, the lowest joint on the floor). Both are rigid per frame, so a motion with
+    rotations keeps them (its root rotation turned, its root translation moved); 2D dances are returned
+    unchanged."""
+    from dancekit.motion.analysis import horizontal_axes, up_sign
+    from dancekit.motion.cleanup import ground_offset, root_path_turns, turn_and_move
+
+    motion = result.motion
+    if not _is_3d(motion):
+        return result
+    sk, fps = motion.skeleton, motion.fps
+    p = np.asarray(motion.to_positions(), np.float64)
+    angle, root = root_path_turns(p, skeleton=sk, fps=fps)
+    p = turn_and_move(p, skeleton=sk, angle=angle, root=root)
+    p[..., sk.up_index] -= up_sign(sk) * ground_offset(p, skeleton=sk, fps=fps)[:, None]
+    rot = tr = None
+    if motion.rotations is not None:
+        a, b = horizontal_axes(sk)
+        turn = np.zeros((len(angle), 3, 3))
+        turn[:, sk.up_index, sk.up_index] = 1.0
+        turn[:, a, a] = turn[:, b, b] = np.cos(angle)
+        turn[:, a, b] = -np.sin(angle)
+        turn[:, b, a] = np.sin(angle)
+        rot = np.array(motion.rotations, np.float64)
+        rot[:, sk.root] = turn @ rot[:, sk.root]
+        rot = rot.astype(motion.rotations.dtype)
+        tr = p[:, sk.root].astype(np.float32)
+    cleaned = Motion(skeleton=sk, fps=fps, positions=p.astype(np.float32), rotations=rot, root_translation=tr)
+    return dataclasses.replace(result, motion=cleaned)
+
+
+def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
+           end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True) -> DanceResult:
+    """Both stages as switched: the clean-up first (it moves frames rigidly), then the beat sync (so the
+    speed minima it aligns are those of the final dance)."""
+    if cleanup_on:
+        result = clean_up(result)
+    if beat_sync_on:
+        result = beat_sync(result, audio_path, start=start, end=end)
+    return result
+
+
+def _with_note(result: DanceResult, note: str) -> DanceResult:
+    return dataclasses.replace(result, notes=[*result.notes, note])
