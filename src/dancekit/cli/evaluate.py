@@ -3,11 +3,20 @@
     dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 5 -o runs/eval
     dancekit evaluate --pred runs/model/test --ref data/tang2018 --data data/tang2018 -o report.json
 
+    dancekit evaluate --compose dual --data data/tang2018 --split test -o runs/compose_eval
+    dancekit evaluate --music runs/composed --data data/tang2018 --split test -o music_report.json
+
 With ``--checkpoint`` the model first dances every song of the split (``OUT/pred/NAME__k.npz``) and the
 report goes to ``OUT/report.json``; with ``--pred`` a folder of dances is scored into the JSON file ``-o``.
 Prints a markdown table (generated vs real); the report holds every metric, per-dance values and the
 settings used (written atomically). Layout, music lookup and defaults: :mod:`dancekit.evaluation` and
 docs/METRICS.md.
+
+Music: ``--compose MODEL`` composes music for every dance of the split with a ``dual`` model
+(``OUT/music/NAME.mid|.wav``, report ``OUT/report.json``, table ``OUT/table.md``); ``--music DIR`` scores a
+folder of ``NAME.mid|.wav`` into the JSON file ``-o``. Both print BCS / BHS (protocols A and B), beat F1,
+tempo and notes accuracy next to the real music and the click-track baselines
+(:mod:`dancekit.evaluation.music`).
 """
 
 from __future__ import annotations
@@ -23,15 +32,24 @@ from dancekit.errors import ParameterError
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "evaluate",
-        help="score dances against real ones (FID_k/g, BAS, style FID/ACC, ...), a model's or a folder's",
+        help="score dances against real ones (FID_k/g, BAS, style FID/ACC, ...), or composed music against the "
+             "real music (BCS/BHS, beat F1, tempo)",
         description="Dance every song of a split with a model (--checkpoint) and score the dances, or score a "
         "folder of generated dances (--pred: NAME.npz or NAME__k.npz, NAME = a reference dance) against the "
-        "reference dances; prints a markdown table, every metric goes to the JSON report.",
+        "reference dances; or compose music for the dances of a split with a dual model (--compose) or score a "
+        "folder of composed music (--music) against the real music, next to click-track baselines; prints a "
+        "markdown table, every metric goes to the JSON report.",
     )
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--checkpoint", metavar="MODEL",
                       help="a checkpoint folder or model name: dance the songs of --split, then score (needs --data)")
     what.add_argument("--pred", metavar="DIR", help="folder of generated .npz dances (needs --ref)")
+    what.add_argument("--compose", metavar="MODEL",
+                      help="a dual checkpoint folder or model name: compose music for the dances of --split, then "
+                           "score it against their real music with the baselines (needs --data)")
+    what.add_argument("--music", metavar="DIR",
+                      help="folder of composed music NAME.mid|.wav (NAME = a dance of --split): score it against "
+                           "the real music with the baselines (needs --data)")
     p.add_argument("--ref", metavar="DIR",
                    help="with --pred: folder of real NAME.npz dances, or a prepared dataset folder (its --split)")
     p.add_argument("--split", default="test", help="split to dance / of a prepared --ref folder (default test)")
@@ -63,13 +81,77 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                    help="style classifier checkpoint (default: the one shipped with dancekit)")
     p.add_argument("--no-style", action="store_true", help="skip the style-classifier metrics")
     p.add_argument("--preset", default=None, help="feature preset whose beat_times to use (default revolution)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the random pairs of Diversity (default 0)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the random pairs of Diversity; with --compose / --music: of the start chords and "
+                        "the metronome phases (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    mus = p.add_argument_group("music (--compose, --music)")
+    mus.add_argument("--clip-lengths", default="2,5,25,whole",
+                     help="BCS / BHS clip lengths in seconds, comma-separated; whole = whole dances "
+                          "(default 2,5,25,whole)")
+    mus.add_argument("--render", choices=("builtin", "fluidsynth", "auto"), default="builtin",
+                     help="MIDI → audio for MIDI without a WAV beside it (default builtin)")
+    mus.add_argument("--no-baselines", action="store_true", help="score the composed music only")
     p.set_defaults(func=run)
     return p
 
 
+def _clip_lengths(text: str) -> tuple[float | None, ...]:
+    out: list[float | None] = []
+    for part in text.split(","):
+        part = part.strip()
+        try:
+            out.append(None if part == "whole" else float(part))
+        except ValueError:
+            raise ParameterError(f"--clip-lengths: {part!r} is neither a number of seconds nor 'whole'") from None
+    return tuple(out)
+
+
+def run_music(args: argparse.Namespace) -> int:
+    from dancekit.evaluation.music import (
+        MusicSettings,
+        compose_split,
+        evaluate_music,
+        format_music_markdown,
+        music_table,
+        write_report,
+    )
+
+    if args.data is None:
+        raise ParameterError("--compose and --music need --data (the prepared dataset whose real music is the reference)")
+    if args.ref is not None or args.pred is not None or args.seeds is not None or args.genre is not None:
+        raise ParameterError("--ref, --seeds and --genre go with --pred / --checkpoint, not with --compose / --music")
+    settings = MusicSettings(clip_lengths=_clip_lengths(args.clip_lengths), render=args.render, seed=args.seed,
+                             baselines=not args.no_baselines)
+    say = None if args.quiet else (lambda m: print(m, flush=True))
+    out = Path(args.output)
+    if args.compose is not None:
+        gen = compose_split(args.compose, args.data, out / "music", split=args.split, seed=args.seed,
+                            render=args.render, progress=say)
+        report = evaluate_music(args.data, music=out / "music", split=args.split, settings=settings,
+                                label=f"composed ({args.compose})", progress=say)
+        report["generation"] = gen
+        print(f"composed {gen['seconds']:.0f} s of music in {gen['elapsed_s']:.1f} s")
+        path = out / "report.json"
+        from dancekit._io import atomic_path
+
+        with atomic_path(out / "table.md") as tmp:
+            tmp.write_text(music_table(report) + "\n")
+    else:
+        if not out.parent.exists():
+            raise ParameterError(f"output folder does not exist: {out.parent}")
+        report = evaluate_music(args.data, music=args.music, split=args.split, settings=settings,
+                                label=f"composed ({args.music})", progress=say)
+        path = out
+    write_report(report, path)
+    print(format_music_markdown(report), end="")
+    print(f"report: {path}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.compose is not None or args.music is not None:
+        return run_music(args)
     from dancekit.evaluation import EvalSettings, evaluate_checkpoint, evaluate_dirs, format_markdown
 
     if args.segment_seconds < 0:

@@ -18,6 +18,9 @@ module                      what
 :mod:`.steering`            does the genre steer? (:func:`steering`, ``dancekit steering``)
 :mod:`.classifiers`         accuracy of the style and music attribute classifiers
                             (:func:`score_classifier`, ``dancekit score-classifier``)
+:mod:`.music`               composed music against the real music, with click-track baselines: BCS / BHS,
+                            beat F1, tempo, notes accuracy (:func:`evaluate_music`, ``dancekit evaluate
+                            --compose`` / ``--music``)
 ==========================  ==========================================================================
 
 Report layout and metric definitions: ``docs/METRICS.md``; published figures: ``docs/BENCHMARKS.md``.
@@ -31,6 +34,7 @@ from dancekit.evaluation.classifiers import (
     style_split_scores,
 )
 from dancekit.evaluation.generate import dance_split, evaluate_checkpoint
+from dancekit.evaluation.music import MusicSettings, compose_split, evaluate_music, format_music_markdown
 from dancekit.evaluation.report import (
     TABLE_ROWS,
     format_comparison,
@@ -53,13 +57,17 @@ __all__ = [
     "BASELINES",
     "TABLE_ROWS",
     "EvalSettings",
+    "MusicSettings",
+    "compose_split",
     "dance_metrics",
     "dance_split",
     "evaluate_checkpoint",
     "evaluate_dirs",
     "evaluate_motions",
+    "evaluate_music",
     "format_comparison",
     "format_markdown",
+    "format_music_markdown",
     "format_value",
     "group_predictions",
     "load_classifier",

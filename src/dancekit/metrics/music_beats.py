@@ -64,7 +64,9 @@ from dancekit.errors import ParameterError
 __all__ = [
     "ONSET_PARAMS",
     "beat_f1",
+    "bin_counts",
     "clicks_on",
+    "clip_spans",
     "clip_bin_counts",
     "clip_bin_counts_audio",
     "coverage_hit",
@@ -196,6 +198,29 @@ def onset_bins(times: np.ndarray, *, duration: float, bin_size: float = DEFAULT_
     idx = np.floor(t / bin_size + _EPS).astype(np.int64)
     bins[idx[idx < n]] = True
     return bins
+
+
+def clip_spans(
+    duration: float, *, clip_length: float | None = None, bin_size: float = DEFAULT_BIN
+) -> list[tuple[float, float]]:
+    """``(start, length)`` in seconds of every scored clip of a span of ``duration`` seconds.
+
+    Consecutive clips ``[k L, (k + 1) L)`` (a trailing piece shorter than ``L`` is dropped), or the
+    whole span as one clip for ``clip_length=None`` (none when it is shorter than one bin).
+    """
+    duration = _duration(duration)
+    bin_size = _positive("bin_size", bin_size)
+    return _spans(duration, _clip_length(clip_length, bin_size), bin_size)
+
+
+def bin_counts(generated: np.ndarray, reference: np.ndarray, *, duration: float,
+               bin_size: float = DEFAULT_BIN) -> np.ndarray:
+    """The counts ``(3,)`` [R, G, H] of one clip from its onset times (seconds from the clip's start)."""
+    return np.asarray(
+        _counts(onset_bins(generated, duration=duration, bin_size=bin_size),
+                onset_bins(reference, duration=duration, bin_size=bin_size)),
+        dtype=np.int64,
+    )
 
 
 def _spans(duration: float, clip_length: float | None, bin_size: float) -> list[tuple[float, float]]:
