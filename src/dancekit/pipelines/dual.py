@@ -75,8 +75,7 @@ class DualPipeline:
         if pose is None:
             return self.model.sample_start_pose(torch.Generator().manual_seed(int(seed)))
         if isinstance(pose, Motion):
-            _check_skeleton(pose, self.skeleton)
-            pose = encode_motion(pose.slice(0, 1), "rot6d")[0]
+            pose = encode_motion(on_model_skeleton(pose.slice(0, 1), self.skeleton), "rot6d")[0]
         x = np.asarray(pose, np.float32).reshape(-1)
         if x.shape != (self.model.config.pose_dim,):
             raise ParameterError(f"a start pose must have {self.model.config.pose_dim} rot6d values, got {x.shape}")
@@ -150,14 +149,15 @@ class ComposePipeline:
 
         Parameters
         ----------
-        motion : a 3D dance on the model's skeleton (resampled to the model's fps when it differs)
+        motion : a 3D dance (resampled to the model's fps when it differs); a dance on another skeleton is
+            mapped to the model's joints by role (:func:`dancekit.motion.retarget.map_by_role`)
         seed : draws the start chord (root of 12 pitch classes × major / minor) unless given
         tempo : "auto" (the composed beats) or a BPM (a regular grid phased on the first composed beat)
         root, minor : the start chord (e.g. ``root="A", minor=True``)
         """
         if not isinstance(motion, Motion):
             raise ParameterError(f"compose needs a Motion, got {type(motion).__name__}")
-        _check_skeleton(motion, self.skeleton)
+        motion = on_model_skeleton(motion, self.skeleton)
         if abs(motion.fps - self.fps) > 1e-6:
             motion = motion.resample(self.fps)
         g = torch.Generator().manual_seed(int(seed))
@@ -177,9 +177,15 @@ class ComposePipeline:
                              arrangement=arrange(chroma, beat, fps=self.fps, tempo=tempo))
 
 
-def _check_skeleton(motion: Motion, skeleton: Skeleton) -> None:
-    if motion.skeleton.dims != 3 or list(motion.skeleton.joint_names) != list(skeleton.joint_names):
-        raise ParameterError(
-            f"this model dances on the {skeleton.name!r} skeleton ({skeleton.num_joints} joints); the motion is on "
-            f"{motion.skeleton.name!r} ({motion.skeleton.num_joints} joints, {motion.skeleton.dims}D). Mapping another "
-            "skeleton's joints by role is not supported yet: convert the dance to this skeleton first")
+def on_model_skeleton(motion: Motion, skeleton: Skeleton) -> Motion:
+    """``motion`` on the model's ``skeleton``: as it is when the joints are the same, else mapped by joint role
+    (:func:`dancekit.motion.retarget.map_by_role`); a 2D dance or one lacking the limb and head roles is refused
+    with a :class:`ParameterError` naming what is missing."""
+    if motion.skeleton.dims == 3 and list(motion.skeleton.joint_names) == list(skeleton.joint_names):
+        return motion
+    if motion.skeleton.dims != 3:
+        raise ParameterError(f"this model dances on the 3D {skeleton.name!r} skeleton; the motion is on the 2D "
+                             f"{motion.skeleton.name!r} skeleton and cannot be mapped to it")
+    from dancekit.motion.retarget import map_by_role
+
+    return map_by_role(motion, skeleton)

@@ -1,0 +1,154 @@
+"""Evaluation helpers of the dual-learning model (docs/DUAL.md): choices on validation, composing on test.
+
+    python scripts/dual_eval.py beats --data data/tang2018 --split val CKPT [CKPT ...]
+    python scripts/dual_eval.py compose --data data/tang2018 --split test CKPT -o runs/dual/compose_test
+    python scripts/dual_eval.py dance --data data/tang2018 --split val CKPT [CKPT ...]
+
+``beats``: G_D→M composes chroma + beats for every dance of the split (seed 0); for each beat-picking threshold,
+the beat F1 (±0.1 s, mir_eval) of the picked beats against the real music's beats, the composed tempo
+against the real tempo, and the notes accuracy of the composed chroma (dual paper) against the real chroma.
+``compose``: the same on the split with the chosen threshold, plus the share of the dance's kinematic beats
+within 0.1 s of the composed beats next to the same share for the real music, MIDI + WAV written per dance.
+``dance``: G_M→D dances for every song of the split (seed 0): stillness, energy and jitter ratios against the
+real dance (the issue's no-freezing criteria).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def _real_music(data, name):
+    f = data.features(name, "dual")
+    feats = np.asarray(f["features"], np.float64)
+    return feats[:, 40:52], feats[:, 52], np.asarray(f["beat_times"], np.float64)
+
+
+def _compose_all(ckpt, data, split, seed=0):
+    from dancekit.pipelines.dual import ComposePipeline
+
+    pipe = ComposePipeline.from_pretrained(ckpt)
+    out = {}
+    for name in data.names(split):
+        res = pipe(data.motion(name), seed=seed)
+        out[name] = res
+    return pipe, out
+
+
+def _notes_accuracy(chroma_pred, chroma_real):
+    """The dual paper's notes accuracy on chroma: share of frames whose strongest pitch class matches."""
+    n = min(len(chroma_pred), len(chroma_real))
+    return float(np.mean(np.argmax(chroma_pred[:n], 1) == np.argmax(chroma_real[:n], 1)))
+
+
+def cmd_beats(args):
+    from dancekit.audio.midi import pick_beats
+    from dancekit.data.prepared import PreparedData
+    from dancekit.metrics.music_beats import beat_f1, tempo_from_beats
+
+    data = PreparedData(args.data)
+    rows = []
+    for ckpt in args.ckpt:
+        pipe, comp = _compose_all(ckpt, data, args.split)
+        for thr in args.thresholds:
+            f1, terr, nb, acc = [], [], [], []
+            for name, res in comp.items():
+                chroma, _, real_beats = _real_music(data, name)
+                beats = pick_beats(res.beat, fps=res.fps, threshold=thr)
+                f1.append(beat_f1(beats, real_beats))
+                t_real, t_gen = tempo_from_beats(real_beats), tempo_from_beats(beats)
+                terr.append(abs(t_gen - t_real) / t_real if np.isfinite(t_gen) else np.nan)
+                nb.append(len(beats) / (len(res.beat) / res.fps))
+                acc.append(_notes_accuracy(res.chroma, chroma))
+            rows.append(dict(ckpt=str(ckpt), threshold=thr, beat_f1=float(np.nanmean(f1)),
+                             tempo_rel_err=float(np.nanmean(terr)) if not np.all(np.isnan(terr)) else None,
+                             beats_per_s=float(np.mean(nb)), notes_acc=float(np.mean(acc)),
+                             beat_max=float(max(r.beat.max() for r in comp.values()))))
+            print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
+def cmd_dance(args):
+    from dancekit.data.prepared import PreparedData
+    from dancekit.metrics.stability import jitter, smoothed_energy, stillness_share
+    from dancekit.pipelines.dual import DualPipeline
+
+    data = PreparedData(args.data)
+    for ckpt in args.ckpt:
+        pipe = DualPipeline.from_pretrained(ckpt)
+        per = {}
+        for name in data.names(args.split):
+            real = data.motion(name)
+            gen = pipe(data.audio(name).path, seed=args.seed).motion
+            n = min(len(gen), len(real))
+            gp, rp = gen.to_positions()[:n], real.to_positions()[:n]
+            kw = dict(fps=gen.fps, skeleton=gen.skeleton)
+            per[name] = dict(stillness=stillness_share(gp, **kw),
+                             energy_ratio=smoothed_energy(gp, **kw) / smoothed_energy(rp, **kw),
+                             jitter_ratio=jitter(gp, **kw)["speed_residual"] / jitter(rp, **kw)["speed_residual"])
+        agg = {k: float(np.mean([v[k] for v in per.values()])) for k in ("stillness", "energy_ratio", "jitter_ratio")}
+        agg["stillness_max"] = float(max(v["stillness"] for v in per.values()))
+        print(json.dumps(dict(ckpt=str(ckpt), split=args.split, **agg, per_song=per)), flush=True)
+
+
+def _share(kin, music_beats, tol=0.1):
+    """Share of the kinematic beats ``kin`` (s) within ``tol`` s of a music beat."""
+    if len(kin) == 0 or len(music_beats) == 0:
+        return float("nan")
+    return float(np.mean(np.min(np.abs(kin[:, None] - np.asarray(music_beats)[None]), 1) <= tol))
+
+
+def cmd_compose(args):
+    from dancekit.audio.midi import pick_beats
+    from dancekit.data.prepared import PreparedData
+    from dancekit.metrics.music_beats import beat_f1, tempo_from_beats
+    from dancekit.motion.analysis import kinematic_beats
+
+    data = PreparedData(args.data)
+    out_dir = Path(args.out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    pipe, comp = _compose_all(args.ckpt[0], data, args.split, seed=args.seed)
+    rows = {}
+    for name, res in comp.items():
+        chroma, _, real_beats = _real_music(data, name)
+        files = res.write(out_dir, stem=name)
+        beats = np.asarray(res.arrangement.beat_times)
+        motion = data.motion(name)
+        kin = np.asarray(kinematic_beats(motion.to_positions(), fps=motion.fps), np.float64)
+
+        t_real, t_gen = tempo_from_beats(real_beats), float(res.arrangement.tempo)
+        rows[name] = dict(notes_acc=_notes_accuracy(res.chroma, chroma), tempo=t_gen, tempo_real=t_real,
+                          tempo_rel_err=abs(t_gen - t_real) / t_real,
+                          beat_f1_real=beat_f1(beats, real_beats),
+                          picked=len(pick_beats(res.beat, fps=res.fps, threshold=0.5)),
+                          kin_share_composed=_share(kin, beats), kin_share_real=_share(kin, real_beats),
+                          files=[str(p) for p in files.values()])
+        print(name, json.dumps(rows[name]), flush=True)
+    (out_dir / "compose_metrics.json").write_text(json.dumps(rows, indent=1))
+
+
+def main(argv=None):
+    import torch
+
+    torch.set_num_threads(1)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    for cmd in ("beats", "dance", "compose"):
+        p = sub.add_parser(cmd)
+        p.add_argument("ckpt", nargs="+")
+        p.add_argument("--data", default="data/tang2018")
+        p.add_argument("--split", default="val")
+        p.add_argument("--seed", type=int, default=0)
+        p.add_argument("--thresholds", type=float, nargs="+", default=[0.3, 0.4, 0.5, 0.6])
+        p.add_argument("-o", "--out", default="runs/dual/compose")
+    args = ap.parse_args(argv)
+    {"beats": cmd_beats, "dance": cmd_dance, "compose": cmd_compose}[args.cmd](args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
