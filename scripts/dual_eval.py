@@ -29,21 +29,36 @@ def _real_music(data, name):
     return feats[:, 40:52], feats[:, 52], np.asarray(f["beat_times"], np.float64)
 
 
-def _compose_all(ckpt, data, split, seed=0):
+def _compose_all(ckpt, data, split, seed=0, max_frames=None):
     from dancekit.pipelines.dual import ComposePipeline
 
     pipe = ComposePipeline.from_pretrained(ckpt)
     out = {}
     for name in data.names(split):
-        res = pipe(data.motion(name), seed=seed)
+        motion = data.motion(name)
+        if max_frames:
+            motion = motion.slice(0, max_frames)
+        res = pipe(motion, seed=seed)
         out[name] = res
     return pipe, out
 
 
-def _notes_accuracy(chroma_pred, chroma_real):
-    """The dual paper's notes accuracy on chroma: share of frames whose strongest pitch class matches."""
+def _chroma_top1(chroma_pred, chroma_real):
+    """Share of frames whose strongest pitch class matches the real music's."""
     n = min(len(chroma_pred), len(chroma_real))
     return float(np.mean(np.argmax(chroma_pred[:n], 1) == np.argmax(chroma_real[:n], 1)))
+
+
+def _notes_accuracy(res, chroma_real, beat_real):
+    """The dual paper's notes accuracy (:func:`dancekit.metrics.music.notes_accuracy`: melody = highest sounding
+    pitch, both transposed to C major / A minor) of the composed MIDI against the real music's chroma + beats
+    arranged by the same arranger (tang2018 has audio, not MIDI)."""
+    from dancekit.audio.midi import arrange
+    from dancekit.metrics.music import notes_accuracy
+
+    n = min(len(res.chroma), len(chroma_real))
+    ref = arrange(chroma_real[:n], beat_real[:n], fps=res.fps)
+    return float(notes_accuracy(res.arrangement.midi, ref.midi, fps=res.fps))
 
 
 def cmd_beats(args):
@@ -54,17 +69,18 @@ def cmd_beats(args):
     data = PreparedData(args.data)
     rows = []
     for ckpt in args.ckpt:
-        pipe, comp = _compose_all(ckpt, data, args.split)
+        pipe, comp = _compose_all(ckpt, data, args.split, max_frames=args.max_frames)
         for thr in args.thresholds:
             f1, terr, nb, acc = [], [], [], []
             for name, res in comp.items():
-                chroma, _, real_beats = _real_music(data, name)
+                chroma, beat_col, real_beats = _real_music(data, name)
+                real_beats = real_beats[real_beats < len(res.beat) / res.fps]
                 beats = pick_beats(res.beat, fps=res.fps, threshold=thr)
                 f1.append(beat_f1(beats, real_beats))
                 t_real, t_gen = tempo_from_beats(real_beats), tempo_from_beats(beats)
                 terr.append(abs(t_gen - t_real) / t_real if np.isfinite(t_gen) else np.nan)
                 nb.append(len(beats) / (len(res.beat) / res.fps))
-                acc.append(_notes_accuracy(res.chroma, chroma))
+                acc.append(_notes_accuracy(res, chroma, beat_col))
             rows.append(dict(ckpt=str(ckpt), threshold=thr, beat_f1=float(np.nanmean(f1)),
                              tempo_rel_err=float(np.nanmean(terr)) if not np.all(np.isnan(terr)) else None,
                              beats_per_s=float(np.mean(nb)), notes_acc=float(np.mean(acc)),
@@ -76,24 +92,32 @@ def cmd_beats(args):
 def cmd_dance(args):
     from dancekit.data.prepared import PreparedData
     from dancekit.metrics.stability import jitter, smoothed_energy, stillness_share
-    from dancekit.pipelines.dual import DualPipeline
+    from dancekit.motion.representations import decode_motion, encode_motion
+    from dancekit.pipelines.dual import DualPipeline, moving_average
 
     data = PreparedData(args.data)
     for ckpt in args.ckpt:
         pipe = DualPipeline.from_pretrained(ckpt)
-        per = {}
+        per: dict = {k: {} for k in args.smooth}
         for name in data.names(args.split):
             real = data.motion(name)
-            gen = pipe(data.audio(name).path, seed=args.seed).motion
-            n = min(len(gen), len(real))
-            gp, rp = gen.to_positions()[:n], real.to_positions()[:n]
+            end = args.max_frames / real.fps if args.max_frames else None
+            gen = pipe(data.audio(name).path, seed=args.seed, end=end, smooth_frames=1).motion
+            x = encode_motion(gen, "rot6d")
+            n = min(gen.num_frames, real.num_frames)
+            rp = real.to_positions()[:n]
             kw = dict(fps=gen.fps, skeleton=gen.skeleton)
-            per[name] = dict(stillness=stillness_share(gp, **kw),
-                             energy_ratio=smoothed_energy(gp, **kw) / smoothed_energy(rp, **kw),
-                             jitter_ratio=jitter(gp, **kw)["speed_residual"] / jitter(rp, **kw)["speed_residual"])
-        agg = {k: float(np.mean([v[k] for v in per.values()])) for k in ("stillness", "energy_ratio", "jitter_ratio")}
-        agg["stillness_max"] = float(max(v["stillness"] for v in per.values()))
-        print(json.dumps(dict(ckpt=str(ckpt), split=args.split, **agg, per_song=per)), flush=True)
+            for k in args.smooth:
+                gp = decode_motion(moving_average(x, k), gen.skeleton, gen.fps, "rot6d").to_positions()[:n]
+                per[k][name] = dict(stillness=stillness_share(gp, **kw),
+                                    energy_ratio=smoothed_energy(gp, **kw) / smoothed_energy(rp, **kw),
+                                    jitter_ratio=jitter(gp, **kw)["speed_residual"] / jitter(rp, **kw)["speed_residual"])
+        for k in args.smooth:
+            agg = {m: float(np.mean([v[m] for v in per[k].values()])) for m in ("stillness", "energy_ratio",
+                                                                               "jitter_ratio")}
+            agg["stillness_max"] = float(max(v["stillness"] for v in per[k].values()))
+            print(json.dumps(dict(ckpt=str(ckpt), split=args.split, smooth_frames=k, **agg, per_song=per[k])),
+                  flush=True)
 
 
 def _share(kin, music_beats, tol=0.1):
@@ -106,6 +130,7 @@ def _share(kin, music_beats, tol=0.1):
 def cmd_compose(args):
     from dancekit.audio.midi import pick_beats
     from dancekit.data.prepared import PreparedData
+    from dancekit.metrics.music import chroma_l1
     from dancekit.metrics.music_beats import beat_f1, tempo_from_beats
     from dancekit.motion.analysis import kinematic_beats
 
@@ -115,21 +140,25 @@ def cmd_compose(args):
     pipe, comp = _compose_all(args.ckpt[0], data, args.split, seed=args.seed)
     rows = {}
     for name, res in comp.items():
-        chroma, _, real_beats = _real_music(data, name)
+        chroma, beat_col, real_beats = _real_music(data, name)
         files = res.write(out_dir, stem=name)
         beats = np.asarray(res.arrangement.beat_times)
         motion = data.motion(name)
         kin = np.asarray(kinematic_beats(motion.to_positions(), fps=motion.fps), np.float64)
 
         t_real, t_gen = tempo_from_beats(real_beats), float(res.arrangement.tempo)
-        rows[name] = dict(notes_acc=_notes_accuracy(res.chroma, chroma), tempo=t_gen, tempo_real=t_real,
+        rows[name] = dict(notes_acc=_notes_accuracy(res, chroma, beat_col), chroma_top1=_chroma_top1(res.chroma, chroma),
+                          chroma_l1=chroma_l1(res.chroma, chroma), tempo=t_gen, tempo_real=t_real,
                           tempo_rel_err=abs(t_gen - t_real) / t_real,
                           beat_f1_real=beat_f1(beats, real_beats),
                           picked=len(pick_beats(res.beat, fps=res.fps, threshold=0.5)),
                           kin_share_composed=_share(kin, beats), kin_share_real=_share(kin, real_beats),
                           files=[str(p) for p in files.values()])
         print(name, json.dumps(rows[name]), flush=True)
-    (out_dir / "compose_metrics.json").write_text(json.dumps(rows, indent=1))
+    keys = [k for k, v in next(iter(rows.values())).items() if isinstance(v, float | int)]
+    mean = {k: float(np.nanmean([r[k] for r in rows.values()])) for k in keys}
+    print("mean", json.dumps(mean), flush=True)
+    (out_dir / "compose_metrics.json").write_text(json.dumps({"per_dance": rows, "mean": mean}, indent=1))
 
 
 def main(argv=None):
@@ -146,6 +175,8 @@ def main(argv=None):
         p.add_argument("--seed", type=int, default=0)
         p.add_argument("--thresholds", type=float, nargs="+", default=[0.3, 0.4, 0.5, 0.6])
         p.add_argument("-o", "--out", default="runs/dual/compose")
+        p.add_argument("--smooth", type=int, nargs="+", default=[1, 3, 5], help="moving averages to try (dance)")
+        p.add_argument("--max-frames", type=int, default=None, help="score the first frames of each dance only")
     args = ap.parse_args(argv)
     {"beats": cmd_beats, "dance": cmd_dance, "compose": cmd_compose}[args.cmd](args)
 

@@ -7,6 +7,8 @@
 Copies ``config.json``, ``model.safetensors`` and ``stats.npz`` (nothing else) and writes
 ``card.json``: description, training data (from the checkpoint), parameter count, training time
 (given), and the test-split metrics from a ``dancekit evaluate`` report. Refuses files over 20 MB.
+``--half`` stores the weights as float16 (the loader upcasts to float32); ``--extra JSON`` merges a JSON
+object into the card (e.g. the dual model's composing scores).
 
 ``--genre-model GENRE=DIR`` (repeatable) adds a genre model (e.g. the model fine-tuned on one genre's
 dances) as ``genres/GENRE/``, its weights stored as float16 (half the size; the pipeline computes in
@@ -59,6 +61,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="dancekit evaluate report of the model alone (--genre none, test split)")
     parser.add_argument("--scores", default=None, metavar="JSON",
                         help="a classifier's scores (dancekit score-classifier -o) for the card")
+    parser.add_argument("--half", action="store_true",
+                        help="store the weights as float16 (half the size; the loader upcasts to float32)")
+    parser.add_argument("--extra", default=None, metavar="JSON",
+                        help="a JSON object merged into the card (e.g. a family's own measurements)")
     args = parser.parse_args(argv)
 
     from dancekit.checkpoints import declare_components
@@ -73,6 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     if dst.exists():
         shutil.rmtree(dst)
     _copy_checkpoint(src, dst)
+    if args.half:
+        _halve(dst / "model.safetensors")
     from safetensors.numpy import load_file
 
     n_params = sum(v.size for v in load_file(str(dst / "model.safetensors")).values())
@@ -111,10 +119,24 @@ def main(argv: list[str] | None = None) -> int:
     if args.scores:
         scores = json.loads(Path(args.scores).read_text())
         card["scores"] = scores[0] if isinstance(scores, list) and len(scores) == 1 else scores
+    if args.half:
+        card["weights"] = "float16 (computed in float32)"
+    if args.extra:
+        card.update(json.loads(Path(args.extra).read_text()))
     (dst / "card.json").write_text(json.dumps(card, indent=1) + "\n")
     size = sum(f.stat().st_size for f in dst.rglob("*") if f.is_file())
     print(f"embedded {src} as {dst} ({size / 1e6:.2f} MB)")
     return 0
+
+
+def _halve(path: Path) -> None:
+    """Rewrite a safetensors file with its floating-point tensors as float16 (checked finite)."""
+    import torch
+    from safetensors.torch import load_file, save_file
+
+    state = load_file(str(path))
+    save_file({k: v.half() if v.is_floating_point() else v for k, v in state.items()}, str(path))
+    assert all(torch.isfinite(v.float()).all() for v in load_file(str(path)).values())
 
 
 def _embed_genre_models(dst: Path, items: list[str]) -> list[str]:

@@ -527,3 +527,29 @@ def test_compose_cli_writes_midi_wav_mp4_and_html(tiny_checkpoint, tmp_path):
     assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(bad), "--checkpoint", str(tiny_checkpoint),
                  "--tempo", "fast"]) == 2
     assert not bad.exists()
+
+
+def test_moving_average_known_answer():
+    from dancekit.errors import ParameterError
+    from dancekit.pipelines.dual import moving_average
+
+    y = (np.arange(6, dtype=np.float64) ** 2)[:, None]  # 0 1 4 9 16 25
+    np.testing.assert_allclose(moving_average(y, 3)[:, 0], [0.5, 5 / 3, 14 / 3, 29 / 3, 50 / 3, 20.5])
+    np.testing.assert_allclose(moving_average(y, 2)[:, 0], [0.5, 2.5, 6.5, 12.5, 20.5, 25.0])
+    assert moving_average(y, 1) is y
+    with pytest.raises(ParameterError, match="smooth_frames"):
+        moving_average(y, 0)
+
+
+def test_dance_pipeline_smoothing_setting(tiny_checkpoint, tmp_path):
+    import json
+    import shutil
+
+    from dancekit.pipelines.dual import DualPipeline
+
+    folder = tmp_path / "smoothed"
+    shutil.copytree(tiny_checkpoint, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**meta, "smooth_frames": 5}))
+    assert DualPipeline.from_pretrained(folder).smooth_frames == 5
+    assert DualPipeline.from_pretrained(tiny_checkpoint).smooth_frames == 1

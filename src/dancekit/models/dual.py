@@ -41,6 +41,13 @@ Choices the paper leaves open (documented, not from the paper): decoders are tra
 (the cycle losses run on the teacher-forced outputs); G_M→D reads composed music as its MFCC blocks at their
 training mean (zeros after normalisation) with the composed chroma + beat; embeddings for GW are the time
 average of the encoder output.
+
+Departures from the paper, each a switch (docs/DUAL.md): GW on L1 cost matrices divided by their mean with
+the printed Algorithm 1's unit marginals (``gw_normalize="mean"``, ``gw_marginals="unit"``: the raw costs
+of a training encoder are hundreds of times ε and the term was noise); the beat frames of L_X weighted 5×
+(``beat_pos_weight``: with the plain L1 the sparse beat output collapsed to 0); Gaussian noise of std 0.1 on
+G_M→D's teacher-forced decoder inputs (``decoder_noise``, against the freezing of teacher-forced decoders).
+``DualConfig(beat_pos_weight=1, decoder_noise=0, gw_normalize="none", gw_marginals="uniform")`` is the paper.
 """
 
 from __future__ import annotations
@@ -93,8 +100,8 @@ class DualConfig:
     gw_projection_iters: int = 20  # M
     gw_normalize: str = "mean"  # L1 cost matrices divided by their mean (not the paper; "none": raw costs)
     gw_marginals: str = "unit"  # the printed Algorithm 1 (a = 1 ⊘ K b); "uniform": p = q = 1/m (Eq. 4)
-    beat_pos_weight: float = 1.0  # weight of the beat frames in L_X's beat term (1: the paper's plain L1)
-    decoder_noise: float = 0.0  # std of Gaussian noise on G_M→D's teacher-forced decoder inputs (training)
+    beat_pos_weight: float = 15.0  # weight of the beat frames in L_X's beat term (1: the paper's plain L1)
+    decoder_noise: float = 0.1  # std of Gaussian noise on G_M→D's teacher-forced decoder inputs (0: the paper)
     pool_size: int = 64  # start poses kept from the training windows (sampled at inference)
 
     def __post_init__(self) -> None:

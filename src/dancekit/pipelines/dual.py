@@ -55,6 +55,7 @@ class DualPipeline:
         self.hop_length = int(meta.get("hop_length", 512))
         self.preset = str(meta.get("preset", "dual"))
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        self.smooth_frames = int(meta.get("smooth_frames", 1))  # the checkpoint's sampling setting
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> DualPipeline:
@@ -84,17 +85,21 @@ class DualPipeline:
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
                  end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
-                 progress: bool = False) -> DanceResult:
+                 smooth_frames: int | None = None, progress: bool = False) -> DanceResult:
         """A dance for the song (excerpt ``[start, end)`` s), one frame per feature frame.
 
         ``seed`` draws the start pose from the model's pool (the paper's diverse generation) unless
         ``start_pose`` is given. The model has no genre input: ``genre`` must be None, "auto" or "none".
+        ``smooth_frames``: a centred moving average of that many frames over G_M→D's output (translation and
+        6D columns; the 6D are re-orthonormalised when decoded), 1 = none; default: the checkpoint's
+        ``smooth_frames`` (chosen on the validation songs, docs/DUAL.md), else 1.
         """
         if genre not in (None, "auto", "none"):
             raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
         x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
         s = self.start_pose(start_pose, seed)[None]  # (1, P)
         y = self.model.generate_dance(x, start=s)[0].cpu().numpy()  # (T, P)
+        y = moving_average(y, self.smooth_frames if smooth_frames is None else int(smooth_frames))
         motion = decode_motion(self.stats.denormalize_dance(y), self.skeleton, self.fps, "rot6d")
         return DanceResult(motion=motion, model=self.folder, seed=int(seed),
                            genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
@@ -175,6 +180,20 @@ class ComposePipeline:
         return ComposeResult(chroma=chroma, beat=beat, fps=self.fps, seed=int(seed),
                              start_chord=f"{root_name} {'minor' if minor else 'major'}",
                              arrangement=arrange(chroma, beat, fps=self.fps, tempo=tempo))
+
+
+def moving_average(y: np.ndarray, frames: int) -> np.ndarray:
+    """Centred moving average of ``frames`` (odd or even, ≥ 1) frames over ``y (T, P)``; the ends average the
+    frames that exist. ``frames=1`` returns ``y``."""
+    if not isinstance(frames, int) or frames < 1:
+        raise ParameterError(f"smooth_frames must be a positive integer, got {frames!r}")
+    if frames == 1 or len(y) == 0:
+        return y
+    a, b = (frames - 1) // 2, frames // 2
+    c = np.cumsum(np.pad(np.asarray(y, np.float64), ((1, 0), (0, 0))), axis=0)  # (T + 1, P)
+    idx = np.arange(len(y))
+    lo, hi = np.clip(idx - a, 0, len(y)), np.clip(idx + b + 1, 0, len(y))
+    return ((c[hi] - c[lo]) / (hi - lo)[:, None]).astype(y.dtype)
 
 
 def on_model_skeleton(motion: Motion, skeleton: Skeleton) -> Motion:
