@@ -553,3 +553,30 @@ def test_dance_pipeline_smoothing_setting(tiny_checkpoint, tmp_path):
     (folder / "config.json").write_text(json.dumps({**meta, "smooth_frames": 5}))
     assert DualPipeline.from_pretrained(folder).smooth_frames == 5
     assert DualPipeline.from_pretrained(tiny_checkpoint).smooth_frames == 1
+
+
+def test_embedded_dual_model_is_small_float16_and_loads_as_float32():
+    from safetensors.numpy import load_file
+
+    from dancekit.checkpoints import resolve_model
+    from dancekit.pipelines.dual import ComposePipeline
+
+    folder = resolve_model("dual")
+    size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+    assert size <= 12e6
+    weights = load_file(str(folder / "model.safetensors"))
+    assert {v.dtype for k, v in weights.items() if k != "pool_count"} == {np.dtype("float16")}
+    pipe = ComposePipeline.from_pretrained("dual")
+    assert all(p.dtype == torch.float32 for p in pipe.model.parameters())
+    assert pipe.model.pose_pool.dtype == torch.float32 and int(pipe.model.pool_count) > 0
+
+
+def test_compose_cli_uses_the_embedded_model_by_default(tmp_path):
+    from dancekit.cli.main import main
+    from dancekit.motion.formats import write_motion
+
+    write_motion(tmp_path / "dance.npz", _real_like_motion(T=50))
+    out = tmp_path / "out"
+    assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--render", "builtin", "--no-video",
+                 "--quiet"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["dance.mid", "dance.wav"]

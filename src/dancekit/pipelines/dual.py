@@ -141,6 +141,9 @@ class ComposePipeline:
         self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
         self.fps = float(meta["fps"])
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        # beat picking, the checkpoint's composing settings (chosen on the validation dances, docs/DUAL.md)
+        self.beat_threshold = float(meta.get("beat_threshold", 0.5))
+        self.beat_min_gap = float(meta.get("beat_min_gap", 0.25))
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> ComposePipeline:
@@ -179,7 +182,8 @@ class ComposePipeline:
         root_name = PITCH_CLASSES[int(root)] if not isinstance(root, str) else root
         return ComposeResult(chroma=chroma, beat=beat, fps=self.fps, seed=int(seed),
                              start_chord=f"{root_name} {'minor' if minor else 'major'}",
-                             arrangement=arrange(chroma, beat, fps=self.fps, tempo=tempo))
+                             arrangement=arrange(chroma, beat, fps=self.fps, tempo=tempo,
+                                                 threshold=self.beat_threshold, min_gap=self.beat_min_gap))
 
 
 def moving_average(y: np.ndarray, frames: int) -> np.ndarray:
