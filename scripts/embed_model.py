@@ -65,6 +65,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="store the weights as float16 (half the size; the loader upcasts to float32)")
     parser.add_argument("--extra", default=None, metavar="JSON",
                         help="a JSON object merged into the card (e.g. a family's own measurements)")
+    parser.add_argument("--meta", action="append", default=[], metavar="KEY=JSON",
+                        help="set a top-level entry of the embedded config.json (e.g. a pipeline setting "
+                             "chosen on validation: smooth_frames=9)")
     args = parser.parse_args(argv)
 
     from dancekit.checkpoints import declare_components
@@ -81,6 +84,14 @@ def main(argv: list[str] | None = None) -> int:
     _copy_checkpoint(src, dst)
     if args.half:
         _halve(dst / "model.safetensors")
+    if args.meta:
+        cfg = json.loads((dst / "config.json").read_text())
+        for item in args.meta:
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise SystemExit(f"embed_model: --meta expects KEY=JSON, got {item!r}")
+            cfg[key] = json.loads(value)
+        (dst / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
     from safetensors.numpy import load_file
 
     n_params = sum(v.size for v in load_file(str(dst / "model.safetensors")).values())
