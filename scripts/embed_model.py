@@ -106,6 +106,8 @@ def main(argv: list[str] | None = None) -> int:
         "training_steps": train.get("steps"),
         "curriculum": train.get("curriculum"),
     }
+    if config.get("model") != "revolution":  # the auto-condition curriculum is Dance Revolution's
+        card.pop("curriculum")
     if args.report:
         report = json.loads(Path(args.report).read_text())
         card["metrics_source"] = "dancekit evaluate on the tang2018 test split (6 dances), see docs/BENCHMARKS.md"
