@@ -7,6 +7,8 @@
 Copies ``config.json``, ``model.safetensors`` and ``stats.npz`` (nothing else) and writes
 ``card.json``: description, training data (from the checkpoint), parameter count, training time
 (given), and the test-split metrics from a ``dancekit evaluate`` report. Refuses files over 20 MB.
+``--half`` stores the weights as float16 (the loader upcasts to float32); ``--extra JSON`` merges a JSON
+object into the card (e.g. the dual model's composing scores).
 
 ``--genre-model GENRE=DIR`` (repeatable) adds a genre model (e.g. the model fine-tuned on one genre's
 dances) as ``genres/GENRE/``, its weights stored as float16 (half the size; the pipeline computes in
@@ -65,12 +67,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="dancekit evaluate report of the model alone (--genre none, test split)")
     parser.add_argument("--scores", default=None, metavar="JSON",
                         help="a classifier's scores (dancekit score-classifier -o) for the card")
-    parser.add_argument("--float16", action="store_true", help="store the model's weights as float16")
+    parser.add_argument("--float16", "--half", action="store_true",
+                        help="store the weights as float16 (half the size; the loader upcasts to float32)")
     parser.add_argument("--foot-constraint", default=None, metavar="DIR",
                         help="add a Foot Constraint Model checkpoint (float16) as foot_constraint/")
     parser.add_argument("--temperature", type=float, default=None,
                         help="default sampling temperature (Music2Dance), recorded in config.json")
-    parser.add_argument("--card", default=None, metavar="JSON", help="more card entries (a JSON file)")
+    parser.add_argument("--card", "--extra", default=None, metavar="JSON",
+                        help="a JSON object merged into the card (e.g. a family's own measurements)")
+    parser.add_argument("--meta", action="append", default=[], metavar="KEY=JSON",
+                        help="set a top-level entry of the embedded config.json (e.g. a pipeline setting "
+                             "chosen on validation: smooth_frames=9)")
     args = parser.parse_args(argv)
 
     from dancekit.checkpoints import declare_components
@@ -87,10 +94,13 @@ def main(argv: list[str] | None = None) -> int:
     _copy_checkpoint(src, dst, weights=not args.float16)
     if args.float16:
         _half_weights(src, dst)
+    meta = {f"{k}": v for k, v in (_meta_item(item) for item in args.meta)}
     if args.temperature is not None:
-        meta = json.loads((dst / "config.json").read_text())
         meta["sampling"] = {"temperature": args.temperature}
-        (dst / "config.json").write_text(json.dumps(meta, indent=1) + "\n")
+    if meta:
+        cfg = json.loads((dst / "config.json").read_text())
+        cfg.update(meta)
+        (dst / "config.json").write_text(json.dumps(cfg, indent=1) + "\n")
     from safetensors.numpy import load_file
 
     n_params = sum(v.size for v in load_file(str(dst / "model.safetensors")).values())
@@ -105,6 +115,8 @@ def main(argv: list[str] | None = None) -> int:
         "training_steps": train.get("steps"),
         "curriculum": train.get("curriculum"),
     }
+    if config.get("model") != "revolution":  # the auto-condition curriculum is Dance Revolution's
+        card.pop("curriculum")
     if args.report:
         report = json.loads(Path(args.report).read_text())
         card["metrics_source"] = "dancekit evaluate on the tang2018 test split (6 dances), see docs/BENCHMARKS.md"
@@ -133,12 +145,22 @@ def main(argv: list[str] | None = None) -> int:
     if args.scores:
         scores = json.loads(Path(args.scores).read_text())
         card["scores"] = scores[0] if isinstance(scores, list) and len(scores) == 1 else scores
+    if args.float16:
+        card["weights"] = "float16 (computed in float32)"
     if args.card:
         card.update(json.loads(Path(args.card).read_text()))
     (dst / "card.json").write_text(json.dumps(card, indent=1) + "\n")
     size = sum(f.stat().st_size for f in dst.rglob("*") if f.is_file())
     print(f"embedded {src} as {dst} ({size / 1e6:.2f} MB)")
     return 0
+
+
+def _meta_item(item: str) -> tuple[str, object]:
+    """``KEY=JSON`` → ``(KEY, value)``."""
+    key, sep, value = item.partition("=")
+    if not sep:
+        raise SystemExit(f"embed_model: --meta expects KEY=JSON, got {item!r}")
+    return key, json.loads(value)
 
 
 def _embed_genre_models(dst: Path, items: list[str]) -> list[str]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -371,3 +372,211 @@ def test_teacher_forcing_is_causal_and_matches_free_running_generation():
         # feeding the generated frames back reproduces them: training and inference are the same decoder
         gen = model.m2d.generate(music, dance[:, 0])
         torch.testing.assert_close(model.m2d.teacher_forced(music, gen), gen, atol=1e-5, rtol=1e-5)
+
+
+# ---------------------------------------------------------------------------------- this session's additions
+
+
+def test_gw_with_mean_normalised_costs_is_scale_invariant_and_resolves_the_plan():
+    """normalize="mean" divides each L1 cost matrix by its mean off-diagonal entry: GW no longer depends on the
+    embeddings' scale; with the printed Algorithm 1's unit marginals a batch is far nearer itself (and a
+    permutation of itself) than a noisy copy or another batch, within the paper's L = 30 iterations."""
+    x, y = _points(16, 64, seed=30), _points(16, 64, seed=31)
+    noisy = x + 0.5 * _points(16, 64, seed=32)
+    kw = dict(normalize="mean", marginals="unit")
+    a = entropic_gromov_wasserstein(x, y, **kw)
+    torch.testing.assert_close(entropic_gromov_wasserstein(7.0 * x, 0.01 * y, **kw), a, rtol=1e-9, atol=1e-12)
+    self_gw = float(entropic_gromov_wasserstein(x, x, **kw))
+    perm = torch.randperm(16, generator=torch.Generator().manual_seed(0))
+    assert float(entropic_gromov_wasserstein(x, x[perm], **kw)) == pytest.approx(self_gw, rel=1e-9)
+    assert self_gw < 0.1 * float(entropic_gromov_wasserstein(x, noisy, **kw))
+    assert self_gw < 0.1 * float(a)
+    # 30 Sinkhorn iterations have converged: 300 give the same value
+    assert float(entropic_gromov_wasserstein(x, noisy, **kw)) == pytest.approx(
+        float(entropic_gromov_wasserstein(x, noisy, sinkhorn_iters=300, **kw)), rel=1e-3)
+    # without normalisation the same points' GW grows with their scale
+    assert float(entropic_gromov_wasserstein(2 * x, 2 * y)) > 3 * float(entropic_gromov_wasserstein(x, y))
+
+
+def test_gw_with_normalised_costs_and_unit_marginals_agrees_with_pot():
+    """Unit marginals are uniform marginals with ε / m and a GW m² times larger; POT's epsilon is 2 ε (its
+    factor 2): POT on the mean-normalised cost matrices with epsilon = 2 ε / m, times m², is this value. With
+    the sharper effective ε the two Sinkhorn update orders differ by 0.4 % after L = 30 iterations (tolerance
+    1 %) and agree to 1e-4 relative at 3000."""
+    ot = pytest.importorskip("ot")
+    m, eps = 8, 0.2
+    x, y = _points(m, 5, seed=40), _points(m, 3, seed=41)
+    C, D = l1_cost_matrix(x).numpy(), l1_cost_matrix(y).numpy()
+    C, D = C / (C.sum() / (m * (m - 1))), D / (D.sum() / (m * (m - 1)))
+    p = np.full(m, 1.0 / m)
+    for iters, rel in ((30, 1e-2), (3000, 1e-4)):
+        gw = entropic_gromov_wasserstein(x, y, epsilon=eps, normalize="mean", marginals="unit", sinkhorn_iters=iters)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # POT's "Sinkhorn did not converge" with stopThr=0
+            _, log = ot.gromov.entropic_gromov_wasserstein(D, C, p, p, "square_loss", epsilon=2 * eps / m,
+                                                           max_iter=20, tol=0.0, numItermax=iters, stopThr=0.0,
+                                                           log=True)
+        assert float(gw) == pytest.approx(m**2 * float(log["gw_dist"]), rel=rel)
+
+
+def test_beat_weight_of_the_music_loss():
+    """Known answer: one frame of four is a beat; a silent prediction costs 1 per beat frame times the weight."""
+    target = torch.zeros(1, 4, 13)
+    target[0, 1, 12] = 1.0
+    pred = torch.zeros(1, 4, 13)
+    assert float(music_loss(pred, target)) == pytest.approx(1 / 4)
+    assert float(music_loss(pred, target, beat_pos_weight=5.0)) == pytest.approx(5 / 4)
+    pred[0, :, 12] = 1.0  # beats everywhere: the non-beat frames cost 1 each, unweighted
+    assert float(music_loss(pred, target, beat_pos_weight=5.0)) == pytest.approx(3 / 4)
+    pred[0, 0, 0] = 0.5  # chroma is never weighted
+    assert float(music_loss(pred, target, beat_pos_weight=5.0)) == pytest.approx(3.5 / 4)
+
+
+def test_decoder_noise_only_in_training():
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY, decoder_noise=0.5))
+    music, dance = _batch()
+    model.train()
+    a, b = model.m2d.teacher_forced(music, dance, noise=0.5), model.m2d.teacher_forced(music, dance, noise=0.5)
+    assert not torch.allclose(a, b)
+    model.eval()
+    torch.testing.assert_close(model.m2d.teacher_forced(music, dance, noise=0.5), model.m2d.teacher_forced(music, dance))
+    with pytest.raises(Exception, match="decoder_noise"):
+        DualConfig(**TINY, decoder_noise=-1.0)
+
+
+@pytest.mark.parametrize("which", ["m2d", "d2m"])
+def test_incremental_decoding_equals_re_decoding_the_prefix(which):
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**{**TINY, "m2d_layers": 2, "d2m_layers": 2})).eval()
+    music, dance = _batch(B=2, T=8)
+    net, src, start = (model.m2d, music, dance[:, 0]) if which == "m2d" else (model.d2m, dance, music[:, 0, 4:])
+    with torch.no_grad():
+        torch.testing.assert_close(net.generate(src, start), net.generate_full(src, start), atol=1e-5, rtol=1e-5)
+
+
+def _real_like_motion(T=40):
+    """A moving tang2018 dance: the rest pose, swaying and turning (positions in cm)."""
+    from dancekit.motion import Motion, get_skeleton
+    from dancekit.motion.analysis import rest_pose
+
+    sk = get_skeleton("tang2018")
+    rest = rest_pose(sk)  # (J, 3)
+    t = np.arange(T)[:, None] / 25.0
+    ang = 0.3 * np.sin(2 * np.pi * 0.5 * t)[:, 0]
+    R = np.stack([np.stack([np.cos(ang), np.zeros(T), np.sin(ang)], -1), np.tile([0.0, 1.0, 0.0], (T, 1)),
+                  np.stack([-np.sin(ang), np.zeros(T), np.cos(ang)], -1)], 1)  # (T, 3, 3) about y
+    pos = np.einsum("tij,kj->tki", R, rest) + np.stack([10 * np.sin(t[:, 0]), 90 + 0 * t[:, 0], 5 * t[:, 0]], -1)[:, None]
+    return Motion(skeleton=sk, fps=25.0, positions=pos)
+
+
+def test_map_by_role_puts_every_role_joint_on_the_source_joint():
+    from dancekit.motion import get_skeleton
+    from dancekit.motion.retarget import map_by_role, retarget_to_smpl
+
+    tang = get_skeleton("tang2018")
+    smpl_motion, _ = retarget_to_smpl(_real_like_motion())
+    mapped = map_by_role(smpl_motion, tang)
+    p, src = mapped.to_positions(), smpl_motion.to_positions() * 100.0  # SMPL metres → tang2018 cm
+    assert p.shape == (40, 23, 3) and np.isfinite(p).all()
+    for role in ("left_knee", "right_wrist", "left_shoulder", "right_ankle"):
+        np.testing.assert_allclose(p[:, tang.index(role)], src[:, smpl_motion.skeleton.index(role)], atol=1e-9)
+    np.testing.assert_allclose(p[:, tang.index("left_toe")], src[:, smpl_motion.skeleton.index("left_foot")], atol=1e-9)
+    # the forearm marker lies between the elbow and the wrist
+    e, f, w = (p[:, tang.index(n)] for n in ("right_elbow", "right_forearm", "right_wrist"))
+    np.testing.assert_allclose(np.linalg.norm(f - e, axis=-1) + np.linalg.norm(w - f, axis=-1),
+                               np.linalg.norm(w - e, axis=-1), rtol=1e-9)
+    # the heel is behind the ankle (forward = the body's facing) and below it
+    heel, ankle, toe = (p[:, tang.index(n)] for n in ("left_heel", "left_ankle", "left_toe"))
+    assert (np.einsum("ti,ti->t", heel - ankle, toe - ankle) < 0).mean() > 0.9
+
+
+def test_map_by_role_refuses_a_skeleton_without_the_limb_roles():
+    from dancekit.errors import ParameterError
+    from dancekit.motion import Motion, Skeleton, get_skeleton
+    from dancekit.motion.retarget import map_by_role
+
+    sk = Skeleton(name="stick", joint_names=("root", "a"), parents=(-1, 0), offsets=np.zeros((2, 3)), up_axis="y",
+                  units="m", roles={"pelvis": "root"})
+    m = Motion(skeleton=sk, fps=25.0, positions=np.zeros((3, 2, 3)))
+    with pytest.raises(ParameterError, match="left_hip"):
+        map_by_role(m, get_skeleton("tang2018"))
+
+
+def test_compose_maps_another_skeleton_by_role(tiny_checkpoint):
+    from dancekit.motion.retarget import retarget_to_smpl
+    from dancekit.pipelines.dual import ComposePipeline
+
+    smpl_motion, _ = retarget_to_smpl(_real_like_motion())
+    res = ComposePipeline.from_pretrained(tiny_checkpoint)(smpl_motion, seed=0)
+    assert res.chroma.shape == (40, 12)
+
+
+def test_compose_cli_writes_midi_wav_mp4_and_html(tiny_checkpoint, tmp_path):
+    from dancekit.cli.main import main
+    from dancekit.motion.formats import write_motion
+
+    write_motion(tmp_path / "dance.npz", _real_like_motion(T=30))
+    out = tmp_path / "out"
+    assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--checkpoint", str(tiny_checkpoint),
+                 "--tempo", "120", "--render", "builtin", "--quiet"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["dance.html", "dance.mid", "dance.mp4", "dance.wav"]
+    assert all(p.stat().st_size > 0 for p in out.iterdir())
+    # a bad tempo: one error line, nothing written
+    bad = tmp_path / "bad"
+    assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(bad), "--checkpoint", str(tiny_checkpoint),
+                 "--tempo", "fast"]) == 2
+    assert not bad.exists()
+
+
+def test_moving_average_known_answer():
+    from dancekit.errors import ParameterError
+    from dancekit.pipelines.dual import moving_average
+
+    y = (np.arange(6, dtype=np.float64) ** 2)[:, None]  # 0 1 4 9 16 25
+    np.testing.assert_allclose(moving_average(y, 3)[:, 0], [0.5, 5 / 3, 14 / 3, 29 / 3, 50 / 3, 20.5])
+    np.testing.assert_allclose(moving_average(y, 2)[:, 0], [0.5, 2.5, 6.5, 12.5, 20.5, 25.0])
+    assert moving_average(y, 1) is y
+    with pytest.raises(ParameterError, match="smooth_frames"):
+        moving_average(y, 0)
+
+
+def test_dance_pipeline_smoothing_setting(tiny_checkpoint, tmp_path):
+    import json
+    import shutil
+
+    from dancekit.pipelines.dual import DualPipeline
+
+    folder = tmp_path / "smoothed"
+    shutil.copytree(tiny_checkpoint, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**meta, "smooth_frames": 5}))
+    assert DualPipeline.from_pretrained(folder).smooth_frames == 5
+    assert DualPipeline.from_pretrained(tiny_checkpoint).smooth_frames == 1
+
+
+def test_embedded_dual_model_is_small_float16_and_loads_as_float32():
+    from safetensors.numpy import load_file
+
+    from dancekit.checkpoints import resolve_model
+    from dancekit.pipelines.dual import ComposePipeline
+
+    folder = resolve_model("dual")
+    size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+    assert size <= 12e6
+    weights = load_file(str(folder / "model.safetensors"))
+    assert {v.dtype for k, v in weights.items() if k != "pool_count"} == {np.dtype("float16")}
+    pipe = ComposePipeline.from_pretrained("dual")
+    assert all(p.dtype == torch.float32 for p in pipe.model.parameters())
+    assert pipe.model.pose_pool.dtype == torch.float32 and int(pipe.model.pool_count) > 0
+
+
+def test_compose_cli_uses_the_embedded_model_by_default(tmp_path):
+    from dancekit.cli.main import main
+    from dancekit.motion.formats import write_motion
+
+    write_motion(tmp_path / "dance.npz", _real_like_motion(T=50))
+    out = tmp_path / "out"
+    assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--render", "builtin", "--no-video",
+                 "--quiet"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["dance.mid", "dance.wav"]

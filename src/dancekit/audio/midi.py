@@ -78,7 +78,7 @@ def pick_beats(beat: np.ndarray, *, fps: float, threshold: float = 0.5, min_gap:
 
 
 def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | float = "auto",
-            threshold: float = 0.5, default_bpm: float = 120.0) -> Arrangement:
+            threshold: float = 0.5, min_gap: float = 0.25, default_bpm: float = 120.0) -> Arrangement:
     """Chords on the beats, a bass line on the chord roots and a drum track on the beats.
 
     Parameters
@@ -89,6 +89,7 @@ def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | fl
     tempo : ``"auto"`` (the picked beats; a ``default_bpm`` grid when fewer than two are found) or a BPM
         (a regular grid phased on the first picked beat)
     threshold : beat activation that counts as a beat
+    min_gap : shortest time between two picked beats, seconds (:func:`pick_beats`)
 
     Returns
     -------
@@ -101,7 +102,7 @@ def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | fl
     if chroma.ndim != 2 or chroma.shape[1] != 12 or len(chroma) != len(beat) or len(beat) == 0:
         raise ParameterError(f"need chroma (T, 12) and beat (T,) with T > 0, got {chroma.shape} and {beat.shape}")
     duration = len(beat) / float(fps)
-    picked = pick_beats(beat, fps=fps, threshold=threshold)
+    picked = pick_beats(beat, fps=fps, threshold=threshold, min_gap=min_gap)
     if tempo == "auto":
         if len(picked) >= 2:
             times = picked

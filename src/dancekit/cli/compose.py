@@ -1,30 +1,43 @@
-"""``dancekit compose MOTION -o OUTDIR``: music for a dance with the dual-learning model's G_D→M (MIDI + WAV)."""
+"""``dancekit compose MOTION -o OUTDIR``: music for a dance with the dual-learning model's G_D→M.
+
+Writes ``STEM.mid`` (chords, bass, drums on the composed beats), ``STEM.wav`` (FluidSynth when installed, else
+the built-in synthesiser) and, unless ``--no-video``, ``STEM.mp4`` and ``STEM.html``: the dance with its new
+music (:func:`dancekit.export.export_motion`). All files appear together or none do.
+"""
 
 from __future__ import annotations
 
 import argparse
+import shutil
+import tempfile
 import time
 from pathlib import Path
 
 from dancekit.errors import ParameterError
 
+DEFAULT_COMPOSE_MODEL = "dual"
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "compose",
-        help="compose music for a dance: MIDI (chords, bass, drums on the composed beats) and WAV",
+        help="compose music for a dance: MIDI (chords, bass, drums on the composed beats), WAV, mp4 and html",
         description="Compose chroma and beats for MOTION with a dual-learning model (G_D→M) and arrange them as "
                     "MIDI (chords on the beats, bass on the chord roots, drums on the beats), rendered to WAV with "
-                    "FluidSynth when installed, else the built-in synthesiser.",
+                    "FluidSynth when installed, else the built-in synthesiser; the dance with its new music as an "
+                    "mp4 and an html player. A dance on another skeleton is mapped to the model's joints by role.",
     )
     p.add_argument("motion", help="a dance file the toolkit reads (npz, BVH, AIST++ pkl, tang2018 folder)")
     p.add_argument("-o", "--out", required=True, help="output folder (created if missing)")
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--model", default=None, help="a dual model name (`dancekit models`) or folder")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--model", default=None,
+                   help=f"a dual model name (`dancekit models`) or folder (default: the embedded "
+                        f"{DEFAULT_COMPOSE_MODEL!r} model)")
     g.add_argument("--checkpoint", default=None, help="a dual checkpoint folder (from `dancekit train dual`)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the start chord (default 0)")
     p.add_argument("--tempo", default="auto", help="auto (the composed beats, default) or a tempo in BPM")
     p.add_argument("--render", default="auto", choices=("auto", "fluidsynth", "builtin"), help="audio renderer")
+    p.add_argument("--no-video", action="store_true", help="write the MIDI and WAV only (no mp4 / html)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
 
@@ -39,20 +52,41 @@ def parse_tempo(text: str) -> str | float:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dancekit.export import check_output_folder, export_motion
     from dancekit.motion.formats import read_motion
     from dancekit.pipelines.dual import ComposePipeline
 
     t0 = time.perf_counter()
     tempo = parse_tempo(args.tempo)
+    out = check_output_folder(args.out)
     motion = read_motion(args.motion)
-    pipe = ComposePipeline.from_pretrained(args.checkpoint or args.model)
+    pipe = ComposePipeline.from_pretrained(args.checkpoint or args.model or DEFAULT_COMPOSE_MODEL)
     result = pipe(motion, seed=args.seed, tempo=tempo)
-    files = result.write(Path(args.out), stem=Path(args.motion).stem, render=args.render)
+    stem = Path(args.motion).stem or "dance"
+    created = not out.exists()
+    stage = Path(tempfile.mkdtemp(prefix=".dancekit-compose-"))
+    try:
+        music = result.write(stage, stem=stem, render=args.render)  # midi + wav, staged
+        files = []
+        if not args.no_video:
+            files = export_motion(motion, out, stem=stem, formats=("mp4", "html"), audio=music["wav"],
+                                  progress=not args.quiet)
+        out.mkdir(parents=True, exist_ok=True)
+        for path in music.values():
+            shutil.move(str(path), str(out / path.name))  # a rename on the same file system
+        files = [out / p.name for p in music.values()] + list(files)
+    except BaseException:
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
     if not args.quiet:
         arr = result.arrangement
         print(f"composed {arr.duration:.1f} s from {result.start_chord}: {len(arr.beat_times)} beats at "
               f"{arr.tempo:.1f} BPM, chords {' '.join(arr.chord_names()[:8])}{' ...' if len(arr.chords) > 8 else ''} "
               f"in {time.perf_counter() - t0:.1f} s")
-        for path in files.values():
+        for path in files:
             print(f"  {path}")
     return 0
+

@@ -41,6 +41,13 @@ Choices the paper leaves open (documented, not from the paper): decoders are tra
 (the cycle losses run on the teacher-forced outputs); G_M→D reads composed music as its MFCC blocks at their
 training mean (zeros after normalisation) with the composed chroma + beat; embeddings for GW are the time
 average of the encoder output.
+
+Departures from the paper, each a switch (docs/DUAL.md): GW on L1 cost matrices divided by their mean with
+the printed Algorithm 1's unit marginals (``gw_normalize="mean"``, ``gw_marginals="unit"``: the raw costs
+of a training encoder are hundreds of times ε and the term was noise); the beat frames of L_X weighted 5×
+(``beat_pos_weight``: with the plain L1 the sparse beat output collapsed to 0); Gaussian noise of std 0.1 on
+G_M→D's teacher-forced decoder inputs (``decoder_noise``, against the freezing of teacher-forced decoders).
+``DualConfig(beat_pos_weight=1, decoder_noise=0, gw_normalize="none", gw_marginals="uniform")`` is the paper.
 """
 
 from __future__ import annotations
@@ -91,6 +98,10 @@ class DualConfig:
     gw_epsilon: float = 0.2  # ε of Algorithm 1
     gw_sinkhorn_iters: int = 30  # L
     gw_projection_iters: int = 20  # M
+    gw_normalize: str = "mean"  # L1 cost matrices divided by their mean (not the paper; "none": raw costs)
+    gw_marginals: str = "unit"  # the printed Algorithm 1 (a = 1 ⊘ K b); "uniform": p = q = 1/m (Eq. 4)
+    beat_pos_weight: float = 15.0  # weight of the beat frames in L_X's beat term (1: the paper's plain L1)
+    decoder_noise: float = 0.1  # std of Gaussian noise on G_M→D's teacher-forced decoder inputs (0: the paper)
     pool_size: int = 64  # start poses kept from the training windows (sampled at inference)
 
     def __post_init__(self) -> None:
@@ -117,6 +128,12 @@ class DualConfig:
                                  "both losses need the other generator")
         if not 0.0 <= self.dropout < 1.0 or not self.gw_epsilon > 0:
             raise ParameterError("DualConfig.dropout must be in [0, 1) and gw_epsilon positive")
+        if self.gw_normalize not in ("none", "mean") or self.gw_marginals not in ("uniform", "unit"):
+            raise ParameterError(f"DualConfig.gw_normalize must be none|mean and gw_marginals uniform|unit, got "
+                                 f"{self.gw_normalize!r}, {self.gw_marginals!r}")
+        if not self.beat_pos_weight > 0 or not self.decoder_noise >= 0:
+            raise ParameterError(f"DualConfig.beat_pos_weight must be positive and decoder_noise >= 0, got "
+                                 f"{self.beat_pos_weight!r}, {self.decoder_noise!r}")
 
     @property
     def music_out_dim(self) -> int:
@@ -159,10 +176,20 @@ def dance_loss(pred: torch.Tensor, target: torch.Tensor, *, raw_from: int = 3) -
     return (trans + geodesic_squared(R1, R2).sum(-1)).mean()
 
 
-def music_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+def music_loss(pred: torch.Tensor, target: torch.Tensor, *, beat_pos_weight: float = 1.0) -> torch.Tensor:
     """L_X (Eq. 9): per frame, L1 of the 12 chroma + L1 of the beat; averaged over batch and frames.
-    ``pred``, ``target``: (B, T, 13)."""
-    return (pred - target).abs().sum(-1).mean()
+    ``pred``, ``target``: (B, T, 13).
+
+    ``beat_pos_weight`` multiplies the beat term on the beat frames (target beat ≥ 0.5). Beats are sparse
+    (about 5 % of the frames of tang2018), and the plain L1 (weight 1, the paper) is minimised by a beat
+    output of 0 everywhere unless a frame is a beat with probability above 1/2: G_D→M then composes no beats
+    at all. With weight w a frame is worth marking when its beat probability exceeds 1 / (1 + w).
+    """
+    err = (pred - target).abs()  # (B, T, 13)
+    if beat_pos_weight != 1.0:
+        w = torch.where(target[..., -1] >= 0.5, beat_pos_weight, 1.0)  # (B, T)
+        return (err[..., :-1].sum(-1) + w * err[..., -1]).mean()
+    return err.sum(-1).mean()
 
 
 def chord_token(root: int | str, minor: bool = False) -> torch.Tensor:
@@ -228,14 +255,46 @@ class Seq2Seq(nn.Module):
         y = self.head(self.decoder(x, memory, tgt_mask=mask))  # (B, L, out)
         return torch.sigmoid(y) if self.sigmoid else y
 
-    def teacher_forced(self, src: torch.Tensor, tgt: torch.Tensor, memory: torch.Tensor | None = None) -> torch.Tensor:
+    def teacher_forced(self, src: torch.Tensor, tgt: torch.Tensor, memory: torch.Tensor | None = None, *,
+                       noise: float = 0.0) -> torch.Tensor:
         """Training output ``[tgt_0, ŷ_1..ŷ_{T-1}]`` (B, T, out): the start token is the first target frame,
-        ``ŷ_t`` is predicted from ``tgt_0..tgt_{t-1}`` and the whole source window."""
+        ``ŷ_t`` is predicted from ``tgt_0..tgt_{t-1}`` (plus Gaussian noise of std ``noise`` in training: the
+        decoder learns to recover from its own small errors instead of copying its input) and the whole
+        source window."""
         memory = self.encode(src) if memory is None else memory
-        return torch.cat([tgt[:, :1], self.decode(tgt[:, :-1], memory)], dim=1)
+        prev = tgt[:, :-1]
+        if noise > 0 and self.training:
+            prev = prev + noise * torch.randn_like(prev)
+        return torch.cat([tgt[:, :1], self.decode(prev, memory)], dim=1)
 
     def generate(self, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
-        """Autoregressive output for one window: ``start (B, out)`` then T - 1 generated frames → (B, T, out)."""
+        """Autoregressive output for one window: ``start (B, out)`` then T - 1 generated frames → (B, T, out).
+
+        Incremental decoding: each layer keeps the normalised inputs of the frames decoded so far (its
+        self-attention keys and values), so a new frame costs one query per layer instead of a pass over the
+        whole prefix. The same numbers as :meth:`decode` on the prefix (tests/test_dual.py), in eval mode.
+        """
+        memory = self.encode(src)  # (B, T, d)
+        n = src.shape[1]
+        d = memory.shape[2]
+        pe = sinusoidal_encoding(n, d, device=memory.device, dtype=memory.dtype)  # (T, d)
+        caches: list[torch.Tensor | None] = [None] * len(self.decoder.layers)
+        frames = [start[:, None, :]]  # (B, 1, out) each
+        for t in range(n - 1):
+            h = self.tgt_embed(frames[-1]) + pe[t]  # (B, 1, d)
+            for i, layer in enumerate(self.decoder.layers):
+                hn = layer.norm1(h)
+                caches[i] = hn if caches[i] is None else torch.cat([caches[i], hn], dim=1)  # (B, t + 1, d)
+                h = h + layer.dropout1(layer.self_attn(hn, caches[i], caches[i], need_weights=False)[0])
+                hn = layer.norm2(h)
+                h = h + layer.dropout2(layer.multihead_attn(hn, memory, memory, need_weights=False)[0])
+                h = h + layer._ff_block(layer.norm3(h))
+            y = self.head(self.decoder.norm(h))  # (B, 1, out)
+            frames.append(torch.sigmoid(y) if self.sigmoid else y)
+        return torch.cat(frames, dim=1)
+
+    def generate_full(self, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
+        """:meth:`generate` by re-decoding the whole prefix at every step (the reference for its tests)."""
         memory = self.encode(src)  # (B, T, d)
         out = start[:, None, :]  # (B, 1, out)
         for _ in range(src.shape[1] - 1):
@@ -303,23 +362,24 @@ class DualModel(nn.Module):
         parts: dict[str, torch.Tensor] = {}
         if c.generators in ("both", "m2d"):
             memory_x = self.m2d.encode(music)  # (B, T, d_x)
-            dance_hat = self.m2d.teacher_forced(music, dance, memory_x)  # (B, T, P)
+            dance_hat = self.m2d.teacher_forced(music, dance, memory_x, noise=c.decoder_noise)  # (B, T, P)
             parts["dance_rec"] = dance_loss(dance_hat, dance, raw_from=c.dance_raw_from)
         if c.generators in ("both", "d2m"):
             memory_y = self.d2m.encode(dance)  # (B, T, d_y)
             music_hat = self.d2m.teacher_forced(dance, target_music, memory_y)  # (B, T, 13)
-            parts["music_rec"] = music_loss(music_hat, target_music)
+            parts["music_rec"] = music_loss(music_hat, target_music, beat_pos_weight=c.beat_pos_weight)
         if c.gw:  # reaches Enc_M→D only
             z_x, z_y = memory_x.mean(1), memory_y.mean(1).detach()  # (B, d_x), (B, d_y)
             parts["gw"] = entropic_gromov_wasserstein(
                 z_x, z_y, epsilon=c.gw_epsilon, sinkhorn_iters=c.gw_sinkhorn_iters,
-                projection_iters=c.gw_projection_iters)
+                projection_iters=c.gw_projection_iters, normalize=c.gw_normalize, marginals=c.gw_marginals)
         if c.cycle:
             # dance cycle G_M→D(G_D→M(y)) updates G_M→D; music cycle G_D→M(G_M→D(x)) updates G_D→M
-            dance_cyc = self.m2d.teacher_forced(self.music_from_composed(music_hat.detach()), dance)
+            dance_cyc = self.m2d.teacher_forced(self.music_from_composed(music_hat.detach()), dance,
+                                                noise=c.decoder_noise)
             parts["dance_cycle"] = dance_loss(dance_cyc, dance, raw_from=c.dance_raw_from)
             music_cyc = self.d2m.teacher_forced(dance_hat.detach(), target_music)
-            parts["music_cycle"] = music_loss(music_cyc, target_music)
+            parts["music_cycle"] = music_loss(music_cyc, target_music, beat_pos_weight=c.beat_pos_weight)
         weights = {"gw": c.gw_weight, "dance_cycle": c.cycle_weight, "music_cycle": c.cycle_weight}
         loss = sum(weights.get(k, 1.0) * v for k, v in parts.items())
         return loss, parts

@@ -39,7 +39,7 @@ from dancekit.motion.motion import Motion
 from dancekit.motion.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from dancekit.motion.skeleton import SMPL_JOINT_NAMES, Skeleton, smpl_skeleton
 
-__all__ = ["SMPL_BONE_SOURCES", "retarget_to_smpl", "smpl_axis_angle", "smpl_bone_directions",
+__all__ = ["SMPL_BONE_SOURCES", "map_by_role", "retarget_to_smpl", "smpl_axis_angle", "smpl_bone_directions",
            "source_bone_directions"]
 
 _REQUIRED = tuple(f"{s}_{p}" for s in ("left", "right") for p in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist"))
@@ -205,3 +205,81 @@ def smpl_axis_angle(rotations: np.ndarray) -> np.ndarray:
     """(T, 24, 3, 3) local rotations → (T, 72) axis-angle, the ``smpl_poses`` layout."""
     aa = matrix_to_axis_angle(torch.from_numpy(np.asarray(rotations, np.float64))).numpy()
     return aa.reshape(aa.shape[0], -1)
+
+
+#: Roles a dance needs for :func:`map_by_role` (the limbs and the head; the rest is placed from the rest pose).
+MAP_REQUIRED = _REQUIRED + ("head",)
+
+
+def _role_of(skeleton: Skeleton, joint: int) -> str | None:
+    name = skeleton.joint_names[joint]
+    for role, j in skeleton.roles.items():
+        if j == name:
+            return role
+    return None
+
+
+def map_by_role(motion: Motion, target: Skeleton) -> Motion:
+    """A 3D dance moved onto another skeleton's joints by their roles (positions, target units, y up).
+
+    Each joint of ``target`` that has a canonical role (``left_knee``, ``head``, ``pelvis``, ...) takes the
+    dance's joint of that role; the root without one takes the hips' midpoint. A joint the dance lacks is
+    placed from its parent: on the straight line to its child when the two rest bones point the same way
+    (e.g. tang2018's ``*_forearm`` between elbow and wrist, at the rest ratio), else by the target's rest
+    offset turned with the body's heading (x = left, y = up, z = forward, the convention of the embedded
+    rest skeletons; heels, the second head marker, the hand markers). Positions are converted to the
+    target's units and to y up.
+
+    Parameters
+    ----------
+    motion : a 3D dance whose skeleton has the roles of :data:`MAP_REQUIRED`
+    target : a y-up 3D skeleton with roles (e.g. ``tang2018``)
+
+    Returns
+    -------
+    Motion on ``target`` with positions ``(T, J_target, 3)`` float64 at the dance's fps.
+
+    Raises
+    ------
+    ParameterError
+        For a 2D dance or target, or a dance lacking a required role (the message names them).
+    """
+    sk = motion.skeleton
+    if sk.dims != 3 or target.dims != 3:
+        raise ParameterError(f"mapping joints by role needs 3D skeletons, got {sk.name!r} ({sk.dims}D) and "
+                             f"{target.name!r} ({target.dims}D)")
+    missing = [r for r in MAP_REQUIRED if not sk.has(r)]
+    if missing:
+        raise ParameterError(f"skeleton {sk.name!r} has no {', '.join(missing)} role(s): cannot map its joints "
+                             f"onto {target.name!r}")
+    pos = np.asarray(motion.to_positions(), np.float64) * (sk.unit_scale / target.unit_scale)
+    if sk.up_axis == "z":
+        pos = np.stack([pos[..., 0], pos[..., 2], -pos[..., 1]], axis=-1)
+    get = {r: pos[:, sk.index(r)] for r in sk.roles}
+    left = (get["left_hip"] - get["right_hip"]) + (get["left_shoulder"] - get["right_shoulder"])
+    left[:, 1] = 0.0
+    left = _unit(left)
+    up = np.broadcast_to(np.array([0.0, 1.0, 0.0]), left.shape)
+    forward = np.cross(left, up)
+    body = np.stack([left, up, forward], axis=-1)  # (T, 3, 3): columns = the rest frame's axes in the world
+    off = np.asarray(target.offsets, np.float64)
+    out = np.full((motion.num_frames, target.num_joints, 3), np.nan)
+    roles = [_role_of(target, j) for j in range(target.num_joints)]
+    for j in target.topological_order:
+        p, role = target.parents[j], roles[j]
+        if role is not None and role in get:
+            out[:, j] = get[role]
+        elif p < 0:
+            out[:, j] = 0.5 * (get["left_hip"] + get["right_hip"])
+    for j in target.topological_order:
+        if not np.isnan(out[0, j]).any():
+            continue
+        p = target.parents[j]
+        kids = target.children(j)
+        k = kids[0] if len(kids) == 1 else None
+        if k is not None and not np.isnan(out[0, k]).any() and float(_unit(off[j]) @ _unit(off[k])) > 0.5:
+            a, b = np.linalg.norm(off[j]), np.linalg.norm(off[k])
+            out[:, j] = out[:, p] + (a / (a + b)) * (out[:, k] - out[:, p])
+        else:
+            out[:, j] = out[:, p] + np.einsum("tij,j->ti", body, off[j])
+    return Motion(target, motion.fps, positions=out)

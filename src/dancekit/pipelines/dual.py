@@ -56,6 +56,7 @@ class DualPipeline:
         self.hop_length = int(meta.get("hop_length", 512))
         self.preset = str(meta.get("preset", "dual"))
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        self.smooth_frames = int(meta.get("smooth_frames", 1))  # the checkpoint's sampling setting
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> DualPipeline:
@@ -76,8 +77,7 @@ class DualPipeline:
         if pose is None:
             return self.model.sample_start_pose(torch.Generator().manual_seed(int(seed)))
         if isinstance(pose, Motion):
-            _check_skeleton(pose, self.skeleton)
-            pose = encode_motion(pose.slice(0, 1), "rot6d")[0]
+            pose = encode_motion(on_model_skeleton(pose.slice(0, 1), self.skeleton), "rot6d")[0]
         x = np.asarray(pose, np.float32).reshape(-1)
         if x.shape != (self.model.config.pose_dim,):
             raise ParameterError(f"a start pose must have {self.model.config.pose_dim} rot6d values, got {x.shape}")
@@ -86,19 +86,24 @@ class DualPipeline:
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
                  end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
-                 progress: bool = False, beat_sync: bool = True, cleanup: bool = True) -> DanceResult:
+                 smooth_frames: int | None = None, progress: bool = False, beat_sync: bool = True,
+                 cleanup: bool = True) -> DanceResult:
         """A dance for the song (excerpt ``[start, end)`` s), one frame per feature frame.
 
         ``beat_sync``, ``cleanup``: the shared pipeline stages (:mod:`dancekit.pipelines.stages`).
 
         ``seed`` draws the start pose from the model's pool (the paper's diverse generation) unless
         ``start_pose`` is given. The model has no genre input: ``genre`` must be None, "auto" or "none".
+        ``smooth_frames``: a centred moving average of that many frames over G_M→D's output (translation and
+        6D columns; the 6D are re-orthonormalised when decoded), 1 = none; default: the checkpoint's
+        ``smooth_frames`` (chosen on the validation songs, docs/DUAL.md), else 1.
         """
         if genre not in (None, "auto", "none"):
             raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
         x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
         s = self.start_pose(start_pose, seed)[None]  # (1, P)
         y = self.model.generate_dance(x, start=s)[0].cpu().numpy()  # (T, P)
+        y = moving_average(y, self.smooth_frames if smooth_frames is None else int(smooth_frames))
         motion = decode_motion(self.stats.denormalize_dance(y), self.skeleton, self.fps, "rot6d")
         result = DanceResult(motion=motion, model=self.folder, seed=int(seed),
                              genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
@@ -141,6 +146,9 @@ class ComposePipeline:
         self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
         self.fps = float(meta["fps"])
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        # beat picking, the checkpoint's composing settings (chosen on the validation dances, docs/DUAL.md)
+        self.beat_threshold = float(meta.get("beat_threshold", 0.5))
+        self.beat_min_gap = float(meta.get("beat_min_gap", 0.25))
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> ComposePipeline:
@@ -154,14 +162,15 @@ class ComposePipeline:
 
         Parameters
         ----------
-        motion : a 3D dance on the model's skeleton (resampled to the model's fps when it differs)
+        motion : a 3D dance (resampled to the model's fps when it differs); a dance on another skeleton is
+            mapped to the model's joints by role (:func:`dancekit.motion.retarget.map_by_role`)
         seed : draws the start chord (root of 12 pitch classes × major / minor) unless given
         tempo : "auto" (the composed beats) or a BPM (a regular grid phased on the first composed beat)
         root, minor : the start chord (e.g. ``root="A", minor=True``)
         """
         if not isinstance(motion, Motion):
             raise ParameterError(f"compose needs a Motion, got {type(motion).__name__}")
-        _check_skeleton(motion, self.skeleton)
+        motion = on_model_skeleton(motion, self.skeleton)
         if abs(motion.fps - self.fps) > 1e-6:
             motion = motion.resample(self.fps)
         g = torch.Generator().manual_seed(int(seed))
@@ -178,12 +187,33 @@ class ComposePipeline:
         root_name = PITCH_CLASSES[int(root)] if not isinstance(root, str) else root
         return ComposeResult(chroma=chroma, beat=beat, fps=self.fps, seed=int(seed),
                              start_chord=f"{root_name} {'minor' if minor else 'major'}",
-                             arrangement=arrange(chroma, beat, fps=self.fps, tempo=tempo))
+                             arrangement=arrange(chroma, beat, fps=self.fps, tempo=tempo,
+                                                 threshold=self.beat_threshold, min_gap=self.beat_min_gap))
 
 
-def _check_skeleton(motion: Motion, skeleton: Skeleton) -> None:
-    if motion.skeleton.dims != 3 or list(motion.skeleton.joint_names) != list(skeleton.joint_names):
-        raise ParameterError(
-            f"this model dances on the {skeleton.name!r} skeleton ({skeleton.num_joints} joints); the motion is on "
-            f"{motion.skeleton.name!r} ({motion.skeleton.num_joints} joints, {motion.skeleton.dims}D). Mapping another "
-            "skeleton's joints by role is not supported yet: convert the dance to this skeleton first")
+def moving_average(y: np.ndarray, frames: int) -> np.ndarray:
+    """Centred moving average of ``frames`` (odd or even, ≥ 1) frames over ``y (T, P)``; the ends average the
+    frames that exist. ``frames=1`` returns ``y``."""
+    if not isinstance(frames, int) or frames < 1:
+        raise ParameterError(f"smooth_frames must be a positive integer, got {frames!r}")
+    if frames == 1 or len(y) == 0:
+        return y
+    a, b = (frames - 1) // 2, frames // 2
+    c = np.cumsum(np.pad(np.asarray(y, np.float64), ((1, 0), (0, 0))), axis=0)  # (T + 1, P)
+    idx = np.arange(len(y))
+    lo, hi = np.clip(idx - a, 0, len(y)), np.clip(idx + b + 1, 0, len(y))
+    return ((c[hi] - c[lo]) / (hi - lo)[:, None]).astype(y.dtype)
+
+
+def on_model_skeleton(motion: Motion, skeleton: Skeleton) -> Motion:
+    """``motion`` on the model's ``skeleton``: as it is when the joints are the same, else mapped by joint role
+    (:func:`dancekit.motion.retarget.map_by_role`); a 2D dance or one lacking the limb and head roles is refused
+    with a :class:`ParameterError` naming what is missing."""
+    if motion.skeleton.dims == 3 and list(motion.skeleton.joint_names) == list(skeleton.joint_names):
+        return motion
+    if motion.skeleton.dims != 3:
+        raise ParameterError(f"this model dances on the 3D {skeleton.name!r} skeleton; the motion is on the 2D "
+                             f"{motion.skeleton.name!r} skeleton and cannot be mapped to it")
+    from dancekit.motion.retarget import map_by_role
+
+    return map_by_role(motion, skeleton)
