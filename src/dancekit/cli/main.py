@@ -94,8 +94,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dancekit {args.verb}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"dancekit {args.verb}: interrupted", file=sys.stderr)
-        return 130
+        print(f"dancekit {args.verb}: stopped by SIGINT; nothing partial was left", file=sys.stderr)
+        return 128 + signal.SIGINT
     except Terminated as exc:
         print(f"dancekit {args.verb}: stopped by {signal.Signals(exc.signum).name}; nothing partial was left",
               file=sys.stderr)
