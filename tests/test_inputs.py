@@ -230,3 +230,47 @@ def test_read_only_output_folder(tmp_path, where):
         assert list(ro.iterdir()) == []
     finally:
         ro.chmod(0o755)
+
+
+def _parsers(parser, path=()):
+    """(verb path, parser) for every (sub-)command of ``parser``."""
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, child in action.choices.items():
+                yield (*path, name), child
+                yield from _parsers(child, (*path, name))
+
+
+def test_output_flag_has_both_spellings_on_every_verb():
+    from dancekit.cli.main import build_parser
+
+    with_output = {}
+    for verb, parser in _parsers(build_parser()):
+        spellings = {f for a in parser._actions for f in a.option_strings if f in ("--out", "--output")}
+        if spellings:
+            with_output[verb] = spellings
+    assert {("dance",), ("render",), ("train",), ("convert",), ("features",)} <= set(with_output)
+    assert all(s == {"--out", "--output"} for s in with_output.values()), with_output
+    dance_out = build_parser().parse_args(["dance", "song.wav", "--output", "x"]).out
+    render_out = build_parser().parse_args(["render", "d.npz", "--out", "y.mp4"]).output
+    assert (dance_out, render_out) == ("x", "y.mp4")
+
+
+def test_info_reads_the_audio_track_of_a_video_dance_accepts(tmp_path, capfd):
+    video = _video(tmp_path, "mp4", "aac")
+    assert main(["info", str(video), "--json"]) == 0
+    import json
+
+    info = json.loads(capfd.readouterr().out)
+    assert info["kind"] == "audio" and abs(info["duration_s"] - 3.0) < 0.1, info
+
+
+def test_readme_says_what_the_dance_npz_holds(tmp_path):
+    """The README's sentence on rotations in ``song.npz`` matches the file ``dancekit dance`` writes."""
+    song = _wav(tmp_path / "song.wav", 3.0)
+    assert main(["dance", str(song), "-o", str(tmp_path / "o"), "--format", "npz", "--quiet"]) == 0
+    has_rotations = "rotations" in np.load(tmp_path / "o" / "song.npz").files
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    assert ("so the file has no rotations" in readme) == (not has_rotations)
