@@ -7,7 +7,15 @@ computed by :func:`extract` on audio arrays or :func:`extract_file` on files
 feature frame ``i`` is motion frame ``i``; see ``docs/FEATURES.md``.
 """
 
-from dancekit.features.cache import FEATURES_VERSION, cache_key, default_cache_dir, extract_file
+from dancekit.features.cache import (
+    CACHE_MAX_BYTES,
+    FEATURES_VERSION,
+    cache_key,
+    cache_max_bytes,
+    default_cache_dir,
+    extract_file,
+    prune_cache,
+)
 from dancekit.features.featureset import FeatureSet, parse_names
 from dancekit.features.madmom_backend import import_madmom, madmom_available, madmom_downbeat_track
 from dancekit.features.presets import BACKENDS, PRESET_DIMS, PRESETS, extract, feature_sr
@@ -27,6 +35,7 @@ __all__ = [
     "BACKENDS",
     "BEAT_HOP",
     "BEAT_SR",
+    "CACHE_MAX_BYTES",
     "FEATURES_VERSION",
     "PRESETS",
     "PRESET_DIMS",
@@ -34,6 +43,7 @@ __all__ = [
     "beat_onehot",
     "beat_track",
     "cache_key",
+    "cache_max_bytes",
     "chroma_cqt",
     "default_cache_dir",
     "downbeats",
@@ -51,5 +61,6 @@ __all__ = [
     "n_frames",
     "onset_strength",
     "parse_names",
+    "prune_cache",
     "tempogram",
 ]
