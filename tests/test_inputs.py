@@ -62,6 +62,21 @@ def _truncated_mp3(d: Path) -> Path:
     return d / "cut.mp3"
 
 
+def _mp3_with_cover_art(d: Path) -> Path:
+    """An mp3 with a cover picture in its ID3 tag and no Xing header: libsndfile estimates its length from
+    the file size, cover included, so it declares more samples than the file holds."""
+    song, cover, dst = _wav(d / "a.wav", 3.0), d / "cover.png", d / "covered.mp3"
+    exe = ffmpeg_exe()
+    subprocess.run([exe, "-nostdin", "-v", "error", "-f", "lavfi", "-i", "testsrc=s=320x320:d=1", "-frames:v", "1",
+                    str(cover)], check=True, capture_output=True)
+    subprocess.run([exe, "-nostdin", "-v", "error", "-i", str(song), "-i", str(cover), "-map", "0:a", "-map", "1:v",
+                    "-c:a", "libmp3lame", "-c:v", "png", "-disposition:v", "attached_pic", "-write_xing", "0",
+                    "-id3v2_version", "3", str(dst)], check=True, capture_output=True)
+    song.unlink()
+    cover.unlink()
+    return dst
+
+
 def _shared(path: Path):
     def make(d: Path) -> Path:
         if not path.exists():
@@ -115,6 +130,7 @@ CASES = [
     ("mkv_video", lambda d: _video(d, "mkv", "libvorbis"), [], "dance"),
     ("m4a", lambda d: _ffmpeg(_wav(d / "m.wav", 3.0), d / "song.m4a", "-c:a", "aac"), [], "dance"),
     ("truncated_mp3", _truncated_mp3, [], "truncated"),
+    ("mp3_with_cover_art", _mp3_with_cover_art, [], "dance"),
 ]
 
 
