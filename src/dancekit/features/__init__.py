@@ -19,7 +19,16 @@ from dancekit.features.cache import (
 from dancekit.features.featureset import FeatureSet, parse_names
 from dancekit.features.madmom_backend import import_madmom, madmom_available, madmom_downbeat_track
 from dancekit.features.presets import BACKENDS, PRESET_DIMS, PRESETS, extract, feature_sr
-from dancekit.features.rhythm import BEAT_HOP, BEAT_SR, beat_onehot, beat_track, downbeats, fold_meter
+from dancekit.features.rhythm import (
+    BEAT_HOP,
+    BEAT_SR,
+    MUSIC_BEAT_STRENGTH,
+    beat_onehot,
+    beat_strength,
+    beat_track,
+    downbeats,
+    fold_meter,
+)
 from dancekit.features.spectral import (
     chroma_cqt,
     hpss,
@@ -37,10 +46,12 @@ __all__ = [
     "BEAT_SR",
     "CACHE_MAX_BYTES",
     "FEATURES_VERSION",
+    "MUSIC_BEAT_STRENGTH",
     "PRESETS",
     "PRESET_DIMS",
     "FeatureSet",
     "beat_onehot",
+    "beat_strength",
     "beat_track",
     "cache_key",
     "cache_max_bytes",

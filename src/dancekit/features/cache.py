@@ -20,7 +20,7 @@ __all__ = ["CACHE_MAX_BYTES", "FEATURES_VERSION", "cache_key", "cache_max_bytes"
            "extract_file", "prune_cache"]
 
 #: Bump when feature values change, so stale cache entries are never read.
-FEATURES_VERSION = 1
+FEATURES_VERSION = 2  # 2: FeatureSet.beat_strength
 
 #: Default size bound of the feature cache folder in bytes (1 GiB: about twenty 20-minute songs'
 #: revolution features); ``DANCEKIT_CACHE_MAX_MB`` overrides it.

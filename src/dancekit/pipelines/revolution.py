@@ -35,7 +35,7 @@ from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.kinematics import normalize_bone_lengths
 from dancekit.motion.representations import decode_motion, get_representation
-from dancekit.pipelines.base import DanceResult, song_features
+from dancekit.pipelines.base import DanceResult, calm_motion, song_feature_set, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 
 
@@ -149,6 +149,11 @@ class RevolutionPipeline:
             generated bone directions, so IK/BVH export reproduces the positions exactly) and put the
             feet on the floor (the running floor of :func:`dancekit.motion.analysis.floor_curve` moved to 0)
 
+        Input that does not look like music (beat strength below
+        :data:`dancekit.features.MUSIC_BEAT_STRENGTH`: silence, noise, speech, birdsong) is danced calmly
+        (:func:`~dancekit.pipelines.base.calm_motion`: 40 % of the movement) with no genre read from it, and
+        the result says so (``looks_like_music``, :meth:`DanceResult.summary`).
+
         Returns
         -------
         :class:`~dancekit.pipelines.DanceResult`: ``.motion`` at the checkpoint's fps with one frame per
@@ -164,9 +169,14 @@ class RevolutionPipeline:
             For a genre the model does not know, or any genre for a model with neither a genre condition
             nor genre models.
         """
+        from dancekit.features import MUSIC_BEAT_STRENGTH
+
         requested = "auto" if genre is None else str(genre)
+        strength = song_feature_set(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
+                                    start=start, end=end).beat_strength
+        music = not strength < MUSIC_BEAT_STRENGTH  # NaN (not measured): as music
         probs: dict[str, float] = {}
-        if requested == "auto":
+        if requested == "auto" and music:  # no genre is read from what is not music
             probs = self.read_genre(audio_path, start=start, end=end)
             genre = max(probs, key=probs.get) if probs else None
         genre_index = self._genre_index(genre)
@@ -179,8 +189,12 @@ class RevolutionPipeline:
             motion = self.generate(audio_path, seed=seed, start=start, end=end, progress=progress,
                                    postprocess=postprocess, genre_index=genre_index)
             danced_by = self.folder
+        if not music and self.representation == "positions3d":
+            motion = calm_motion(motion)
+            motion = clean_motion(motion) if postprocess else motion
         return DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested, genre=genre,
-                           genre_probs=probs, danced_by=danced_by)
+                           genre_probs=probs, danced_by=danced_by, beat_strength=float(strength),
+                           looks_like_music=music)
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
