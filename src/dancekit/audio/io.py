@@ -252,22 +252,25 @@ def _read_soundfile(
     _check_range(path, start, end, total / sr)
     if a > 0:
         f.seek(a)
-    blocks = []
-    remaining = max(0, b - a)
-    while remaining > 0:
-        block = f.read(min(_BLOCK, remaining), dtype="float32", always_2d=True)
+    want = max(0, b - a)
+    out = np.empty((want,) if mono else (f.channels, want), dtype=np.float32)  # filled in place: no 2nd copy
+    got = 0
+    while got < want:
+        block = f.read(min(_BLOCK, want - got), dtype="float32", always_2d=True)
         if block.shape[0] == 0:
             break
-        remaining -= block.shape[0]
-        blocks.append(block.mean(axis=1) if mono else block.T.copy())
-    if remaining > 0 and not (f.format in ("MP3", "MPEG") and blocks):  # an mp3's length is only an estimate
+        k = block.shape[0]
+        if mono:
+            np.mean(block, axis=1, out=out[got:got + k])
+        else:
+            out[:, got:got + k] = block.T
+        got += k
+    if got < want and not (f.format in ("MP3", "MPEG") and got > 0):  # an mp3's length is only an estimate
         raise AudioError(
             f"audio file is truncated or corrupt: {str(path)!r} declares {total} frames but only "
-            f"{total - remaining} could be decoded"
+            f"{total - (want - got)} could be decoded"
         )
-    if not blocks:
-        return np.zeros((0,) if mono else (f.channels, 0), dtype=np.float32)
-    return np.concatenate(blocks, axis=-1).astype(np.float32, copy=False)
+    return out[..., :got] if got < want else out
 
 
 def _ffmpeg_exe() -> str:
