@@ -290,7 +290,8 @@ def _read_ffmpeg(path: Path, mono: bool) -> tuple[np.ndarray, int]:
         cmd += ["-ac", "1"]
     cmd += ["-f", "f32le", "-c:a", "pcm_f32le", "pipe:1"]
     try:
-        proc = subprocess.run(cmd, check=True, capture_output=True)
+        # own process group: a terminal's Ctrl-C interrupts dancekit (which then ends ffmpeg), not ffmpeg first
+        proc = subprocess.run(cmd, check=True, capture_output=True, process_group=0)
     except subprocess.CalledProcessError as exc:
         lines = [ln for ln in exc.stderr.decode("utf-8", "replace").splitlines() if ln.strip()]
         reason = lines[-1].strip() if lines else f"ffmpeg exit status {exc.returncode}"
