@@ -4,6 +4,7 @@ on stderr (no traceback, no decoder or librosa noise), and an output folder with
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -13,11 +14,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _signals import speech_like, white_noise
+from conftest import NON_MUSIC
 
 from dancekit._checks import reduce_seed
 from dancekit.audio.io import save_wav
 from dancekit.audio.synth import click_track
 from dancekit.cli.main import main
+from dancekit.render._ffmpeg import ffmpeg_exe
 
 ROOT = Path(__file__).resolve().parents[1]
 SR = 22050
@@ -26,6 +30,60 @@ SR = 22050
 def _wav(path: Path, seconds: float) -> Path:
     save_wav(path, click_track(bpm=120, duration=seconds, sr=SR), sr=SR)
     return path
+
+
+def _write(path: Path, y: np.ndarray, sr: int, subtype: str = "PCM_16") -> Path:
+    save_wav(path, y, sr=sr, subtype=subtype)
+    return path
+
+
+def _ffmpeg(src: Path, dst: Path, *args: str) -> Path:
+    subprocess.run([ffmpeg_exe(), "-nostdin", "-y", "-v", "error", "-i", str(src), *args, str(dst)],
+                   check=True, capture_output=True)
+    return dst
+
+
+def _video(d: Path, ext: str, acodec: str) -> Path:
+    song = _wav(d / "track.wav", 3.0)
+    dst = d / f"clip.{ext}"
+    subprocess.run([ffmpeg_exe(), "-nostdin", "-y", "-v", "error", "-f", "lavfi", "-i", "color=c=blue:s=64x48:d=3:r=10",
+                    "-i", str(song), "-shortest", "-c:v", "mpeg4", "-c:a", acodec, str(dst)], check=True,
+                   capture_output=True)
+    song.unlink()
+    return dst
+
+
+def _truncated_mp3(d: Path) -> Path:
+    whole = _ffmpeg(_wav(d / "whole.wav", 4.0), d / "whole.mp3", "-c:a", "libmp3lame")
+    data = whole.read_bytes()
+    (d / "cut.mp3").write_bytes(data[: len(data) // 2])  # a download that stopped half-way
+    whole.unlink()
+    (d / "whole.wav").unlink()
+    return d / "cut.mp3"
+
+
+def _mp3_with_cover_art(d: Path) -> Path:
+    """An mp3 with a cover picture in its ID3 tag and no Xing header: libsndfile estimates its length from
+    the file size, cover included, so it declares more samples than the file holds."""
+    song, cover, dst = _wav(d / "a.wav", 3.0), d / "cover.png", d / "covered.mp3"
+    exe = ffmpeg_exe()
+    subprocess.run([exe, "-nostdin", "-v", "error", "-f", "lavfi", "-i", "testsrc=s=320x320:d=1", "-frames:v", "1",
+                    str(cover)], check=True, capture_output=True)
+    subprocess.run([exe, "-nostdin", "-v", "error", "-i", str(song), "-i", str(cover), "-map", "0:a", "-map", "1:v",
+                    "-c:a", "libmp3lame", "-c:v", "png", "-disposition:v", "attached_pic", "-write_xing", "0",
+                    "-id3v2_version", "3", str(dst)], check=True, capture_output=True)
+    song.unlink()
+    cover.unlink()
+    return dst
+
+
+def _shared(path: Path):
+    def make(d: Path) -> Path:
+        if not path.exists():
+            pytest.skip(f"{path} not available")
+        return path
+
+    return make
 
 
 def _random_mp3(d: Path) -> Path:
@@ -43,7 +101,8 @@ def _folder(d: Path) -> Path:
     return d / "album"
 
 
-# (id, make the input, extra args, expected: "dance" or a piece of the one error line)
+# (id, make the input, extra args, expected: "dance", "calm" (danced, and said not to look like music) or a piece
+# of the one error line)
 CASES = [
     ("random_bytes_mp3", _random_mp3, [], "cannot decode audio file"),
     ("clip_1_5s", lambda d: _wav(d / "short.wav", 1.5), [], "dance"),
@@ -56,20 +115,40 @@ CASES = [
     ("start_beyond_end", lambda d: _wav(d / "s.wav", 3.0), ["--start", "100"], "beyond the end"),
     ("wav_named_mp3", lambda d: _wav(d / "really_a_wav.mp3", 3.0), [], "dance"),
     ("start_after_end", lambda d: _wav(d / "s.wav", 3.0), ["--start", "2", "--end", "1"], "start"),
+    ("silence", lambda d: _write(d / "silence.wav", np.zeros(3 * SR, np.float32), SR), [], "calm"),
+    ("white_noise", lambda d: _write(d / "noise.wav", white_noise(seconds=3.0), SR), [], "calm"),
+    ("speech_like", lambda d: _write(d / "speech.wav", speech_like(seconds=5.0), SR), [], "calm"),
+    ("bird_robin", _shared(NON_MUSIC[0]), [], "calm"),
+    ("humpback_whale", _shared(NON_MUSIC[1]), ["--end", "12"], "calm"),
+    ("clip_0_2s", lambda d: _wav(d / "blip.wav", 0.2), [], "too short"),
+    ("clip_2s", lambda d: _wav(d / "two.wav", 2.0), [], "dance"),
+    ("mono_8khz", lambda d: _write(d / "phone.wav", click_track(bpm=120, duration=3.0, sr=8000), 8000), [], "dance"),
+    ("stereo_96khz_24bit", lambda d: _write(d / "studio.wav", np.stack([click_track(bpm=120, duration=3.0, sr=96000)] * 2)
+                                            * np.array([[1.0], [0.5]], np.float32), 96000, "PCM_24"), [], "dance"),
+    ("stereo_one_silent_channel", lambda d: _write(d / "left.wav", np.stack(
+        [click_track(bpm=120, duration=3.0, sr=SR), np.zeros(3 * SR, np.float32)]), SR), [], "dance"),
+    ("mp4_video", lambda d: _video(d, "mp4", "aac"), [], "dance"),
+    ("mkv_video", lambda d: _video(d, "mkv", "libvorbis"), [], "dance"),
+    ("m4a", lambda d: _ffmpeg(_wav(d / "m.wav", 3.0), d / "song.m4a", "-c:a", "aac"), [], "dance"),
+    ("truncated_mp3", _truncated_mp3, [], "truncated"),
+    ("mp3_with_cover_art", _mp3_with_cover_art, [], "dance"),
 ]
 
 
 @pytest.mark.parametrize("make,extra,expect", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
 def test_dance_input(tmp_path, capfd, make, extra, expect):
     src = make(tmp_path)
+    before = sorted(p.name for p in src.parent.iterdir()) if src.parent == tmp_path else None
     out = tmp_path / "out dir"
     with warnings.catch_warnings(record=True) as caught:  # what a user's terminal would show
         warnings.simplefilter("always")
         code = main(["dance", str(src), "-o", str(out), "--format", "npz", "--quiet", *extra])
     stdout, stderr = capfd.readouterr()  # file-descriptor level: C libraries' output too
     assert [str(w.message) for w in caught] == []
-    if expect == "dance":
+    if expect in ("dance", "calm"):
         assert code == 0, stderr
+        said = "does not look like music" in stdout
+        assert said == (expect == "calm"), stdout
         assert stderr == "", stderr  # no warnings, no decoder notes
         assert [p.name for p in out.iterdir()] == [f"{src.stem}.npz"]
         assert np.isfinite(np.load(out / f"{src.stem}.npz")["positions"]).all()
@@ -78,6 +157,8 @@ def test_dance_input(tmp_path, capfd, make, extra, expect):
         lines = stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("dancekit dance: error:") and expect in lines[0], stderr
         assert not out.exists() or not any(out.iterdir())  # nothing partial
+    if before is not None:  # nothing hidden beside the input either (no temp folders or files)
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*before, *(["out dir"] if out.exists() else [])])
 
 
 def test_output_path_that_is_a_file(tmp_path, capfd):
@@ -111,13 +192,16 @@ def test_render_refuses_audio_shorter_than_the_dance(tmp_path, capfd):
     assert not any(out.iterdir())
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"])
 def test_signal_during_render_leaves_nothing(tmp_path, sig):
+    """Ctrl-C reaches the whole foreground process group (dancekit and its ffmpeg), as in a terminal; a plain
+    ``kill`` / ``timeout`` (SIGTERM) or a closed terminal (SIGHUP) reaches dancekit alone."""
     song = _wav(tmp_path / "song.wav", 30.0)
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
     proc = subprocess.Popen([sys.executable, "-m", "dancekit.cli.main", "dance", str(song), "-o", str(out),
-                             "--format", "mp4", "--quiet"], env=env, stderr=subprocess.PIPE, text=True)
+                             "--format", "mp4", "--quiet"], env=env, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
     deadline = time.monotonic() + 120
     while proc.poll() is None and time.monotonic() < deadline:
         if out.is_dir() and any(p.name.startswith(".dancekit-") for p in out.iterdir()):
@@ -125,8 +209,87 @@ def test_signal_during_render_leaves_nothing(tmp_path, sig):
         time.sleep(0.02)
     time.sleep(0.5)  # a few frames into the mp4
     assert proc.poll() is None, "the render ended before the signal"
-    proc.send_signal(sig)
+    if sig == signal.SIGINT:
+        os.killpg(proc.pid, sig)
+    else:
+        proc.send_signal(sig)
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 128 + sig, stderr
     assert stderr.strip().splitlines() == [f"dancekit dance: stopped by {sig.name}; nothing partial was left"]
     assert not out.exists() or list(out.iterdir()) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "song.wav"] or not out.exists()
+
+
+def _as_unprivileged(cmd: list[str]) -> list[str]:
+    """``cmd`` run without the power to write where permissions forbid it (root ignores a read-only mode bit:
+    run as root, drop the DAC-override capabilities with util-linux ``setpriv``)."""
+    if os.geteuid() != 0:
+        return cmd
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        pytest.skip("running as root without setpriv: a read-only folder cannot be made")
+    caps = "-dac_override,-dac_read_search"
+    return [setpriv, f"--inh-caps={caps}", f"--bounding-set={caps}", *cmd]
+
+
+@pytest.mark.parametrize("where", ["readonly", "readonly/new"], ids=["readonly_folder", "inside_readonly_folder"])
+def test_read_only_output_folder(tmp_path, where):
+    song = _wav(tmp_path / "song.wav", 3.0)
+    ro = tmp_path / "readonly"
+    ro.mkdir()
+    ro.chmod(0o555)
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    try:
+        r = subprocess.run(_as_unprivileged([sys.executable, "-m", "dancekit.cli.main", "dance", str(song), "-o",
+                                             str(tmp_path / where), "--format", "npz", "--quiet"]),
+                           env=env, capture_output=True, text=True, timeout=300)
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1, r.stderr
+        assert lines[0].startswith("dancekit dance: error:") and "readonly" in lines[0] and "writ" in lines[0]
+        assert list(ro.iterdir()) == []
+    finally:
+        ro.chmod(0o755)
+
+
+def _parsers(parser, path=()):
+    """(verb path, parser) for every (sub-)command of ``parser``."""
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, child in action.choices.items():
+                yield (*path, name), child
+                yield from _parsers(child, (*path, name))
+
+
+def test_output_flag_has_both_spellings_on_every_verb():
+    from dancekit.cli.main import build_parser
+
+    with_output = {}
+    for verb, parser in _parsers(build_parser()):
+        spellings = {f for a in parser._actions for f in a.option_strings if f in ("--out", "--output")}
+        if spellings:
+            with_output[verb] = spellings
+    assert {("dance",), ("render",), ("train",), ("convert",), ("features",)} <= set(with_output)
+    assert all(s == {"--out", "--output"} for s in with_output.values()), with_output
+    dance_out = build_parser().parse_args(["dance", "song.wav", "--output", "x"]).out
+    render_out = build_parser().parse_args(["render", "d.npz", "--out", "y.mp4"]).output
+    assert (dance_out, render_out) == ("x", "y.mp4")
+
+
+def test_info_reads_the_audio_track_of_a_video_dance_accepts(tmp_path, capfd):
+    video = _video(tmp_path, "mp4", "aac")
+    assert main(["info", str(video), "--json"]) == 0
+    import json
+
+    info = json.loads(capfd.readouterr().out)
+    assert info["kind"] == "audio" and abs(info["duration_s"] - 3.0) < 0.1, info
+
+
+def test_readme_says_what_the_dance_npz_holds(tmp_path):
+    """The README's sentence on rotations in ``song.npz`` matches the file ``dancekit dance`` writes."""
+    song = _wav(tmp_path / "song.wav", 3.0)
+    assert main(["dance", str(song), "-o", str(tmp_path / "o"), "--format", "npz", "--quiet"]) == 0
+    has_rotations = "rotations" in np.load(tmp_path / "o" / "song.npz").files
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    assert ("so the file has no rotations" in readme) == (not has_rotations)

@@ -153,8 +153,69 @@ def _ogg_truncated(path: Path) -> bool:
     return not header_type & 0x04
 
 
+_MP3_KBPS = {  # (MPEG-1?, layer) → bitrate (kbit/s) by index 1..14
+    (True, 1): (32, 64, 96, 128, 160, 192, 224, 256, 288, 320, 352, 384, 416, 448),
+    (True, 2): (32, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256, 320, 384),
+    (True, 3): (32, 40, 48, 56, 64, 80, 96, 112, 128, 160, 192, 224, 256, 320),
+    (False, 1): (32, 48, 56, 64, 80, 96, 112, 128, 144, 160, 176, 192, 224, 256),
+    (False, 2): (8, 16, 24, 32, 40, 48, 56, 64, 80, 96, 112, 128, 144, 160),
+    (False, 3): (8, 16, 24, 32, 40, 48, 56, 64, 80, 96, 112, 128, 144, 160),
+}
+_MP3_RATES = {3: (44100, 48000, 32000), 2: (22050, 24000, 16000), 0: (11025, 12000, 8000)}
+
+
+def _mp3_frame_length(head: bytes) -> int:
+    """Bytes of the MPEG audio frame whose 4-byte header is ``head`` (0: not a valid header)."""
+    if len(head) < 4 or head[0] != 0xFF or head[1] & 0xE0 != 0xE0:
+        return 0
+    version, layer_bits = (head[1] >> 3) & 3, (head[1] >> 1) & 3
+    bitrate_i, rate_i, pad = head[2] >> 4, (head[2] >> 2) & 3, (head[2] >> 1) & 1
+    if version == 1 or layer_bits == 0 or bitrate_i in (0, 15) or rate_i == 3:
+        return 0
+    layer = 4 - layer_bits
+    kbps = _MP3_KBPS[(version == 3, layer)][bitrate_i - 1]
+    rate = _MP3_RATES[version][rate_i]
+    if layer == 1:
+        return (12 * kbps * 1000 // rate + pad) * 4
+    per = 144 if (version == 3 or layer == 2) else 72
+    return per * kbps * 1000 // rate + pad
+
+
+def _mp3_truncated(path: Path) -> bool:
+    """True if the last MPEG audio frame of an mp3 runs past the end of the file (a cut-off download).
+
+    libsndfile *estimates* an mp3's length (from its Xing header or its bitrate and size: cover art or a
+    stale header make it wrong), so decoding fewer frames than declared is no proof of truncation; a frame
+    cut in the middle is. Walks the frame headers from the first two consecutive valid ones; when the chain
+    is lost (trailing tags, junk) the file is not called truncated."""
+    data = path.read_bytes()
+    pos = 0
+    if data[:3] == b"ID3" and len(data) >= 10:  # ID3v2 tag: syncsafe size, optional footer
+        size = (data[6] & 0x7F) << 21 | (data[7] & 0x7F) << 14 | (data[8] & 0x7F) << 7 | (data[9] & 0x7F)
+        pos = 10 + size + (10 if data[5] & 0x10 else 0)
+    n = len(data)
+    while pos + 4 <= n:  # first frame: a valid header followed by another valid header (or the end)
+        length = _mp3_frame_length(data[pos:pos + 4])
+        if length and (pos + length + 4 > n or _mp3_frame_length(data[pos + length:pos + length + 4])):
+            break
+        pos = data.find(b"\xff", pos + 1)
+        if pos < 0:
+            return False
+    else:
+        return False
+    while pos + 4 <= n:
+        length = _mp3_frame_length(data[pos:pos + 4])
+        if not length:
+            return False  # a tag or junk after the frames: the chain ended inside the file
+        if pos + length > n:
+            return True
+        pos += length
+    return 0 < n - pos < 4  # a few bytes of a header left
+
+
 def _check_truncated(path: Path, fmt: str) -> None:
-    if (fmt in ("WAV", "WAVEX") and _wav_truncated(path)) or (fmt == "OGG" and _ogg_truncated(path)):
+    if (fmt in ("WAV", "WAVEX") and _wav_truncated(path)) or (fmt == "OGG" and _ogg_truncated(path)) \
+            or (fmt in ("MP3", "MPEG") and _mp3_truncated(path)):
         raise AudioError(f"audio file is truncated (the file ends before its declared length): {str(path)!r}")
 
 
@@ -191,22 +252,25 @@ def _read_soundfile(
     _check_range(path, start, end, total / sr)
     if a > 0:
         f.seek(a)
-    blocks = []
-    remaining = max(0, b - a)
-    while remaining > 0:
-        block = f.read(min(_BLOCK, remaining), dtype="float32", always_2d=True)
+    want = max(0, b - a)
+    out = np.empty((want,) if mono else (f.channels, want), dtype=np.float32)  # filled in place: no 2nd copy
+    got = 0
+    while got < want:
+        block = f.read(min(_BLOCK, want - got), dtype="float32", always_2d=True)
         if block.shape[0] == 0:
             break
-        remaining -= block.shape[0]
-        blocks.append(block.mean(axis=1) if mono else block.T.copy())
-    if remaining > 0:
+        k = block.shape[0]
+        if mono:
+            np.mean(block, axis=1, out=out[got:got + k])
+        else:
+            out[:, got:got + k] = block.T
+        got += k
+    if got < want and not (f.format in ("MP3", "MPEG") and got > 0):  # an mp3's length is only an estimate
         raise AudioError(
             f"audio file is truncated or corrupt: {str(path)!r} declares {total} frames but only "
-            f"{total - remaining} could be decoded"
+            f"{total - (want - got)} could be decoded"
         )
-    if not blocks:
-        return np.zeros((0,) if mono else (f.channels, 0), dtype=np.float32)
-    return np.concatenate(blocks, axis=-1).astype(np.float32, copy=False)
+    return out[..., :got] if got < want else out
 
 
 def _ffmpeg_exe() -> str:
@@ -226,7 +290,8 @@ def _read_ffmpeg(path: Path, mono: bool) -> tuple[np.ndarray, int]:
         cmd += ["-ac", "1"]
     cmd += ["-f", "f32le", "-c:a", "pcm_f32le", "pipe:1"]
     try:
-        proc = subprocess.run(cmd, check=True, capture_output=True)
+        # own process group: a terminal's Ctrl-C interrupts dancekit (which then ends ffmpeg), not ffmpeg first
+        proc = subprocess.run(cmd, check=True, capture_output=True, process_group=0)
     except subprocess.CalledProcessError as exc:
         lines = [ln for ln in exc.stderr.decode("utf-8", "replace").splitlines() if ln.strip()]
         reason = lines[-1].strip() if lines else f"ffmpeg exit status {exc.returncode}"

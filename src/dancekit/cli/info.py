@@ -8,7 +8,9 @@ from pathlib import Path
 
 from dancekit.errors import AudioError, DancekitError
 
-AUDIO_SUFFIXES = {".wav", ".mp3", ".ogg", ".flac", ".m4a", ".aac", ".opus", ".aiff", ".aif"}
+AUDIO_SUFFIXES = {".wav", ".mp3", ".ogg", ".flac", ".m4a", ".aac", ".opus", ".aiff", ".aif", ".wma"}
+#: Video containers: ``info`` reports their (first) audio track, the song ``dancekit dance`` would dance.
+VIDEO_SUFFIXES = {".mp4", ".mkv", ".mov", ".webm", ".avi", ".m4v"}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -68,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
     path = Path(args.path)
     if not path.exists():
         raise DancekitError(f"no such file or folder: {path}")
-    info = audio_info(path) if path.suffix.lower() in AUDIO_SUFFIXES else motion_info(path)
+    suffix = path.suffix.lower()
+    info = audio_info(path) if suffix in AUDIO_SUFFIXES | VIDEO_SUFFIXES else motion_info(path)
     if args.json:
         print(json.dumps(info))
         return 0

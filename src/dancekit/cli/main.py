@@ -48,7 +48,29 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="verb", metavar="VERB")
     for module_name in VERBS.values():  # a verb whose module is missing is a bug: no silent skipping
         importlib.import_module(module_name).add_parser(sub)
+    _alias_output_flags(parser)
     return parser
+
+
+#: The output flag's two spellings: every verb that has one accepts both (documented: ``-o/--output``).
+OUTPUT_FLAGS = ("--output", "--out")
+
+
+def _alias_output_flags(parser: argparse.ArgumentParser) -> None:
+    """Give every (sub-)command's output option both spellings of :data:`OUTPUT_FLAGS`, so that
+    ``dance --output`` and ``render --out`` work like ``dance --out`` and ``render --output``."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in dict.fromkeys(action.choices.values()):  # aliases map to the same parser
+                _alias_output_flags(child)
+            continue
+        have = [f for f in OUTPUT_FLAGS if f in action.option_strings]
+        if not have:
+            continue
+        for flag in OUTPUT_FLAGS:
+            if flag not in action.option_strings and flag not in parser._option_string_actions:
+                action.option_strings.append(flag)
+                parser._option_string_actions[flag] = action
 
 
 class Terminated(BaseException):
@@ -94,8 +116,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"dancekit {args.verb}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"dancekit {args.verb}: interrupted", file=sys.stderr)
-        return 130
+        print(f"dancekit {args.verb}: stopped by SIGINT; nothing partial was left", file=sys.stderr)
+        return 128 + signal.SIGINT
     except Terminated as exc:
         print(f"dancekit {args.verb}: stopped by {signal.Signals(exc.signum).name}; nothing partial was left",
               file=sys.stderr)

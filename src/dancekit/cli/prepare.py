@@ -1,7 +1,8 @@
 """``dancekit prepare tang2018|pairs SRC -o DIR``: paired dataset preparation.
 
-``pairs``: a folder of the user's songs and motion files paired by name (:mod:`dancekit.data.pairs`); broken
-or unmatched files are skipped and listed in ``DIR/report.json`` and on stdout.
+``pairs``: a folder of the user's songs and motion files paired by name (:mod:`dancekit.data.pairs`);
+``aistpp``: the AIST++ release layout (:mod:`dancekit.data.aistpp`). Broken or unmatched files are skipped
+and listed in ``DIR/report.json`` and on stdout.
 """
 
 from __future__ import annotations
@@ -17,14 +18,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Write aligned music features (every preset), motion (positions + IK rotations), "
         "genre labels and whole-dance train/val/test splits.",
     )
-    p.add_argument("source", choices=["tang2018", "pairs"],
-                   help="dataset kind: tang2018, or pairs (songs + npz/BVH/AIST++ pkl/OpenPose motions paired by name)")
+    p.add_argument("source", choices=["tang2018", "pairs", "aistpp"],
+                   help="dataset kind: tang2018; pairs (songs + npz/BVH/AIST++ pkl/OpenPose motions paired by name); "
+                        "aistpp (the AIST++ release: motions/*.pkl, wavs/, splits/, ignore_list.txt)")
     p.add_argument("src", help="source folder (e.g. ../shared/data/tang2018)")
     p.add_argument("-o", "--out", required=True, help="output folder (replaced when complete)")
     p.add_argument("--fps", type=float, default=25.0, help="motion and feature frame rate (default 25)")
     p.add_argument("--presets", default="revolution,music2dance,dual", help="comma-separated feature presets")
     p.add_argument("--seed", type=int, default=0, help="seed of the split (default 0)")
-    p.add_argument("--workers", type=int, default=1, help="pairs: processes preparing pairs (default 1)")
+    p.add_argument("--workers", type=int, default=1, help="pairs, aistpp: processes preparing pairs (default 1)")
     p.set_defaults(func=run)
 
 
@@ -39,6 +41,10 @@ def run(args: argparse.Namespace) -> int:
 
         out, report = prepare_pairs(args.src, args.out, fps=args.fps, presets=presets, seed=args.seed,
                                     workers=args.workers)
+    elif args.source == "aistpp":
+        from dancekit.data.aistpp import prepare_aistpp
+
+        out, report = prepare_aistpp(args.src, args.out, fps=args.fps, presets=presets, workers=args.workers)
     else:
         out = prepare_tang2018(args.src, args.out, fps=args.fps, presets=presets, seed=args.seed)
     data = PreparedData(out)

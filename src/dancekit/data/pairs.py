@@ -108,7 +108,7 @@ def _prepare_one(job: dict[str, Any]) -> dict[str, Any]:
     from dancekit.motion.analysis import floor_curve
     from dancekit.motion.formats import read_motion, write_motion
 
-    name, song, motion_path, fps = job["name"], Path(job["song"]), Path(job["motion"]), job["fps"]
+    song, motion_path, fps = Path(job["song"]), Path(job["motion"]), job["fps"]
     try:
         motion = read_motion(motion_path)
         if abs(motion.fps - fps) > 1e-6:
@@ -160,6 +160,24 @@ def _prepare_one(job: dict[str, Any]) -> dict[str, Any]:
             "motion_source": str(motion_path), "skeleton": skel.to_dict()}
 
 
+def check_prepare_args(*, presets: tuple[str, ...], fps: float, workers: int) -> float:
+    """Check the arguments every ``prepare`` shares; returns ``fps`` as a float.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown preset, a bad ``fps`` or ``workers`` < 1.
+    """
+    from dancekit.features import PRESET_DIMS
+
+    for p in presets:
+        if p not in PRESET_DIMS:
+            raise ParameterError(f"unknown feature preset {p!r}; choose from {sorted(PRESET_DIMS)}")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
+    return check_fps(fps)
+
+
 def prepare_pairs(
     src: str | os.PathLike,
     out: str | os.PathLike,
@@ -194,23 +212,40 @@ def prepare_pairs(
     ParameterError
         For an unknown preset, a bad ``fps`` or ``workers``.
     """
-    from tqdm import tqdm
-
-    from dancekit.features import PRESET_DIMS
-
     src = Path(src)
     if not src.is_dir():
         raise DatasetError(f"pairs source folder not found: {src}")
-    for p in presets:
-        if p not in PRESET_DIMS:
-            raise ParameterError(f"unknown feature preset {p!r}; choose from {sorted(PRESET_DIMS)}")
-    fps = check_fps(fps)
-    if workers < 1:
-        raise ParameterError(f"workers must be >= 1, got {workers}")
+    fps = check_prepare_args(presets=presets, fps=fps, workers=workers)
     labels = _read_labels(src)
     pairs, skipped = find_pairs(src)
     if not pairs:
         raise DatasetError(f"no song and motion file share a name in {src} (skipped: {len(skipped)} files)")
+    return prepare_dataset(src, out, pairs, skipped, labels=labels, source="pairs", fps=fps, presets=presets,
+                           seed=seed, hop_length=hop_length, workers=workers, progress=progress)
+
+
+def prepare_dataset(
+    src: Path,
+    out: str | os.PathLike,
+    pairs: dict[str, tuple[Path, Path]],
+    skipped: list[dict[str, str]],
+    *,
+    labels: dict[str, dict[str, Any]],
+    source: str,
+    fps: float,
+    presets: tuple[str, ...],
+    seed: int = 0,
+    hop_length: int = 512,
+    workers: int = 1,
+    progress: bool = True,
+    splits: dict[str, list[str]] | None = None,
+) -> tuple[Path, dict[str, Any]]:
+    """The machinery of :func:`prepare_pairs` and :func:`dancekit.data.aistpp.prepare_aistpp`: prepare every
+    (song, motion) pair of ``pairs`` (name → paths) in ``workers`` processes into ``out`` (atomically), skip
+    and report the broken ones and those of a minority skeleton; ``labels`` give per-pair ``start``, ``end``,
+    ``genre``; ``splits`` (``{"train": [names], "val": ..., "test": ...}``) are used as given (restricted to
+    the pairs prepared), else whole dances are split by genre with ``seed``."""
+    from tqdm import tqdm
 
     with atomic_dir(out) as tmp:
         jobs = [{"name": n, "song": str(s), "motion": str(m), "fps": fps, "presets": tuple(presets),
@@ -220,7 +255,7 @@ def prepare_pairs(
             j.setdefault("start", 0.0)
             j.setdefault("end", None)
             j.setdefault("genre", "unknown")
-        bar = tqdm(total=len(jobs), desc="prepare pairs", unit="pair", disable=not progress)
+        bar = tqdm(total=len(jobs), desc=f"prepare {source}", unit="pair", disable=not progress)
         results: dict[str, dict[str, Any]] = {}
         if workers == 1:
             for j in jobs:
@@ -259,10 +294,15 @@ def prepare_pairs(
         by_genre: dict[str, list[str]] = {}
         for n, d in dances.items():
             by_genre.setdefault(d["genre"], []).append(n)
-        splits: dict[str, Any] = split_by_genre(by_genre, seed=seed)
-        splits["seed"] = seed
-        splits["method"] = "whole dances, stratified by genre (dancekit.data.split_by_genre)"
-        meta = {"source": "pairs", "source_path": str(src.resolve()), "fps": fps, "hop_length": hop_length,
+        if splits is not None:
+            given = splits
+            splits = {k: sorted(n for n in given.get(k, ()) if n in dances) for k in ("train", "val", "test")}
+            splits["method"] = f"the {source} release's own splits"
+        else:
+            splits = split_by_genre(by_genre, seed=seed)
+            splits["seed"] = seed
+            splits["method"] = "whole dances, stratified by genre (dancekit.data.split_by_genre)"
+        meta = {"source": source, "source_path": str(src.resolve()), "fps": fps, "hop_length": hop_length,
                 "skeleton": skeleton, "presets": list(presets), "genres": sorted(by_genre),
                 "dances": dances}
         report = {"source": str(src.resolve()), "prepared": sorted(dances), "skipped": skipped}

@@ -7,11 +7,28 @@ computed by :func:`extract` on audio arrays or :func:`extract_file` on files
 feature frame ``i`` is motion frame ``i``; see ``docs/FEATURES.md``.
 """
 
-from dancekit.features.cache import FEATURES_VERSION, cache_key, default_cache_dir, extract_file
+from dancekit.features.cache import (
+    CACHE_MAX_BYTES,
+    FEATURES_VERSION,
+    cache_key,
+    cache_max_bytes,
+    default_cache_dir,
+    extract_file,
+    prune_cache,
+)
 from dancekit.features.featureset import FeatureSet, parse_names
 from dancekit.features.madmom_backend import import_madmom, madmom_available, madmom_downbeat_track
 from dancekit.features.presets import BACKENDS, PRESET_DIMS, PRESETS, extract, feature_sr
-from dancekit.features.rhythm import BEAT_HOP, BEAT_SR, beat_onehot, beat_track, downbeats, fold_meter
+from dancekit.features.rhythm import (
+    BEAT_HOP,
+    BEAT_SR,
+    MUSIC_BEAT_STRENGTH,
+    beat_onehot,
+    beat_strength,
+    beat_track,
+    downbeats,
+    fold_meter,
+)
 from dancekit.features.spectral import (
     chroma_cqt,
     hpss,
@@ -27,13 +44,17 @@ __all__ = [
     "BACKENDS",
     "BEAT_HOP",
     "BEAT_SR",
+    "CACHE_MAX_BYTES",
     "FEATURES_VERSION",
+    "MUSIC_BEAT_STRENGTH",
     "PRESETS",
     "PRESET_DIMS",
     "FeatureSet",
     "beat_onehot",
+    "beat_strength",
     "beat_track",
     "cache_key",
+    "cache_max_bytes",
     "chroma_cqt",
     "default_cache_dir",
     "downbeats",
@@ -51,5 +72,6 @@ __all__ = [
     "n_frames",
     "onset_strength",
     "parse_names",
+    "prune_cache",
     "tempogram",
 ]

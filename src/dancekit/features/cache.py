@@ -2,22 +2,90 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
+import re
 import warnings
 from pathlib import Path
 
 from dancekit._io import file_sha256
 from dancekit.audio.io import check_audio_path, load
-from dancekit.errors import DancekitError
+from dancekit.errors import DancekitError, ParameterError
 from dancekit.features.featureset import FeatureSet
 from dancekit.features.presets import BACKENDS, PRESETS, _check_choice, extract, feature_sr
 
-__all__ = ["FEATURES_VERSION", "cache_key", "default_cache_dir", "extract_file"]
+__all__ = ["CACHE_MAX_BYTES", "FEATURES_VERSION", "cache_key", "cache_max_bytes", "default_cache_dir",
+           "extract_file", "prune_cache"]
 
 #: Bump when feature values change, so stale cache entries are never read.
-FEATURES_VERSION = 1
+FEATURES_VERSION = 2  # 2: FeatureSet.beat_strength
+
+#: Default size bound of the feature cache folder in bytes (1 GiB: about twenty 20-minute songs'
+#: revolution features); ``DANCEKIT_CACHE_MAX_MB`` overrides it.
+CACHE_MAX_BYTES = 1 << 30
+
+_ENTRY = re.compile(r"[0-9a-f]{64}\.npz")
+
+
+def cache_max_bytes() -> int:
+    """The cache's size bound in bytes: ``$DANCEKIT_CACHE_MAX_MB`` MiB if set (0 keeps only the newest entry),
+    else :data:`CACHE_MAX_BYTES`.
+
+    Raises
+    ------
+    ParameterError
+        ``DANCEKIT_CACHE_MAX_MB`` is not a number >= 0.
+    """
+    text = os.environ.get("DANCEKIT_CACHE_MAX_MB", "").strip()
+    if not text:
+        return CACHE_MAX_BYTES
+    try:
+        mb = float(text)
+    except ValueError:
+        mb = -1.0
+    if not mb >= 0 or mb == float("inf"):
+        raise ParameterError(f"DANCEKIT_CACHE_MAX_MB must be a number of MiB >= 0, got {text!r}")
+    return int(mb * (1 << 20))
+
+
+def prune_cache(folder: str | os.PathLike, *, max_bytes: int, keep: str | os.PathLike | None = None) -> list[Path]:
+    """Delete the least recently used cache entries of ``folder`` until the entries total at most
+    ``max_bytes`` bytes; ``keep`` (the entry just written) is never deleted.
+
+    Only files named like entries (64 hex digits + ``.npz``) are counted or deleted, so a cache folder
+    pointed at a folder with other files never loses them. Entries are ordered by modification time;
+    :func:`extract_file` touches an entry when it reads it, so this is least-recently-used order.
+
+    Returns
+    -------
+    list of Path
+        The entries deleted, oldest first.
+    """
+    folder = Path(folder)
+    keep_name = None if keep is None else Path(keep).name
+    entries = []
+    for p in folder.iterdir():
+        if not _ENTRY.fullmatch(p.name):
+            continue
+        try:
+            st = p.stat()
+        except FileNotFoundError:  # removed meanwhile by another process
+            continue
+        entries.append((st.st_mtime, p.name, st.st_size, p))
+    total = sum(e[2] for e in entries)
+    removed = []
+    for _, name, size, p in sorted(entries):
+        if total <= max_bytes:
+            break
+        if name == keep_name:
+            continue
+        with contextlib.suppress(FileNotFoundError):
+            p.unlink()
+            removed.append(p)
+        total -= size
+    return removed
 
 
 def default_cache_dir() -> Path:
@@ -71,7 +139,10 @@ def extract_file(
     file's SHA-256 and every parameter, so editing the file or changing any
     argument misses the cache. Entries are written atomically; an unreadable
     entry is recomputed and overwritten. A cache folder that cannot be
-    created only disables caching (with a warning).
+    created only disables caching (with a warning). The folder is bounded:
+    after each write the least recently used entries beyond
+    :func:`cache_max_bytes` (1 GiB, or ``$DANCEKIT_CACHE_MAX_MB``) are deleted
+    (:func:`prune_cache`).
 
     Parameters
     ----------
@@ -101,7 +172,9 @@ def extract_file(
     feature_sr(fps=fps, hop_length=hop_length)
     path = Path(path)
     entry = None
+    max_bytes = 0
     if use_cache:
+        max_bytes = cache_max_bytes()  # a bad DANCEKIT_CACHE_MAX_MB is an error before any work
         check_audio_path(path)
         key = cache_key(
             sha256=file_sha256(path),
@@ -120,6 +193,8 @@ def extract_file(
             except DancekitError:
                 fs = None  # corrupt entry: recompute below
             if fs is not None and fs.preset == preset and fs.fps == float(fps):
+                with contextlib.suppress(OSError):
+                    os.utime(entry)  # recently used: pruned last
                 return _with_flag(fs, True)
         try:
             folder.mkdir(parents=True, exist_ok=True)
@@ -132,6 +207,7 @@ def extract_file(
     if entry is not None:
         try:
             fs.save(entry)
+            prune_cache(entry.parent, max_bytes=max_bytes, keep=entry)
         except (OSError, DancekitError) as exc:
             warnings.warn(f"could not write feature cache entry {str(entry)!r} ({exc})", stacklevel=2)
     return fs

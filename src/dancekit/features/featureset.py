@@ -49,6 +49,10 @@ class FeatureSet:
         Hop in samples at the feature sample rate ``fps * hop_length``.
     downbeat_times : np.ndarray or None
         Downbeat times in seconds (``music2dance`` only).
+    beat_strength : float
+        How strongly the audio pulses at a danceable tempo, 0 … 1
+        (:func:`~dancekit.features.beat_strength`; below
+        :data:`~dancekit.features.MUSIC_BEAT_STRENGTH` it does not look like music); NaN if unknown.
     from_cache : bool
         True when :func:`~dancekit.features.extract_file` read this from its cache.
     """
@@ -61,6 +65,7 @@ class FeatureSet:
     tempo: float
     hop_length: int = 512
     downbeat_times: np.ndarray | None = None
+    beat_strength: float = float("nan")
     from_cache: bool = field(default=False, compare=False)
 
     @property
@@ -95,6 +100,7 @@ class FeatureSet:
             "preset": np.array(self.preset),
             "tempo": np.array(float(self.tempo)),
             "hop_length": np.array(int(self.hop_length)),
+            "beat_strength": np.array(float(self.beat_strength)),
         }
         if self.downbeat_times is not None:
             d["downbeat_times"] = np.asarray(self.downbeat_times, dtype=np.float64)
@@ -131,6 +137,7 @@ class FeatureSet:
                     tempo=float(z["tempo"]) if "tempo" in z else 0.0,
                     hop_length=int(z["hop_length"]) if "hop_length" in z else 512,
                     downbeat_times=z["downbeat_times"] if "downbeat_times" in z else None,
+                    beat_strength=float(z["beat_strength"]) if "beat_strength" in z else float("nan"),
                 )
             if (
                 feats.ndim != 2

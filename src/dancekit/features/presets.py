@@ -182,6 +182,7 @@ def extract(
     else:
         beat_source = y_fine
 
+    fine_rate = rhythm.BEAT_SR / rhythm.BEAT_HOP
     if backend == "madmom":
         from dancekit.features.madmom_backend import madmom_downbeat_track
 
@@ -194,6 +195,10 @@ def extract(
         tempo, beat_times = rhythm._beat_track_fine(S_fine, env_fine)
         if preset == "music2dance":
             downbeat_times = rhythm._downbeats_fine(S_fine, env_fine, beat_times)
+        del S_fine
+    if backend == "madmom" or preset == "dual":  # the strength is measured on the full mix's envelope
+        env_fine = rhythm._fine_onset(rhythm._fine_log_mel(y_fine))
+    strength = rhythm.beat_strength(onset_envelope=env_fine, rate=fine_rate)
 
     onehot = rhythm.beat_onehot(beat_times=beat_times, fps=fps, n_frames=T)
     if preset == "dual":
@@ -221,4 +226,5 @@ def extract(
         tempo=float(tempo),
         hop_length=int(hop_length),
         downbeat_times=None if downbeat_times is None else np.asarray(downbeat_times, dtype=np.float64),
+        beat_strength=strength,
     )

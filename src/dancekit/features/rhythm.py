@@ -22,7 +22,8 @@ import numpy as np
 from dancekit.audio.io import resample
 from dancekit.errors import ParameterError
 
-__all__ = ["BEAT_HOP", "BEAT_SR", "beat_onehot", "beat_track", "downbeats", "fold_meter"]
+__all__ = ["BEAT_HOP", "BEAT_SR", "MUSIC_BEAT_STRENGTH", "beat_onehot", "beat_strength", "beat_track", "downbeats",
+           "fold_meter"]
 
 #: Sample rate (Hz) of the fine grid used for beat tracking.
 BEAT_SR = 22050
@@ -30,6 +31,12 @@ BEAT_SR = 22050
 BEAT_HOP = 256
 _BEAT_NFFT = 2048
 _EDGE_PAD_S = 2.0
+
+#: Beat strength (:func:`beat_strength`) below which audio "does not look like music": chosen between the
+#: real songs of ../shared/music (lowest: 0.215, Brahms' Hungarian dance, string orchestra) and the
+#: non-music inputs (highest: 0.157, synthetic speech-like babble; robin 0.152, humpback 0.101, white
+#: noise 0.099-0.109, silence 0); see docs/FEATURES.md.
+MUSIC_BEAT_STRENGTH = 0.19
 
 
 def _to_beat_sr(y: np.ndarray, sr: int) -> np.ndarray:
@@ -39,9 +46,12 @@ def _to_beat_sr(y: np.ndarray, sr: int) -> np.ndarray:
 def _fine_log_mel(y_fine: np.ndarray, n_mels: int = 128) -> np.ndarray:
     import librosa
 
-    M = librosa.feature.melspectrogram(
-        y=y_fine, sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, n_mels=n_mels
-    )
+    from dancekit.features.spectral import mel_power
+
+    if len(y_fine) < _BEAT_NFFT // 2 + 1:  # shorter than half a frame: librosa's own (warned) padding path
+        M = librosa.feature.melspectrogram(y=y_fine, sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, n_mels=n_mels)
+    else:  # a few thousand frames at a time: no full-song complex STFT in memory
+        M = mel_power(y=y_fine, sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, n_mels=n_mels)
     return librosa.power_to_db(M).astype(np.float32)
 
 
@@ -141,6 +151,57 @@ def _beat_track_fine(
     frames = frames[(frames >= 0) & (frames < env.shape[-1])]
     times = librosa.frames_to_time(frames, sr=BEAT_SR, hop_length=BEAT_HOP).astype(np.float64)
     return tempo, times
+
+
+def beat_strength(
+    *, onset_envelope: np.ndarray, rate: float, window_s: float = 8.0, min_bpm: float = 60.0,
+    max_bpm: float = 200.0
+) -> float:
+    """How strongly an onset envelope pulses at a danceable tempo: 0 (no beat) … 1 (a metronome).
+
+    The envelope is cut into windows of ``window_s`` seconds (half-overlapping); in each, the peak of the
+    normalised autocorrelation of the mean-removed envelope over lags of one beat at ``max_bpm`` … ``min_bpm``
+    is taken (negative peaks count as 0); the result is the median over windows. A clip shorter than one
+    window is scored on its whole length and scaled by ``sqrt(duration / window_s)``: the autocorrelation of
+    an unstructured envelope fluctuates as ``1 / sqrt(length)``, so a short clip must pulse more clearly.
+
+    Parameters
+    ----------
+    onset_envelope : np.ndarray, float, shape (n,)
+        Onset strength, e.g. ``librosa.onset.onset_strength`` on the beat-tracking grid
+        (:data:`BEAT_SR` / :data:`BEAT_HOP` ≈ 86.1 frames per second).
+    rate : float
+        Envelope frames per second (> 0).
+    window_s, min_bpm, max_bpm : float
+        Window length in seconds and the tempo range in beats per minute.
+
+    Returns
+    -------
+    float
+        In [0, 1] (up to rounding); 0 for silence or a constant envelope. Music scores about 0.2–0.6,
+        a click track about 0.9; white noise about 0.1. :data:`MUSIC_BEAT_STRENGTH` is the threshold
+        dancekit uses.
+    """
+    env = np.asarray(onset_envelope, dtype=np.float64).reshape(-1)
+    if not rate > 0 or not 0 < min_bpm < max_bpm or not window_s > 0:
+        raise ParameterError(f"need rate > 0, 0 < min_bpm < max_bpm and window_s > 0; got rate={rate}, "
+                             f"min_bpm={min_bpm}, max_bpm={max_bpm}, window_s={window_s}")
+    n, w = env.size, max(2, int(round(window_s * rate)))
+    lo, hi = max(1, int(round(60.0 / max_bpm * rate))), int(round(60.0 / min_bpm * rate))
+    if n < lo + 2:
+        return 0.0
+    starts = [0] if n <= w else range(0, n - w + 1, max(1, w // 2))
+    width = min(w, n)
+    peaks = []
+    for a in starts:
+        x = env[a:a + width] - env[a:a + width].mean()
+        spec = np.fft.rfft(x, 2 * width)
+        ac = np.fft.irfft(spec.real**2 + spec.imag**2)[:width]
+        if not ac[0] > 1e-12 * width:
+            peaks.append(0.0)
+            continue
+        peaks.append(max(0.0, float(ac[lo:hi + 1].max() / ac[0])))
+    return float(np.median(peaks)) * float(np.sqrt(min(1.0, n / w)))
 
 
 def beat_onehot(*, beat_times: np.ndarray, fps: float, n_frames: int) -> np.ndarray:

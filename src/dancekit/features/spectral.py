@@ -55,6 +55,36 @@ def _fit(x: np.ndarray, size: int) -> np.ndarray:
     return librosa.util.fix_length(x, size=size, axis=-1, mode="edge")
 
 
+#: STFT frames computed at a time by :func:`mel_power`: bounds the transient complex spectrogram
+#: (n_fft 2048: 1025 bins x 4096 frames x 8 bytes = 34 MB) whatever the song's length.
+_MEL_CHUNK = 4096
+
+
+def mel_power(*, y: np.ndarray, sr: int, n_fft: int, hop_length: int, n_mels: int = 128) -> np.ndarray:
+    """Mel power spectrogram, ``librosa.feature.melspectrogram(y=y, sr=sr, n_fft=n_fft, hop_length=hop_length,
+    n_mels=n_mels)`` (centred Hann frames, zero padding, power 2, Slaney mel filters) computed a few
+    thousand frames at a time: memory is bounded by the output, not by the song's full complex STFT.
+
+    Returns
+    -------
+    np.ndarray, float32, shape (n_mels, 1 + len(y) // hop_length)
+    """
+    import librosa
+
+    y = np.asarray(y, dtype=np.float32)
+    pad = n_fft // 2
+    yp = np.pad(y, pad, mode="constant")
+    total = 1 + (len(yp) - n_fft) // hop_length if len(yp) >= n_fft else 0
+    basis = librosa.filters.mel(sr=sr, n_fft=n_fft, n_mels=n_mels).astype(np.float32)
+    out = np.empty((n_mels, total), dtype=np.float32)
+    for f0 in range(0, total, _MEL_CHUNK):
+        f1 = min(total, f0 + _MEL_CHUNK)
+        D = librosa.stft(yp[f0 * hop_length:(f1 - 1) * hop_length + n_fft], n_fft=n_fft, hop_length=hop_length,
+                         center=False)
+        out[:, f0:f1] = basis @ (D.real**2 + D.imag**2)
+    return out
+
+
 def log_melspectrogram(
     *, y: np.ndarray, sr: int, hop_length: int = 512, n_fft: int | None = None, n_mels: int = 128
 ) -> np.ndarray:
@@ -67,9 +97,12 @@ def log_melspectrogram(
     import librosa
 
     n_fft = _n_fft(n_fft, hop_length)
-    M = librosa.feature.melspectrogram(
-        y=np.asarray(y, dtype=np.float32), sr=sr, n_fft=n_fft, hop_length=hop_length, n_mels=n_mels
-    )
+    if len(y) < n_fft // 2 + 1:  # shorter than half a frame: librosa's own (warned) padding path
+        M = librosa.feature.melspectrogram(
+            y=np.asarray(y, dtype=np.float32), sr=sr, n_fft=n_fft, hop_length=hop_length, n_mels=n_mels
+        )
+    else:
+        M = mel_power(y=y, sr=sr, n_fft=n_fft, hop_length=hop_length, n_mels=n_mels)
     S = librosa.power_to_db(M).astype(np.float32)
     return _fit(S, n_frames(n_samples=len(y), hop_length=hop_length))
 

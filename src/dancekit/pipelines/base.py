@@ -35,6 +35,11 @@ class DanceResult:
     genre : the genre danced (None: the model alone, its style left to the music)
     genre_probs : the probability of each genre read from the music (empty unless read)
     danced_by : the folder of the model that generated the motion (the genre model's, or ``model``)
+    beat_strength : how strongly the song pulses at a danceable tempo (0 … 1,
+        :func:`dancekit.features.beat_strength`; None: not measured)
+    looks_like_music : False when ``beat_strength`` is below :data:`dancekit.features.MUSIC_BEAT_STRENGTH`
+        (silence, noise, speech, a bird or a whale): the input was danced calmly (:func:`calm_motion`)
+        and no genre was read from it
     notes : what the pipeline stages did (:mod:`dancekit.pipelines.stages`), e.g. ``"beat-synced (52 of
         109 beats at 129 BPM)"`` or why the dance was left unwarped; part of :meth:`summary`
     """
@@ -46,6 +51,8 @@ class DanceResult:
     genre: str | None = None
     genre_probs: dict[str, float] = field(default_factory=dict)
     danced_by: str = ""
+    beat_strength: float | None = None
+    looks_like_music: bool = True
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -57,12 +64,19 @@ class DanceResult:
 
     def summary(self) -> str:
         """A few words on the decisions, e.g. ``"as waltz (read from the music, p = 0.46); beat-synced (52 of
-        109 beats at 129 BPM)"`` (empty: no genre and no notes)."""
+        109 beats at 129 BPM)"``, or ``"calmly (it does not look like music: beat strength 0.10 < 0.19)"``
+        (empty: nothing to say)."""
+        from dancekit.features import MUSIC_BEAT_STRENGTH
+
         parts = []
         if self.genre is not None and self.genre_source == "music":
             parts.append(f"as {self.genre} (read from the music, p = {self.genre_probs[self.genre]:.2f})")
         elif self.genre is not None:
             parts.append(f"as {self.genre}")
+        if not self.looks_like_music:
+            strength = float("nan") if self.beat_strength is None else self.beat_strength
+            parts.append(f"calmly (it does not look like music: beat strength {strength:.2f} "
+                         f"< {MUSIC_BEAT_STRENGTH:.2f})")
         return "; ".join(parts + list(self.notes))
 
 
@@ -89,6 +103,39 @@ def load_pipeline(model: str | os.PathLike | None = None, checkpoint: str | os.P
     return cls.from_pretrained(Path(folder), device=device)
 
 
+#: How much of its movement a dance keeps when the input does not look like music (:func:`calm_motion`).
+CALM = 0.4
+
+
+def calm_motion(motion: Motion, *, amount: float = CALM) -> Motion:
+    """A calmer version of a position-based dance: every joint's offset from the root, and the root's path,
+    pulled towards their mean over the dance so that only ``amount`` of the movement remains (speeds scale
+    by ``amount`` too). Bone lengths change with it: callers restore them (``clean_motion``).
+
+    Parameters
+    ----------
+    motion : a :class:`~dancekit.motion.Motion` with positions ``(T, J, 2|3)``; joint 0 is the root
+    amount : 0 (a still mean pose) … 1 (unchanged)
+    """
+    if not 0.0 <= amount <= 1.0:
+        raise ParameterError(f"amount must be in [0, 1], got {amount!r}")
+    pos = np.asarray(motion.to_positions(), np.float64)  # (T, J, D)
+    root = pos[:, :1]
+    rel = pos - root
+    rel = rel.mean(axis=0) + amount * (rel - rel.mean(axis=0))
+    root = root.mean(axis=0) + amount * (root - root.mean(axis=0))
+    return Motion(skeleton=motion.skeleton, fps=motion.fps, positions=(root + rel).astype(np.float32))
+
+
+def song_feature_set(audio_path: str | os.PathLike, *, fps: float, preset: str, hop_length: int,
+                     start: float | None = None, end: float | None = None) -> Any:
+    """A song's (excerpt's) :class:`~dancekit.features.FeatureSet` (:func:`dancekit.features.extract_file`, with
+    its cache: :func:`song_features` on the same arguments then reads it back from the cache)."""
+    from dancekit.features import extract_file
+
+    return extract_file(audio_path, fps=fps, preset=preset, start=start, end=end, hop_length=hop_length)
+
+
 def song_features(audio_path: str | os.PathLike, *, fps: float, preset: str, hop_length: int, music_dim: int,
                   start: float | None = None, end: float | None = None) -> np.ndarray:
     """A song's (excerpt's) music features ``(T, music_dim)`` float32, unnormalised, at a checkpoint's fps,
@@ -101,9 +148,7 @@ def song_features(audio_path: str | os.PathLike, *, fps: float, preset: str, hop
     CheckpointError
         When the preset's features do not have the model's ``music_dim`` columns.
     """
-    from dancekit.features import extract_file
-
-    fs = extract_file(audio_path, fps=fps, preset=preset, start=start, end=end, hop_length=hop_length)
+    fs = song_feature_set(audio_path, fps=fps, preset=preset, start=start, end=end, hop_length=hop_length)
     feats = np.asarray(fs.features, np.float32)
     if feats.ndim != 2 or feats.shape[1] != music_dim:
         raise CheckpointError(f"the {preset!r} features of {audio_path} have shape {feats.shape}, but the model "

@@ -35,7 +35,7 @@ from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.kinematics import normalize_bone_lengths
 from dancekit.motion.representations import decode_motion, get_representation
-from dancekit.pipelines.base import DanceResult, song_features
+from dancekit.pipelines.base import DanceResult, calm_motion, song_feature_set, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 from dancekit.pipelines.stages import finish
 
@@ -154,6 +154,11 @@ class RevolutionPipeline:
         beat_sync, cleanup : the shared pipeline stages (:mod:`dancekit.pipelines.stages`): the dance
             time-warped onto the song's beats, and its root path and floor contact cleaned up
 
+        Input that does not look like music (beat strength below
+        :data:`dancekit.features.MUSIC_BEAT_STRENGTH`: silence, noise, speech, birdsong) is danced calmly
+        (:func:`~dancekit.pipelines.base.calm_motion`: 40 % of the movement) with no genre read from it, and
+        the result says so (``looks_like_music``, :meth:`DanceResult.summary`).
+
         Returns
         -------
         :class:`~dancekit.pipelines.DanceResult`: ``.motion`` at the checkpoint's fps with one frame per
@@ -169,9 +174,14 @@ class RevolutionPipeline:
             For a genre the model does not know, or any genre for a model with neither a genre condition
             nor genre models.
         """
+        from dancekit.features import MUSIC_BEAT_STRENGTH
+
         requested = "auto" if genre is None else str(genre)
+        strength = song_feature_set(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
+                                    start=start, end=end).beat_strength
+        music = not strength < MUSIC_BEAT_STRENGTH  # NaN (not measured): as music
         probs: dict[str, float] = {}
-        if requested == "auto":
+        if requested == "auto" and music:  # no genre is read from what is not music
             probs = self.read_genre(audio_path, start=start, end=end)
             genre = max(probs, key=probs.get) if probs else None
         genre_index = self._genre_index(genre)
@@ -184,8 +194,12 @@ class RevolutionPipeline:
             motion = self.generate(audio_path, seed=seed, start=start, end=end, progress=progress,
                                    postprocess=postprocess, genre_index=genre_index)
             danced_by = self.folder
+        if not music and self.representation == "positions3d":
+            motion = calm_motion(motion)
+            motion = clean_motion(motion) if postprocess else motion
         result = DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
-                             genre=genre, genre_probs=probs, danced_by=danced_by)
+                             genre=genre, genre_probs=probs, danced_by=danced_by, beat_strength=float(strength),
+                             looks_like_music=music)
         return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
 
     @torch.no_grad()

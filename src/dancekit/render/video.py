@@ -762,8 +762,8 @@ def render_mp4(
     with atomic_path(path) as tmp, tempfile.TemporaryFile() as err:
         # Popen rather than run: the frames stream to ffmpeg's stdin while they are drawn.
         try:
-            proc = subprocess.Popen(
-                [*cmd, str(tmp)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=err
+            proc = subprocess.Popen(  # own process group: a terminal's Ctrl-C reaches dancekit, which stops it
+                [*cmd, str(tmp)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=err, process_group=0
             )
         except OSError as exc:
             raise ExternalToolError(f"cannot start ffmpeg ({cmd[0]}): {exc}") from exc
