@@ -71,12 +71,12 @@ def test_prepare_aistpp_reports_and_keeps_official_splits(release, tmp_path, cap
     for name in GOOD:
         assert prepared.frames(name) == prepared.motion(name).num_frames == frames
         assert prepared.features(name, "revolution")["features"].shape == (frames, 438)
-    # one worker gives the same dataset
+    # one worker gives the same dataset (workers run BLAS on one thread each: features equal to float32 noise)
     one, _ = prepare_aistpp(release, tmp_path / "one", presets=("revolution",), workers=1, progress=False)
     for name in GOOD:
         a, b = PreparedData(one), prepared
-        np.testing.assert_array_equal(a.features(name, "revolution")["features"],
-                                      b.features(name, "revolution")["features"])
+        np.testing.assert_allclose(a.features(name, "revolution")["features"],
+                                   b.features(name, "revolution")["features"], rtol=0, atol=1e-4)
         np.testing.assert_array_equal(a.motion(name).to_positions(), b.motion(name).to_positions())
 
 

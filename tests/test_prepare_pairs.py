@@ -95,3 +95,19 @@ def test_prepare_pairs_with_workers_and_nothing_usable(pairs_folder, tmp_path):
     with pytest.raises(DatasetError, match="no song and motion"):
         prepare_pairs(empty, tmp_path / "none", progress=False)
     assert not (tmp_path / "none").exists()
+
+
+def test_workers_get_one_thread_each_and_the_environment_is_restored(monkeypatch):
+    """prepare's worker processes inherit one thread each (N workers on N cores); a value the user set is
+    kept, and the parent's environment is as before afterwards."""
+    import os
+
+    from dancekit.data import pairs
+
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    with pairs._one_thread_each():
+        assert os.environ["OMP_NUM_THREADS"] == "1"
+        assert os.environ["MKL_NUM_THREADS"] == "3"
+    assert "OMP_NUM_THREADS" not in os.environ
+    assert os.environ["MKL_NUM_THREADS"] == "3"

@@ -17,6 +17,7 @@ bounded by the longest dance), in ``workers`` processes. The layout is :func:`pr
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import multiprocessing
@@ -37,6 +38,19 @@ from dancekit.errors import DancekitError, DatasetError, ParameterError
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3", ".m4a", ".aac", ".opus")
 MOTION_SUFFIXES = (".npz", ".bvh", ".pkl")
 MIN_FRAMES = 8
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _one_thread_each():
+    """Within: the thread-count variables the user did not set are "1" (for worker processes spawned here)."""
+    unset = [k for k in THREAD_VARIABLES if k not in os.environ]
+    os.environ.update(dict.fromkeys(unset, "1"))
+    try:
+        yield
+    finally:
+        for k in unset:
+            os.environ.pop(k, None)
 
 
 def _read_labels(src: Path) -> dict[str, dict[str, Any]]:
@@ -263,7 +277,9 @@ def prepare_dataset(
                 bar.update(1)
         else:
             # spawned, not forked: a fork of a process whose BLAS / OpenMP / numba threads are running can deadlock
-            with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+            # one thread each: N workers on N cores, not N x (BLAS / OpenMP threads) (children inherit the environment)
+            with _one_thread_each(), ProcessPoolExecutor(max_workers=workers,
+                                                         mp_context=multiprocessing.get_context("spawn")) as pool:
                 for j, r in zip(jobs, pool.map(_prepare_one, jobs), strict=True):
                     results[j["name"]] = r
                     bar.update(1)
