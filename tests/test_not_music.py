@@ -77,3 +77,26 @@ def test_speech_is_danced_calmly_and_said_so(tmp_path):
     song = pipe(str(tmp_path / "song.wav"), seed=0)
     assert song.looks_like_music
     assert "does not look like music" not in song.summary()
+
+
+@pytest.mark.parametrize("model", ["music2dance", "dual"])
+def test_other_models_dance_speech_calmly_too(tmp_path, model, monkeypatch):
+    """The embedded music2dance and dual models: speech is danced calmly (positions, rest bone lengths) and
+    the summary says so; a click track keeps the model's own dance (with its rotations)."""
+    import dancekit.features
+    from dancekit.pipelines import load_pipeline
+
+    pipe = load_pipeline(model)
+    save_wav(tmp_path / "talk.wav", speech_like(seconds=8.0, seed=1), sr=22050)
+    save_wav(tmp_path / "song.wav", click_track(bpm=120, duration=8.0, sr=22050), sr=22050)
+    opts = {"seed": 0, "beat_sync": False, "cleanup": False}
+    talk = pipe(str(tmp_path / "talk.wav"), **opts)
+    assert not talk.looks_like_music and talk.beat_strength < MUSIC_BEAT_STRENGTH
+    assert "calmly (it does not look like music: beat strength" in talk.summary()
+    song = pipe(str(tmp_path / "song.wav"), **opts)
+    assert song.looks_like_music and "does not look like music" not in song.summary()
+    assert song.motion.rotations is not None  # the model's own rotations are kept for music
+    monkeypatch.setattr(dancekit.features, "MUSIC_BEAT_STRENGTH", -1.0)  # nothing is calmed
+    lively = pipe(str(tmp_path / "talk.wav"), **opts)
+    assert lively.looks_like_music
+    assert _speed(talk.motion) < 0.6 * _speed(lively.motion)

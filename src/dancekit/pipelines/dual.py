@@ -24,7 +24,7 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, encode_motion
-from dancekit.pipelines.base import DanceResult, song_features
+from dancekit.pipelines.base import DanceResult, calm_if_not_music, song_features
 from dancekit.pipelines.stages import finish
 
 
@@ -107,6 +107,8 @@ class DualPipeline:
         motion = decode_motion(self.stats.denormalize_dance(y), self.skeleton, self.fps, "rot6d")
         result = DanceResult(motion=motion, model=self.folder, seed=int(seed),
                              genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
+        result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
+                                   start=start, end=end)
         return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
 
 

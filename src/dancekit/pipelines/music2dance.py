@@ -33,7 +33,7 @@ from dancekit.models.music2dance import Music2DanceModel
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
-from dancekit.pipelines.base import DanceResult, song_features
+from dancekit.pipelines.base import DanceResult, calm_if_not_music, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 from dancekit.pipelines.stages import finish
 
@@ -209,6 +209,8 @@ class Music2DancePipeline:
             motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
             out.append(DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
                                    genre=danced, genre_probs=probs, danced_by=self.folder))
+            out[-1] = calm_if_not_music(out[-1], audio_path, fps=self.fps, preset=self.preset,
+                                        hop_length=self.hop_length, start=start, end=end)
             out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
         return out
 

@@ -32,10 +32,8 @@ from dancekit.checkpoints import NormStats, components, load_pretrained, resolve
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.revolution import RevolutionModel
 from dancekit.motion import Motion, Skeleton
-from dancekit.motion.analysis import floor_curve
-from dancekit.motion.kinematics import normalize_bone_lengths
 from dancekit.motion.representations import decode_motion, get_representation
-from dancekit.pipelines.base import DanceResult, calm_motion, song_feature_set, song_features
+from dancekit.pipelines.base import DanceResult, calm_motion, clean_motion, song_feature_set, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 from dancekit.pipelines.stages import finish
 
@@ -264,11 +262,3 @@ class RevolutionPipeline:
         if genre not in self.genres:
             raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}")
         return self.genres.index(genre)
-
-
-def clean_motion(motion: Motion) -> Motion:
-    """Rest bone lengths and feet on the floor for a generated 3D :class:`Motion` (positions only)."""
-    skeleton = motion.skeleton
-    positions = np.asarray(normalize_bone_lengths(motion.to_positions(), skeleton), np.float64)  # (T, J, 3)
-    positions[..., skeleton.up_index] -= floor_curve(positions, skeleton, fps=motion.fps)[:, None]
-    return Motion(skeleton=skeleton, fps=motion.fps, positions=positions.astype(np.float32))
