@@ -8,6 +8,8 @@ figure that floats and drifts in a straight line at a known height and speed.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -220,6 +222,9 @@ def test_stage_warps_on_a_beat_and_leaves_a_beatless_song_alone(tmp_path):
     left = beat_sync(result, noise)
     np.testing.assert_array_equal(left.motion.positions, result.motion.positions)
     assert "no clear beat" in left.summary()
+    calm = beat_sync(dataclasses.replace(result, looks_like_music=False), clicks)  # the pipeline said: not music
+    np.testing.assert_array_equal(calm.motion.positions, result.motion.positions)
+    assert calm.notes[-1] == "not beat-synced"
     warped = beat_sync(result, clicks)
     import re
 

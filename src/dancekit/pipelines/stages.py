@@ -53,6 +53,8 @@ def beat_sync(result: DanceResult, audio_path: str | os.PathLike, *, start: floa
     motion = result.motion
     if not _is_3d(motion):
         return _with_note(result, "not beat-synced (not a 3D dance)")
+    if not result.looks_like_music:  # the pipeline found no beat strength (danced calmly): nothing to sync to
+        return _with_note(result, "not beat-synced")
     beats = song_beats_for(audio_path, start=start, end=end) if beats is None else beats
     if not beats.has_beat:
         from dancekit.features.pulse import MIN_BEATS
