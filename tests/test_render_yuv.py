@@ -135,3 +135,30 @@ def test_mp4_writer_thread_failure_is_raised(tmp_path, monkeypatch):
         render_mp4(tmp_path / "x.mp4", figure(0.4), parents=PARENTS, fps=FPS, unit_scale=1.0,
                    options=RenderOptions(width=64, height=48), progress=False)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_writer_abort_never_blocks_on_a_stuck_pipe():
+    """After an error or a signal the mp4 writer thread is stopped without waiting for good, even when its
+    pipe is stuck (nobody reads it) and its queue is full; ``finish`` would block forever here."""
+    import os
+    import threading
+    import time
+
+    from dancekit.render.video import _PipeWriter
+
+    r, w = os.pipe()
+    pipe = os.fdopen(w, "wb", buffering=0)
+    writer = _PipeWriter(pipe, depth=2)
+    writer.start()
+    chunk = b"\0" * (4 << 20)  # larger than the pipe's buffer: the first write blocks
+    for _ in range(3):  # one being written, two queued: full
+        writer.put(chunk)
+    time.sleep(0.2)
+    assert writer.queue.full() and writer.is_alive()
+    done = threading.Event()
+    threading.Thread(target=lambda: (writer.abort(timeout=0.5), done.set()), daemon=True).start()
+    assert done.wait(5.0), "abort() blocked on a stuck writer"
+    assert writer.daemon  # a stuck writer cannot hold the process open
+    os.close(r)  # the blocked write fails now; the thread drains the queue
+    writer.join(1.0)
+    pipe.close()

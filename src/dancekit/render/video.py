@@ -602,6 +602,16 @@ class _PipeWriter(threading.Thread):
         self.queue.put(None)
         self.join()
 
+    def abort(self, timeout: float = 5.0) -> None:
+        """Stop after an error or a signal (ffmpeg already killed: the writes fail and the queue drains) without
+        ever blocking for long: a join that a signal interrupted (e.g. inside :meth:`finish`) may not be
+        waited on again, and the thread is a daemon, so it cannot hold the process open either way."""
+        try:
+            self.queue.put_nowait(None)
+        except queue.Full:
+            pass  # the thread drains the queue (its writes fail) and then waits on a daemon's get
+        self.join(timeout)
+
 
 def body_parts(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The body figure's parts, shared by the mp4 and the html player.
@@ -785,7 +795,7 @@ def render_mp4(
         except BaseException:
             proc.kill()  # first: a write blocked on ffmpeg's pipe fails, and the writer thread ends
             if writer.ident is not None:
-                writer.finish()
+                writer.abort()
             proc.wait()
             raise
         if rc != 0:
