@@ -32,6 +32,15 @@ def reduce_seed(seed: int) -> int:
     return int.from_bytes(hashlib.sha256(str(seed).encode()).digest()[:8], "big") >> 1
 
 
+def check_times(times: Any, name: str) -> np.ndarray:
+    """Event times (seconds, any shape) as a sorted float64 vector; ``ParameterError`` naming ``name`` when
+    one is NaN or inf."""
+    t = np.asarray(times, dtype=np.float64).reshape(-1)
+    if not np.isfinite(t).all():
+        raise ParameterError(f"{name} contain NaN or inf")
+    return np.sort(t)
+
+
 def check_fps(fps: float, *, name: str = "fps") -> float:
     """``fps`` (frames per second) as a positive finite float, else :class:`ParameterError`.
 

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dancekit._checks import check_fps
+from dancekit._checks import check_fps, check_times
 from dancekit.errors import ParameterError
 from dancekit.motion.analysis import DEFAULT_BEAT_SMOOTH, kinematic_beats, mean_joint_speed
 
@@ -50,13 +50,6 @@ __all__ = [
 DEFAULT_SMOOTH = DEFAULT_BEAT_SMOOTH
 DEFAULT_SIGMA = 0.05
 DEFAULT_TOLERANCE = 0.1
-
-
-def _check_times(times: np.ndarray, name: str) -> np.ndarray:
-    t = np.asarray(times, dtype=np.float64).reshape(-1)
-    if not np.isfinite(t).all():
-        raise ParameterError(f"{name} contain NaN or inf")
-    return np.sort(t)
 
 
 def _nearest_distance(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -98,8 +91,8 @@ def beat_align_score(
     """
     if not sigma > 0:
         raise ParameterError(f"sigma must be positive seconds, got {sigma}")
-    k = _check_times(kinematic, "kinematic beats")
-    m = _in_dance(_check_times(music, "music beats"), duration)
+    k = check_times(kinematic, "kinematic beats")
+    m = _in_dance(check_times(music, "music beats"), duration)
     if convention == "bailando":
         over, other = m, k
     elif convention == "aist":
@@ -116,8 +109,8 @@ def beat_align_score(
 
 def beat_coverage(kinematic: np.ndarray, music: np.ndarray, *, duration: float | None = None) -> float:
     """``B_k / B_m``: kinematic beats per music beat (NaN without music beats)."""
-    k = _check_times(kinematic, "kinematic beats")
-    m = _in_dance(_check_times(music, "music beats"), duration)
+    k = check_times(kinematic, "kinematic beats")
+    m = _in_dance(check_times(music, "music beats"), duration)
     return float(len(k) / len(m)) if len(m) else float("nan")
 
 
@@ -127,8 +120,8 @@ def beat_hit_rate(
     """``B_a / B_k``: share of kinematic beats within ``tolerance`` seconds of a music beat (NaN without kinematic beats)."""
     if not tolerance >= 0:
         raise ParameterError(f"tolerance must be >= 0 seconds, got {tolerance}")
-    k = _check_times(kinematic, "kinematic beats")
-    m = _in_dance(_check_times(music, "music beats"), duration)
+    k = check_times(kinematic, "kinematic beats")
+    m = _in_dance(check_times(music, "music beats"), duration)
     if len(k) == 0:
         return float("nan")
     if len(m) == 0:
@@ -155,7 +148,7 @@ def beat_metrics(
     fps = check_fps(fps)
     k = kinematic_beats(positions, fps=fps, skeleton=skeleton, smooth=smooth)
     duration = (len(positions) - 1) / fps
-    m = _in_dance(_check_times(music_beats, "music beats"), duration)
+    m = _in_dance(check_times(music_beats, "music beats"), duration)
     return {
         "bas_bailando": beat_align_score(k, m, sigma=sigma, convention="bailando"),
         "bas_aist": beat_align_score(k, m, sigma=sigma, convention="aist"),

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from dancekit._checks import check_times
 from dancekit.errors import ParameterError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -52,13 +53,6 @@ DEFAULT_MAX_RATE_CHANGE = 0.15
 DEFAULT_PAIR_RATE_CHANGE = 0.13
 #: A kinematic beat is paired only with music beats at most this many seconds away.
 DEFAULT_MAX_SHIFT = 0.6
-
-
-def _times(x: np.ndarray, name: str) -> np.ndarray:
-    t = np.asarray(x, dtype=np.float64).reshape(-1)
-    if not np.isfinite(t).all():
-        raise ParameterError(f"{name} contain NaN or inf")
-    return np.sort(t)
 
 
 def match_beats(
@@ -92,8 +86,8 @@ def match_beats(
         raise ParameterError(f"pair_rate_change must be in (0, 1), got {pair_rate_change}")
     if not max_shift > 0:
         raise ParameterError(f"max_shift must be positive seconds, got {max_shift}")
-    k = _times(kinematic, "kinematic beats")
-    m = _times(music, "music beats")
+    k = check_times(kinematic, "kinematic beats")
+    m = check_times(music, "music beats")
     D = float(duration)
     k = k[(k > 0) & (k < D)]
     m = m[(m > 0) & (m < D)]
