@@ -34,8 +34,10 @@ class PreparedPipe:
     """A Music2Dance pipeline whose songs are the dataset's dances: ``dances(path, start=...)`` takes the
     prepared features of the dance whose audio slice that is."""
 
-    def __init__(self, pipe: Music2DancePipeline, data: PreparedData, split: str):
+    def __init__(self, pipe: Music2DancePipeline, data: PreparedData, split: str, genre_scale: float | None = None,
+                 temperature: float | None = None):
         self.pipe, self.data, self.genres = pipe, data, pipe.genres
+        self.genre_scale, self.temperature = genre_scale, temperature
         self.by_audio = {}
         for n in data.names(split):
             a = data.audio(n)
@@ -44,7 +46,8 @@ class PreparedPipe:
     def dances(self, path, *, seeds, genre=None, start=None, end=None):
         name = self.by_audio[(str(path), start)]
         music = self.data.features(name, self.pipe.preset)["features"]
-        return self.pipe.dances(path, seeds=list(seeds), genre=genre, music=music)
+        return self.pipe.dances(path, seeds=list(seeds), genre=genre, music=music, genre_scale=self.genre_scale,
+                                temperature=self.temperature)
 
 
 def main() -> None:
@@ -57,17 +60,24 @@ def main() -> None:
     p.add_argument("--genre", default="true", help="true (each song's own genre), none, or a genre name")
     p.add_argument("--steering", action="store_true")
     p.add_argument("--foot-constraint", action="store_true")
+    p.add_argument("--genre-scale", type=float, default=None, help="guidance of the dance type (default: the "
+                   "checkpoint's)")
+    p.add_argument("--temperature", type=float, default=None, help="sampling temperature (default: the checkpoint's)")
+    p.add_argument("--steer-seeds", type=int, default=1, help="--steering: dances per (song, genre) pair")
     args = p.parse_args()
     torch.set_num_threads(1)
     data = PreparedData(args.data)
-    pipe = PreparedPipe(Music2DancePipeline.from_pretrained(args.model), data, args.split)
+    pipe = PreparedPipe(Music2DancePipeline.from_pretrained(args.model), data, args.split,
+                        genre_scale=args.genre_scale, temperature=args.temperature)
     out = Path(args.out)
     t0 = time.perf_counter()
     if args.steering:
         from dancekit.evaluation.steering import steering
         from dancekit.pipelines import StylePipeline
 
-        report = steering(pipe, data, StylePipeline.from_pretrained("style"), split=args.split, seeds=1, progress=False)
+        report = steering(pipe, data, StylePipeline.from_pretrained("style"), split=args.split, seeds=args.steer_seeds,
+                          progress=False)
+        report["genre_scale"] = pipe.pipe.genre_scale if args.genre_scale is None else args.genre_scale
         out.mkdir(parents=True, exist_ok=True)
         (out / "steering.json").write_text(json.dumps(report, indent=1))
         print(f"read back {report['read_back']:.3f} of {report['n']} (song, genre) pairs; "

@@ -461,3 +461,55 @@ def test_sampling_noise_given_and_correlated_over_frames():
     assert abs(lag1(0.0)) < 0.1 and lag1(0.9) == pytest.approx(0.9, abs=0.05)
     with pytest.raises(ParameterError, match="noise_correlation"):
         model.generate(music, None, noise_correlation=1.0)
+
+
+def test_genre_guidance_moves_the_dance_type_vector_away_from_no_type():
+    """``genre_scale`` α: the dance type enters every gated layer as ``W_g (g_∅ + α (g - g_∅))``; checked
+    against a copy of the model whose embedding rows are moved by hand (temperature 0: the means)."""
+    import copy
+
+    from dancekit.errors import ParameterError
+
+    model = _tiny()
+    music = torch.randn(3, 25, 5, dtype=torch.float64, generator=torch.Generator().manual_seed(2))
+    genre = torch.tensor([0, 2, -1])
+    alpha = 2.5
+    moved = copy.deepcopy(model)
+    with torch.no_grad():
+        emb = moved.genre_embedding.weight  # rows 0..n-1: the types, row n: "no type"
+        emb[:-1] = emb[-1] + alpha * (emb[:-1] - emb[-1])
+    guided = model.generate(music, genre, temperature=0.0, genre_scale=alpha)
+    torch.testing.assert_close(guided, moved.generate(music, genre, temperature=0.0), rtol=0, atol=1e-10)
+    plain = model.generate(music, genre, temperature=0.0)
+    assert torch.equal(model.generate(music, genre, temperature=0.0, genre_scale=1.0), plain)
+    torch.testing.assert_close(guided[2], plain[2], rtol=0, atol=1e-12)  # no type: nothing to guide
+    assert (guided[:2] - plain[:2]).abs().max() > 1e-3
+    # α = 0: every row dances as "no type"
+    none = model.generate(music, torch.tensor([-1, -1, -1]), temperature=0.0)
+    torch.testing.assert_close(model.generate(music, genre, temperature=0.0, genre_scale=0.0), none,
+                               rtol=0, atol=1e-12)
+    with pytest.raises(ParameterError, match="genre_scale"):
+        model.generate(music, genre, genre_scale=-1.0)
+
+
+def test_pipeline_takes_its_default_genre_scale_from_the_checkpoint(m2d_folder, song8, tmp_path):
+    import json
+    import shutil
+
+    from dancekit.errors import CheckpointError, ParameterError
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    folder = tmp_path / "g3"
+    shutil.copytree(m2d_folder, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"genre_scale": 3.0}}))
+    plain, steered = Music2DancePipeline.from_pretrained(m2d_folder), Music2DancePipeline.from_pretrained(folder)
+    assert plain.genre_scale == 1.0 and steered.genre_scale == 3.0
+    by_call = plain(song8, seed=0, genre="rumba", end=3.0, genre_scale=3.0).motion.to_positions()
+    np.testing.assert_array_equal(steered(song8, seed=0, genre="rumba", end=3.0).motion.to_positions(), by_call)
+    assert np.abs(plain(song8, seed=0, genre="rumba", end=3.0).motion.to_positions() - by_call).max() > 1e-3
+    with pytest.raises(ParameterError, match="genre_scale"):
+        plain(song8, seed=0, genre="rumba", end=3.0, genre_scale=float("nan"))
+    (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"genre_scale": -2}}))
+    with pytest.raises(CheckpointError, match="genre_scale"):
+        Music2DancePipeline.from_pretrained(folder)

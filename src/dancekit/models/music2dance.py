@@ -330,11 +330,26 @@ class Music2DanceModel(nn.Module):
             raise ParameterError(f"genre indices must be in [-1, {n - 1}], got {genre.tolist()}")
         return self.genre_embedding(torch.where(genre < 0, torch.full_like(genre, n), genre))
 
+    def guided_genre_vector(self, genre: torch.Tensor | None, batch: int, device: torch.device, *,
+                            genre_scale: float = 1.0) -> torch.Tensor:
+        """The dance-type vector ``(B, genre_dim)`` with guidance ``α = genre_scale``: ``g_∅ + α (g - g_∅)``
+        (``g_∅`` the learned "no type" embedding, which training's genre dropout fits), so every gated
+        layer's dance-type term ``W_g g`` (linear, no bias) becomes ``W_g g_∅ + α W_g (g - g_∅)``. α = 1: the
+        model as trained; α > 1 pushes the dance further towards its type; rows without a type are unchanged."""
+        g = self.genre_vector(genre, batch, device)
+        if genre_scale == 1.0:
+            return g
+        if not math.isfinite(genre_scale) or genre_scale < 0:
+            raise ParameterError(f"genre_scale must be a finite number >= 0, got {genre_scale!r}")
+        g0 = self.genre_vector(None, batch, device)
+        return g0 + genre_scale * (g - g0)
+
     def _conditions(self, music: torch.Tensor, genre: torch.Tensor | None, *,
-                    window: int | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-        """WaveNet: per-block condition ``(B, T, L, 2C)``; LSTM: (music condition, genre vector)."""
+                    window: int | None = None, genre_scale: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+        """WaveNet: per-block condition ``(B, T, L, 2C)``; LSTM: (music condition, genre vector).
+        ``genre_scale``: see :meth:`guided_genre_vector`."""
         h_m = self.music_condition(music, window=window)  # (B, T, H)
-        g = self.genre_vector(genre, music.shape[0], music.device)  # (B, G)
+        g = self.guided_genre_vector(genre, music.shape[0], music.device, genre_scale=genre_scale)  # (B, G)
         if self.config.generator != "wavenet":
             return h_m, g
         B, T = music.shape[:2]
@@ -460,7 +475,7 @@ class Music2DanceModel(nn.Module):
     def generate(self, music: torch.Tensor, genre: torch.Tensor | None = None, *, temperature: float = 1.0,
                  generator: torch.Generator | list[torch.Generator] | None = None, first: torch.Tensor | None = None,
                  progress: bool = False, fmap_window: int | None = None,
-                 noise_correlation: float = 0.0) -> torch.Tensor:
+                 noise_correlation: float = 0.0, genre_scale: float = 1.0) -> torch.Tensor:
         """A dance ``(B, T, P)`` for ``music (B, T, D_m)``, frame by frame, sampling the mixture.
 
         ``noise_correlation`` ρ in [0, 1): the standard normal draw of each frame is ``ε_t = ρ ε_{t-1} +
@@ -469,12 +484,13 @@ class Music2DanceModel(nn.Module):
 
         ``first (B, P)``: the input of frame 0 (default zeros: the mean pose, no contacts); ``fmap_window``:
         see :meth:`music_condition` (the pipeline passes the training window); ``generator``: one, or one
-        per row (:func:`gmm_sample`: a batch of seeds, each row the dance of its seed alone). Call in eval mode.
+        per row (:func:`gmm_sample`: a batch of seeds, each row the dance of its seed alone); ``genre_scale``:
+        guidance of the dance type (:meth:`guided_genre_vector`; 1: as trained). Call in eval mode.
         """
         from tqdm import tqdm
 
         B, T = music.shape[:2]
-        cond, g = self._conditions(music, genre, window=fmap_window)
+        cond, g = self._conditions(music, genre, window=fmap_window, genre_scale=genre_scale)
         state = self.init_state(B, device=music.device, dtype=music.dtype)
         if not 0.0 <= noise_correlation < 1.0:
             raise ParameterError(f"noise_correlation must be in [0, 1), got {noise_correlation!r}")

@@ -83,6 +83,13 @@ class Music2DancePipeline:
             raise CheckpointError(f"checkpoint {folder}: sampling smooth_sigma must be >= 0, got {self.smooth_sigma!r}")
         if not self.temperature >= 0:
             raise CheckpointError(f"checkpoint {folder}: sampling temperature must be >= 0, got {self.temperature!r}")
+        #: guidance of the dance type when a call names none (:meth:`Music2DanceModel.guided_genre_vector`):
+        #: the checkpoint's ``"sampling": {"genre_scale": α}`` (chosen on the validation songs for the
+        #: embedded model), else 1 (the model as trained)
+        self.genre_scale = float(meta.get("sampling", {}).get("genre_scale", 1.0))
+        if not (np.isfinite(self.genre_scale) and self.genre_scale >= 0):
+            raise CheckpointError(f"checkpoint {folder}: sampling genre_scale must be a finite number >= 0, "
+                                  f"got {self.genre_scale!r}")
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
@@ -136,7 +143,8 @@ class Music2DancePipeline:
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, genre: str | None = None,
                  temperature: float | None = None, start: float | None = None, end: float | None = None,
-                 progress: bool = False, beat_sync: bool = True, cleanup: bool = True) -> DanceResult:
+                 progress: bool = False, beat_sync: bool = True, cleanup: bool = True,
+                 genre_scale: float | None = None) -> DanceResult:
         """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
 
         Parameters
@@ -148,6 +156,8 @@ class Music2DancePipeline:
             None: the checkpoint's default (:attr:`temperature`)
         start, end : excerpt in seconds
         beat_sync, cleanup : the shared pipeline stages (:mod:`dancekit.pipelines.stages`)
+        genre_scale : guidance α of the dance type (``g_∅ + α (g - g_∅)``, see
+            :meth:`Music2DanceModel.guided_genre_vector`); None: the checkpoint's default (:attr:`genre_scale`)
 
         Returns
         -------
@@ -160,13 +170,13 @@ class Music2DancePipeline:
             For an unknown genre or a negative temperature.
         """
         return self.dances(audio_path, seeds=[seed], genre=genre, temperature=temperature, start=start, end=end,
-                           progress=progress, beat_sync=beat_sync, cleanup=cleanup)[0]
+                           progress=progress, beat_sync=beat_sync, cleanup=cleanup, genre_scale=genre_scale)[0]
 
     @torch.no_grad()
     def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], genre: str | list[str | None] | None = None,
                temperature: float | None = None, start: float | None = None, end: float | None = None,
                progress: bool = False, music: np.ndarray | None = None, beat_sync: bool = True,
-               cleanup: bool = True) -> list[DanceResult]:
+               cleanup: bool = True, genre_scale: float | None = None) -> list[DanceResult]:
         """One dance per seed for the song, generated as one batch (the features and the frame loop once):
         ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
         :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type). ``music``:
@@ -175,6 +185,9 @@ class Music2DancePipeline:
         temperature = self.temperature if temperature is None else temperature
         if not temperature >= 0:
             raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
+        genre_scale = self.genre_scale if genre_scale is None else float(genre_scale)
+        if not (np.isfinite(genre_scale) and genre_scale >= 0):
+            raise ParameterError(f"genre_scale must be a finite number >= 0, got {genre_scale!r}")
         seeds = [int(s) for s in seeds]
         if not seeds:
             raise ParameterError("dances() needs at least one seed")
@@ -196,7 +209,8 @@ class Music2DancePipeline:
         window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
         x = x.to(self.model.genre_embedding.weight.device).expand(B, -1, -1)
         y = self.model.generate(x, index, temperature=temperature, generator=gens, progress=progress,
-                                fmap_window=window, noise_correlation=self.noise_correlation)  # (B, T, P)
+                                fmap_window=window, noise_correlation=self.noise_correlation,
+                                genre_scale=genre_scale)  # (B, T, P)
         if self.smooth_sigma > 0:
             from dancekit.models.foot_constraint import gaussian_smooth
 
