@@ -64,11 +64,19 @@ def main() -> None:
                    "checkpoint's)")
     p.add_argument("--temperature", type=float, default=None, help="sampling temperature (default: the checkpoint's)")
     p.add_argument("--steer-seeds", type=int, default=1, help="--steering: dances per (song, genre) pair")
+    p.add_argument("--sampling", default=None, metavar="JSON",
+                   help='sampling settings instead of the checkpoint\'s, e.g. \'{"temperature": 0.8, '
+                        '"noise_correlation": 0.95, "smooth_sigma": 2}\' (the embedded model\'s, for a run '
+                        'folder that has none)')
     args = p.parse_args()
     torch.set_num_threads(1)
     data = PreparedData(args.data)
-    pipe = PreparedPipe(Music2DancePipeline.from_pretrained(args.model), data, args.split,
-                        genre_scale=args.genre_scale, temperature=args.temperature)
+    m2d = Music2DancePipeline.from_pretrained(args.model)
+    for key, value in json.loads(args.sampling or "{}").items():
+        if key not in ("temperature", "noise_correlation", "smooth_sigma", "genre_scale"):
+            raise SystemExit(f"--sampling: unknown setting {key!r}")
+        setattr(m2d, key, float(value))
+    pipe = PreparedPipe(m2d, data, args.split, genre_scale=args.genre_scale, temperature=args.temperature)
     out = Path(args.out)
     t0 = time.perf_counter()
     if args.steering:
@@ -100,7 +108,9 @@ def main() -> None:
     gen = time.perf_counter() - t0
     report = evaluate_dirs(pred, args.data, data=args.data, split=args.split)
     report["generation"] = {"checkpoint": args.model, "split": args.split, "seeds": args.seeds, "genre": args.genre,
-                            "features": "prepared", "foot_constraint": bool(fix), "elapsed_s": round(gen, 1)}
+                            "features": "prepared", "foot_constraint": bool(fix), "elapsed_s": round(gen, 1),
+                            "sampling": {k: getattr(m2d, k) for k in ("temperature", "noise_correlation",
+                                                                     "smooth_sigma", "genre_scale")}}
     (out / "report.json").write_text(json.dumps(report, indent=1))
     m = report["metrics"]
     print(f"{args.model} {args.split}: generated in {gen:.0f} s; " + ", ".join(
