@@ -7,7 +7,8 @@
 Each RUN is a ``dancekit train music2dance --out RUN`` folder; its ``log.jsonl`` holds the validation
 losses (``val_loss``, ``(L_gmm + 0.1 BCE) / D`` on the validation windows, unweighted) and the training
 log (``elapsed_s``). Prints a markdown table (validation loss at every validation step, the wall time and
-seconds per step of the run) and draws the curves, one colour per run.
+seconds per step of the run) and draws the curves, one colour per run. ``--reports`` prints the dance
+metrics of evaluation reports (``benchmarks/m2d_eval_prepared.py``'s ``report.json``) side by side.
 """
 
 from __future__ import annotations
@@ -66,10 +67,12 @@ def plot(path: Path, runs: list[tuple[str, dict]], title: str) -> None:
     for i, (label, r) in enumerate(runs):
         c = COLOURS[i % len(COLOURS)]
         line = [xy(s, v) for s, v in r["val"]]
+        width = max(3, 9 - 2 * i)  # earlier runs drawn wider: a curve hidden under a later one still shows
         if len(line) > 1:
-            d.line(line, fill=c, width=3)
+            d.line(line, fill=c, width=width)
         for x, y in line:
-            d.ellipse([x - 3, y - 3, x + 3, y + 3], fill=c)
+            r_ = width // 2 + 2
+            d.ellipse([x - r_, y - r_, x + r_, y + r_], fill=c)
         ly = top + 10 + 22 * i
         d.line([W - right + 15, ly + 6, W - right + 40, ly + 6], fill=c, width=3)
         d.text((W - right + 46, ly), label, fill="black")
@@ -77,9 +80,25 @@ def plot(path: Path, runs: list[tuple[str, dict]], title: str) -> None:
     img.save(path)
 
 
+METRICS = ("fid_k", "fid_g", "div_k", "div_g", "bas_bailando", "style_acc", "style_multimodality", "stillness_share",
+           "smoothed_energy_ratio", "jitter_speed_ratio", "foot_skating_ratio")
+
+
+def metric_table(reports: list[tuple[str, Path]]) -> None:
+    """A markdown table of ``dancekit evaluate`` reports (``report.json``), one column per report."""
+    rows = [(label, json.loads(path.read_text())["metrics"]) for label, path in reports]
+    print("| metric | " + " | ".join(label for label, _ in rows) + " |")
+    print("| --- |" + " ---: |" * len(rows))
+    for key in METRICS:
+        cells = [f"{m[key]:.4g}" if isinstance(m.get(key), (int, float)) else "–" for _, m in rows]
+        print(f"| {key} | " + " | ".join(cells) + " |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("runs", nargs="+", help="RUN_FOLDER[:label]")
+    ap.add_argument("runs", nargs="*", help="RUN_FOLDER[:label]")
+    ap.add_argument("--reports", nargs="*", default=[], metavar="REPORT_JSON[:label]",
+                    help="also print the dance metrics of these evaluation reports side by side")
     ap.add_argument("--plot", default=None, help="write the chart here (png)")
     ap.add_argument("--title", default="Music2Dance: validation loss (L_gmm + 0.1 BCE) / D, equal budgets")
     args = ap.parse_args()
@@ -87,18 +106,23 @@ def main() -> None:
     for item in args.runs:
         folder, _, label = item.partition(":")
         runs.append((label or Path(folder).name, read_run(Path(folder))))
+    if not runs and not args.reports:
+        ap.error("give run folders or --reports")
     steps = sorted({s for _, r in runs for s, _ in r["val"]})
-    print("| run | " + " | ".join(f"val @{s}" for s in steps) + " | best | wall (s) | s/step |")
-    print("| --- |" + " --- |" * (len(steps) + 3))
+    if runs:
+        print("| run | " + " | ".join(f"val @{s}" for s in steps) + " | best | wall (s) | s/step |")
+        print("| --- |" + " --- |" * (len(steps) + 3))
     for label, r in runs:
         v = dict(r["val"])
         cells = [f"{v[s]:.3f}" if s in v else "–" for s in steps]
         best = min(v.values()) if v else float("nan")
         rate = r["elapsed_s"] / r["steps"] if r["steps"] else float("nan")
         print(f"| {label} | " + " | ".join(cells) + f" | {best:.3f} | {r['elapsed_s']:.0f} | {rate:.2f} |")
-    if args.plot:
+    if args.plot and runs:
         plot(Path(args.plot), runs, args.title)
         print(f"wrote {args.plot}")
+    if args.reports:
+        metric_table([(item.partition(":")[2] or item, Path(item.partition(":")[0])) for item in args.reports])
 
 
 if __name__ == "__main__":
