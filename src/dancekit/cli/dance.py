@@ -64,16 +64,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "(shaded volumetric mannequin)")
     p.add_argument("--width", type=int, default=640, help="video width in pixels (default 640)")
     p.add_argument("--height", type=int, default=480, help="video height in pixels (default 480)")
+    p.add_argument("--precision", default="fp32", metavar="{fp32,bf16,int8}",
+                   help="decoding precision of autoregressive models (revolution, music2dance, dual): fp32 (default, "
+                        "the model as trained), bf16, or int8 (int8 weights, dynamic activation quantisation; "
+                        "several times faster for large models; see docs/BENCHMARKS.md for its accuracy budget)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from dancekit.export import check_formats, check_output_folder, export_motion
+    from dancekit.models.precision import check_precision
     from dancekit.pipelines import load_pipeline
     from dancekit.render import AudioClip, RenderOptions
 
     t0 = time.perf_counter()
+    check_precision(args.precision)
     formats = check_formats(args.format)
     audio = Path(args.audio)
     if not audio.exists():
@@ -83,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     clip = AudioClip(audio, args.start, args.end)
     options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
-    pipe = load_pipeline(args.model, args.checkpoint)
+    pipe = load_pipeline(args.model, args.checkpoint, precision=args.precision)
     fix = None
     if args.foot_constraint is not None:
         from dancekit.pipelines.foot_constraint import load_foot_constraint

@@ -65,6 +65,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                      help="auto (the genre read from the music when the model has a music attribute classifier, "
                           "else the model alone; default), none (the model alone), true (each song's own genre), "
                           "or a genre name for every song")
+    gen.add_argument("--precision", default=None, metavar="{fp32,bf16,int8}",
+                     help="decoding precision of the model (default fp32; see dancekit dance --precision)")
     gen.add_argument("--beat-sync", choices=("on", "off"), default=None,
                      help="the pipeline's beat-synchronous stage (default on); when on, the report also compares "
                           "the beat metrics before and after the warp (OUT/pred_unwarped holds the dances before it)")
@@ -119,8 +121,10 @@ def run_music(args: argparse.Namespace) -> int:
 
     if args.data is None:
         raise ParameterError("--compose and --music need --data (the prepared dataset whose real music is the reference)")
-    if args.ref is not None or args.pred is not None or args.seeds is not None or args.genre is not None:
-        raise ParameterError("--ref, --seeds and --genre go with --pred / --checkpoint, not with --compose / --music")
+    if args.ref is not None or args.pred is not None or args.seeds is not None or args.genre is not None \
+            or args.precision is not None:
+        raise ParameterError("--ref, --seeds, --genre and --precision go with --pred / --checkpoint, not with "
+                             "--compose / --music")
     settings = MusicSettings(clip_lengths=_clip_lengths(args.clip_lengths), render=args.render, seed=args.seed,
                              baselines=not args.no_baselines)
     say = None if args.quiet else (lambda m: print(m, flush=True))
@@ -174,7 +178,8 @@ def run(args: argparse.Namespace) -> int:
         seeds = 5 if args.seeds is None else args.seeds
         report = evaluate_checkpoint(args.checkpoint, args.data, out, split=args.split, seeds=seeds,
                                      genre=args.genre or "auto", settings=settings, classifier=classifier,
-                                     progress=not args.quiet, beat_sync=args.beat_sync != "off")
+                                     progress=not args.quiet, beat_sync=args.beat_sync != "off",
+                                     precision=args.precision or "fp32")
         g = report["generation"]
         print(f"generated {g['seconds']:.0f} s of dance in {g['elapsed_s']:.1f} s "
               f"({g['elapsed_s'] / max(g['seconds'], 1e-9) * 60:.2f} s per minute)")
@@ -184,8 +189,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.ref is None:
         raise ParameterError("--pred needs --ref (the real dances)")
-    if args.seeds is not None or args.genre is not None or args.beat_sync is not None:
-        raise ParameterError("--seeds, --genre and --beat-sync go with --checkpoint")
+    if args.seeds is not None or args.genre is not None or args.beat_sync is not None or args.precision is not None:
+        raise ParameterError("--seeds, --genre, --beat-sync and --precision go with --checkpoint")
     if not out.parent.exists():
         raise ParameterError(f"output folder does not exist: {out.parent}")
     report = evaluate_dirs(args.pred, args.ref, data=args.data, audio_dir=args.audio, classifier=classifier,

@@ -114,6 +114,7 @@ def evaluate_checkpoint(
     classifier: Any = "default",
     progress: bool = True,
     beat_sync: bool = True,
+    precision: str = "fp32",
 ) -> dict[str, Any]:
     """Dance every song of ``split`` with a model and score the dances against the real ones.
 
@@ -131,12 +132,13 @@ def evaluate_checkpoint(
     beat_sync : the pipeline's beat-synchronous stage on (default) or off; when on, the dances before the
         warp go to ``OUT/pred_unwarped`` and the report's ``beat_sync`` entry compares the beat metrics
         before and after it (:func:`dancekit.evaluation.stages.beat_sync_comparison`)
+    precision : decoding precision, ``"fp32"``, ``"bf16"`` or ``"int8"`` (:func:`dancekit.pipelines.load_pipeline`)
     """
     from dancekit.data import PreparedData
     from dancekit.pipelines import load_pipeline
 
     prepared = PreparedData(data)
-    pipe = load_pipeline(checkpoint)
+    pipe = load_pipeline(checkpoint, precision=precision)
     out = Path(out_dir)
     pred = out / "pred"
     unwarped = out / "pred_unwarped"
@@ -146,7 +148,7 @@ def evaluate_checkpoint(
     if beat_sync:
         report["beat_sync"] = _beat_sync_section(pred, unwarped, prepared, report)
     report["generation"] = {"checkpoint": str(checkpoint), "split": split, "seeds": seeds, "genre": genre,
-                            "beat_sync": bool(beat_sync),
+                            "beat_sync": bool(beat_sync), "precision": precision,
                             "files": gen["files"], "seconds": round(gen["seconds"], 3),
                             "elapsed_s": round(gen["elapsed_s"], 3)}
     with atomic_path(out / "report.json") as tmp:

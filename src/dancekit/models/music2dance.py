@@ -496,6 +496,7 @@ class Music2DanceModel(nn.Module):
             raise ParameterError(f"noise_correlation must be in [0, 1), got {noise_correlation!r}")
         x = first if first is not None else music.new_zeros(B, self.config.pose_dim)
         w = self._step_weights() if self.config.generator == "wavenet" else None
+        step = getattr(self, "fast_step", None) or self.step  # reduced precision: models/precision.py
         rho, eps = float(noise_correlation), None
         frames = []
         for t in tqdm(range(T), disable=not progress, desc="dance", unit="frame"):
@@ -503,7 +504,7 @@ class Music2DanceModel(nn.Module):
                 eta = standard_normal((B, self.config.gmm_dim), generator=generator, dtype=music.dtype,
                                       device=music.device)
                 eps = eta if eps is None else rho * eps + math.sqrt(1 - rho * rho) * eta
-            x = self.predict(self.step(cond[:, t], g, x, state, w), temperature=temperature, generator=generator,
+            x = self.predict(step(cond[:, t], g, x, state, w), temperature=temperature, generator=generator,
                              noise=eps)
             frames.append(x)
         return torch.stack(frames, dim=1)

@@ -540,7 +540,11 @@ class RevolutionModel(nn.Module):
 
         Uses ``torch.lstm_cell`` on the weights of ``self.decoder`` (the same maths as ``nn.LSTM``,
         about 1.5× faster per step on CPU). Returns ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``.
+        A copy made by :func:`dancekit.models.precision.to_precision` decodes with its ``fast_decoder``.
         """
+        fast = getattr(self, "fast_decoder", None)  # reduced-precision, fused decoder (models/precision.py)
+        if fast is not None:
+            return fast(z, prev, state)
         c = self.config
         weights = [
             tuple(getattr(self.decoder, f"{kind}_l{layer}") for kind in ("weight_ih", "weight_hh", "bias_ih", "bias_hh"))

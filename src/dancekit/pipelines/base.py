@@ -10,6 +10,7 @@ Inference only: nothing here (or in any pipeline) imports the training or datase
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -84,26 +85,35 @@ class DanceResult:
 
 
 def load_pipeline(model: str | os.PathLike | None = None, checkpoint: str | os.PathLike | None = None,
-                  *, device: str = "cpu") -> Any:
+                  *, device: str = "cpu", precision: str = "fp32") -> Any:
     """The inference pipeline of a model: a name (the user's models folder, then the embedded models) or a
     checkpoint folder (``checkpoint``, or a path given as ``model``); ``None``: the default model.
 
-    The pipeline class comes from the family's entry in :mod:`dancekit.registry`.
+    The pipeline class comes from the family's entry in :mod:`dancekit.registry`. ``precision``: ``"fp32"``
+    (the model as trained), ``"bf16"`` or ``"int8"`` decoding for the autoregressive families
+    (:func:`dancekit.models.precision.to_precision`).
 
     Raises
     ------
     ParameterError
-        For an unknown model name.
+        For an unknown model name or precision, or a reduced precision for a model that has none.
     CheckpointError
         For a folder that is not a checkpoint, or holds a family without a pipeline.
     """
+    from dancekit.models.precision import check_precision
+
+    check_precision(precision)
     folder = resolve_model(checkpoint if checkpoint is not None else model)
     family = read_meta(folder)["model"]
     try:
         cls = registry.get(family).load("pipeline")
     except (ParameterError, ImportError, AttributeError) as exc:
         raise CheckpointError(f"{folder} holds a {family!r} model, which has no pipeline: {exc}") from exc
-    return cls.from_pretrained(Path(folder), device=device)
+    if precision == "fp32":
+        return cls.from_pretrained(Path(folder), device=device)
+    if "precision" not in inspect.signature(cls.from_pretrained).parameters:
+        raise ParameterError(f"precision {precision!r} is not available for {family!r} models (only fp32)")
+    return cls.from_pretrained(Path(folder), device=device, precision=precision)
 
 
 #: How much of its movement a dance keeps when the input does not look like music (:func:`calm_motion`).

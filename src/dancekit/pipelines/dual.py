@@ -22,6 +22,7 @@ import torch
 from dancekit.checkpoints import NormStats, load_pretrained, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
+from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, encode_motion
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, song_features
@@ -59,10 +60,14 @@ class DualPipeline:
         self.smooth_frames = int(meta.get("smooth_frames", 1))  # the checkpoint's sampling setting
 
     @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> DualPipeline:
-        """A ``dual`` checkpoint folder or model name (:func:`dancekit.checkpoints.resolve_model`)."""
+    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu", precision: str = "fp32") -> DualPipeline:
+        """A ``dual`` checkpoint folder or model name (:func:`dancekit.checkpoints.resolve_model`); ``precision``:
+        ``"fp32"``, ``"bf16"`` or ``"int8"`` for G_M→D (:func:`dancekit.models.precision.to_precision`)."""
+        check_precision(precision)
         model, meta, stats, folder = _load(folder, device)
-        return cls(model, meta=meta, stats=stats, folder=str(folder))
+        pipe = cls(to_precision(model, precision), meta=meta, stats=stats, folder=str(folder))
+        pipe.precision = precision
+        return pipe
 
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:

@@ -30,6 +30,7 @@ import torch
 from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.music2dance import Music2DanceModel
+from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
@@ -95,14 +96,17 @@ class Music2DancePipeline:
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
 
     @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> Music2DancePipeline:
-        """Load a checkpoint folder (``dancekit train music2dance``) or a model name (:func:`resolve_model`).
+    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu",
+                        precision: str = "fp32") -> Music2DancePipeline:
+        """Load a checkpoint folder (``dancekit train music2dance``) or a model name (:func:`resolve_model`);
+        ``precision``: ``"fp32"``, ``"bf16"`` or ``"int8"`` decoding (:func:`dancekit.models.precision.to_precision`).
 
         Raises
         ------
         CheckpointError
             For a missing or corrupt folder, or one that holds another model family.
         """
+        check_precision(precision)
         folder = resolve_model(folder)
         model, meta, arrays = load_pretrained(folder, device=device)
         stats = NormStats.from_arrays(arrays, source=str(folder))
@@ -112,7 +116,10 @@ class Music2DancePipeline:
             raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a Music2Dance model")
         reader = parts.get("genre_reader")
         reader = None if reader is None else MusicAttributePipeline.from_pretrained(reader, device=device)
-        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_reader=reader)
+        pipe = cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_reader=reader)
+        pipe.model = to_precision(pipe.model, precision)
+        pipe.precision = precision
+        return pipe
 
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:

@@ -30,6 +30,7 @@ import torch
 
 from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
+from dancekit.models.precision import check_precision, to_precision
 from dancekit.models.revolution import RevolutionModel
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, get_representation
@@ -84,9 +85,11 @@ class RevolutionPipeline:
             )
 
     @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> RevolutionPipeline:
+    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu",
+                        precision: str = "fp32") -> RevolutionPipeline:
         """Load a model: a checkpoint folder written by ``dancekit train revolution`` (or ``save_pretrained``),
-        or a model name (:func:`dancekit.checkpoints.resolve_model`).
+        or a model name (:func:`dancekit.checkpoints.resolve_model`). ``precision``: ``"fp32"``, ``"bf16"``
+        or ``"int8"`` decoding (:func:`dancekit.models.precision.to_precision`; genre models too).
 
         The components its ``config.json`` declares are found here: genre models (``"genres"``, loaded when
         first asked for) and a music attribute classifier (``"genre_reader"``, loaded here).
@@ -96,6 +99,7 @@ class RevolutionPipeline:
         CheckpointError
             For a missing or corrupt folder, or one that holds another model family.
         """
+        check_precision(precision)
         folder = resolve_model(folder)
         model, meta, arrays = load_pretrained(folder, device=device)
         stats = NormStats.from_arrays(arrays, source=str(folder))
@@ -111,8 +115,19 @@ class RevolutionPipeline:
             raise CheckpointError(f"checkpoint {folder}: genre models {unknown} are not genres of its data {sorted(known)}")
         reader_folder = parts.get("genre_reader")
         reader = None if reader_folder is None else MusicAttributePipeline.from_pretrained(reader_folder, device=device)
-        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
+        pipe = cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
                    genre_reader=reader)
+        pipe.set_precision(precision)
+        return pipe
+
+    def set_precision(self, precision: str) -> None:
+        """Decode at ``precision`` from now on (``"fp32"``, ``"bf16"`` or ``"int8"``; genre models too)."""
+        if not hasattr(self, "_fp32_model"):
+            self._fp32_model = self.model
+        self.model = to_precision(self._fp32_model, precision)
+        self.precision = precision
+        for pipe in self._genre_pipelines.values():
+            pipe.set_precision(precision)
 
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:
@@ -247,6 +262,7 @@ class RevolutionPipeline:
                     or pipe.representation != self.representation:
                 raise CheckpointError(f"genre model {self.genre_models[genre]} does not match its parent model "
                                       "(fps, skeleton or representation differ)")
+            pipe.set_precision(getattr(self, "precision", "fp32"))
             self._genre_pipelines[genre] = pipe
         return self._genre_pipelines[genre]
 
