@@ -53,6 +53,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--split", default="val")
     ap.add_argument("-o", "--out", required=True)
+    ap.add_argument("--clip", type=float, default=None, help="dance only the first CLIP seconds (openings)")
     ap.add_argument("--grid", nargs="+", default=["0:0:0"], help="phrase_s:state_noise:latent_noise[:dance_latent]")
     args = ap.parse_args()
     if args.split == "test":
@@ -70,11 +71,13 @@ def main() -> None:
         t0 = time.perf_counter()
         for name in data.names(args.split):
             ref = data.audio(name)
+            end = ref.end if args.clip is None else (ref.start or 0.0) + args.clip
             for k, res in enumerate(dance_batch(pipe, ref.path, seeds=range(args.seeds), start=ref.start,
-                                                end=ref.end, variety=variety)):
+                                                end=end, variety=variety)):
                 write_motion(pred / f"{name}{SAMPLE_SEP}{k}.npz", res.motion)
         gen_s = time.perf_counter() - t0
         rep = evaluate_dirs(pred, args.data, data=args.data, split=args.split)
+        (pred.parent / "report.json").write_text(json.dumps(rep))
         sd = rep["seed_distance"]
         n = min(len(sd["seed_cm"]), len(sd["song_cm"]))
         ratio = np.asarray(sd["seed_cm"][:n]) / np.maximum(np.asarray(sd["song_cm"][:n]), 1e-9)

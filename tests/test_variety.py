@@ -59,7 +59,17 @@ def test_with_variety_the_seeds_differ_after_every_phrase_boundary(variety):
         assert seed_gap(model, variety, frames=slice(boundary, boundary + 3)) > 1e-3, boundary
 
 
+def test_a_dance_latent_keeps_the_seeds_apart_to_the_end():
+    """The embedded default's setting: one latent offset per dance (no phrases needed)."""
+    model = forgetful_model()
+    variety = SeedVariety(dance_latent=1.0)
+    assert variety.active and not SeedVariety(latent_noise=1.0).active  # a phrase path needs phrases
+    assert seed_gap(model, variety) > 1e-2  # the last frames
+    assert seed_gap(model, variety, frames=slice(N // 2, None)) > 1e-2
+
+
 @pytest.mark.parametrize("variety", [SeedVariety(phrase=PHRASE, state_noise=0.7, latent_noise=0.3),
+                                     SeedVariety(dance_latent=0.8),
                                      SeedVariety(phrase=PHRASE, latent_noise=0.5)])
 def test_the_same_seed_gives_the_same_dance_whatever_the_chunking(variety):
     model = forgetful_model()

@@ -141,7 +141,7 @@ class SeedVariety:
       the song's frames) of z per dimension: the latents of a trained encoder move little over a song
       (median std 0.06 against values of ±0.4), and unscaled offsets freeze the dance.
     * ``dance_latent`` τ ≥ 0: one more offset ``τ·s·v`` (v ~ N(0, I), one per dance) added to every z_t:
-      a character that holds through the whole dance (needs ``phrase > 0`` like the others).
+      a character that holds through the whole dance (with any ``phrase``, 0 included).
 
     All draws come after the initial state's from the same generator(s), for the whole song at once, so a
     seed still fully determines the dance (independent of the encoder chunking). ``SeedVariety()`` (all
@@ -165,7 +165,7 @@ class SeedVariety:
 
     @property
     def active(self) -> bool:
-        return self.phrase > 0 and (self.state_noise > 0 or self.latent_noise > 0 or self.dance_latent > 0)
+        return self.phrase > 0 and (self.state_noise > 0 or self.latent_noise > 0) or self.dance_latent > 0
 
 
 def _randn(shape: tuple[int, ...], generators: list[torch.Generator | None], axis: int) -> torch.Tensor:
@@ -548,10 +548,10 @@ class RevolutionModel(nn.Module):
         if not variety.active:
             return out
         p = variety.phrase
-        if variety.state_noise > 0:
+        if variety.state_noise > 0 and p > 0:
             bounds = max((n - 1) // p, 0)  # boundaries at frames p, 2p, ... < n
             out["state"] = _randn((bounds, 2, c.decoder_layers, batch, c.decoder_hidden), gens, axis=3).to(device)
-        if variety.latent_noise > 0:
+        if variety.latent_noise > 0 and p > 0:
             knots = _randn((batch, n // p + 2, c.d_model), gens, axis=0).to(device)  # at frames 0, p, 2p, ...
             t = torch.arange(n, device=device)
             k, f = t // p, ((t % p).float() / p)[None, :, None]
@@ -713,7 +713,7 @@ class RevolutionModel(nn.Module):
                                             scale=z.std(dim=1, keepdim=True, correction=0))
                 if "latent" in noise:
                     z = z + noise["latent"]
-                for a0, b0 in _phrases(0, n, variety.phrase):
+                for a0, b0 in _phrases(0, n, variety.phrase) if variety.phrase else [(0, n)]:
                     state = _perturb_state(state, noise, a0, variety)
                     y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
                     outputs.append(y)
