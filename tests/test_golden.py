@@ -54,6 +54,7 @@ def _dances(song: Path, *, variety: bool = False, cases: dict | None = None) -> 
 
 VARIETY_GOLDEN = Path(__file__).parent / "golden" / "default_model_variety.npz"
 VARIETY_CASES = {"auto_seed0": ("auto", 0), "none_seed3": ("none", 3)}
+PHRASE = 75  # frames: the embedded setting's phrase_s 3.0 at 25 fps
 
 
 def test_default_model_dance_with_seed_variety_is_pinned(song):
@@ -67,8 +68,12 @@ def test_default_model_dance_with_seed_variety_is_pinned(song):
         assert positions.shape == ref[key].shape, key
         err = float(np.abs(positions - ref[key]).max())
         assert err <= TOL_CM, f"{key}: the dance moved by up to {err:.3g} cm"
-        # the variety is on in the embedded model: not the paper's decoding of the same seed
-        assert np.abs(positions - plain[key]).mean() > 1.0, key
+        # the variety is on in the embedded model: nearly the paper's decoding of the same seed until the first
+        # phrase boundary (the per-phrase state noise starts there; only the post-process's floor estimate,
+        # which sees the whole clip, moves the early frames a little), another dance after it
+        before = np.abs(positions[: PHRASE - 30] - plain[key][: PHRASE - 30]).mean()
+        after = np.abs(positions[PHRASE:] - plain[key][PHRASE:]).mean()
+        assert after > 1.0 and before < 0.1 * after, (key, before, after)
 
 
 def test_default_model_dance_is_pinned(song):

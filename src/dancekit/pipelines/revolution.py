@@ -145,7 +145,7 @@ class RevolutionPipeline:
         Parameters
         ----------
         audio_path : any audio file :func:`dancekit.audio.load` reads
-        seed : seeds the initial decoder state; the same seed gives the same dance
+        seed : seeds the initial decoder state and the seed variety's draws; the same seed gives the same dance
         start, end : excerpt in seconds (None: from the beginning / to the end)
         genre : one of :attr:`genres` (e.g. "waltz"); "auto" or None: the genre read from the music by the
             folder's music attribute classifier (:meth:`read_genre`) when it has one and genres to
