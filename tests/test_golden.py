@@ -8,6 +8,10 @@ only for an intended change of the model or the pipeline:
 The pin is the model's own output: the shared pipeline stages (beat sync, clean-up; on by default) are
 switched off here and tested in tests/test_stages.py.
 
+The default's seed variety (issue 15, the checkpoint's ``"sampling"`` entry) changes the dance after the
+opening: ``variety=False`` (the paper's decoding) must still give the dances pinned before it, and the
+default with it on is pinned in ``tests/golden/default_model_variety.npz``.
+
 Tolerance: 1e-3 cm per coordinate (float32 arithmetic with 1 or 2 threads differs by ~1e-5 cm; a change
 of any weight, feature, post-process or random draw moves joints by millimetres or more).
 """
@@ -36,15 +40,40 @@ def song(tmp_path_factory) -> Path:
     return path
 
 
-def _dances(song: Path) -> dict[str, np.ndarray]:
+def _dances(song: Path, *, variety: bool = False, cases: dict | None = None) -> dict[str, np.ndarray]:
     from dancekit.pipelines import load_pipeline
 
     pipe = load_pipeline()
     out = {}
-    for key, (genre, seed) in CASES.items():
-        motion = pipe(str(song), seed=seed, genre=genre, beat_sync=False, cleanup=False).motion  # the model's own
+    for key, (genre, seed) in (cases or CASES).items():
+        motion = pipe(str(song), seed=seed, genre=genre, beat_sync=False, cleanup=False,  # the model's own
+                      variety=variety).motion
         out[key] = np.asarray(motion.to_positions(), np.float32)
     return out
+
+
+VARIETY_GOLDEN = Path(__file__).parent / "golden" / "default_model_variety.npz"
+VARIETY_CASES = {"auto_seed0": ("auto", 0), "none_seed3": ("none", 3)}
+PHRASE = 75  # frames: the embedded setting's phrase_s 3.0 at 25 fps
+
+
+def test_default_model_dance_with_seed_variety_is_pinned(song):
+    """The embedded default as it dances by default (its seed variety on), the stages off."""
+    dances = _dances(song, variety=True, cases=VARIETY_CASES)
+    if os.environ.get("DANCEKIT_WRITE_GOLDEN") == "1":
+        np.savez_compressed(VARIETY_GOLDEN, **dances)
+    ref, plain = np.load(VARIETY_GOLDEN), np.load(GOLDEN)
+    assert sorted(ref.files) == sorted(dances)
+    for key, positions in dances.items():
+        assert positions.shape == ref[key].shape, key
+        err = float(np.abs(positions - ref[key]).max())
+        assert err <= TOL_CM, f"{key}: the dance moved by up to {err:.3g} cm"
+        # the variety is on in the embedded model: nearly the paper's decoding of the same seed until the first
+        # phrase boundary (the per-phrase state noise starts there; only the post-process's floor estimate,
+        # which sees the whole clip, moves the early frames a little), another dance after it
+        before = np.abs(positions[: PHRASE - 30] - plain[key][: PHRASE - 30]).mean()
+        after = np.abs(positions[PHRASE:] - plain[key][PHRASE:]).mean()
+        assert after > 1.0 and before < 0.1 * after, (key, before, after)
 
 
 def test_default_model_dance_is_pinned(song):

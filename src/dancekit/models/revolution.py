@@ -124,6 +124,60 @@ class RevolutionConfig:
         return cls(**{"encoder": "lstm", "baseline": True, **overrides})
 
 
+@dataclass(frozen=True)
+class SeedVariety:
+    """How the seed keeps changing the dance after its opening (inference only; issue 15).
+
+    Without it the seed only draws the decoder's initial LSTM state, and the dances of one song converge
+    to nearly the same motion after a few seconds. With it, every ``phrase`` frames (a musical phrase,
+    ~2–4 s) the seed's generator perturbs the decoding:
+
+    * ``state_noise`` a ∈ [0, 1]: at each phrase boundary the decoder state is mixed with fresh noise,
+      ``h ← √(1 − a²)·h + a·ε`` (and the same for the cell state; ε ~ N(0, 1), the distribution of the
+      initial state). a = 1 re-draws the state as at the start of the song.
+    * ``latent_noise`` σ ≥ 0: an offset ``σ·s·u(t)`` is added to the music latents z_t, where u(t) is
+      linearly interpolated between N(0, I) knots at the phrase boundaries (a smooth random path that
+      changes the dance's character from phrase to phrase without jumps) and ``s`` is the spread (std over
+      the song's frames) of z per dimension: the latents of a trained encoder move little over a song
+      (median std 0.06 against values of ±0.4), and unscaled offsets freeze the dance.
+    * ``dance_latent`` τ ≥ 0: one more offset ``τ·s·v`` (v ~ N(0, I), one per dance) added to every z_t:
+      a character that holds through the whole dance (with any ``phrase``, 0 included).
+
+    All draws come after the initial state's from the same generator(s), for the whole song at once, so a
+    seed still fully determines the dance (independent of the encoder chunking). ``SeedVariety()`` (all
+    zero) is the paper's decoding: no draw beyond the initial state.
+    """
+
+    phrase: int = 0  # frames between perturbations (0: off)
+    state_noise: float = 0.0
+    latent_noise: float = 0.0
+    dance_latent: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.phrase, int) or isinstance(self.phrase, bool) or self.phrase < 0:
+            raise ParameterError(f"SeedVariety.phrase must be a non-negative integer (frames), got {self.phrase!r}")
+        if not 0.0 <= self.state_noise <= 1.0:
+            raise ParameterError(f"SeedVariety.state_noise must be in [0, 1], got {self.state_noise!r}")
+        if not self.latent_noise >= 0.0:
+            raise ParameterError(f"SeedVariety.latent_noise must be >= 0, got {self.latent_noise!r}")
+        if not self.dance_latent >= 0.0:
+            raise ParameterError(f"SeedVariety.dance_latent must be >= 0, got {self.dance_latent!r}")
+
+    @property
+    def active(self) -> bool:
+        return self.phrase > 0 and (self.state_noise > 0 or self.latent_noise > 0) or self.dance_latent > 0
+
+
+def _randn(shape: tuple[int, ...], generators: list[torch.Generator | None], axis: int) -> torch.Tensor:
+    """N(0, 1) of ``shape`` whose slices along ``axis`` (the batch) come from one generator each (CPU)."""
+    if len(generators) == 1:
+        g = generators[0]
+        return torch.randn(shape, generator=g, device=g.device if g is not None else "cpu")
+    one = shape[:axis] + (1,) + shape[axis + 1 :]
+    return torch.cat([torch.randn(one, generator=g, device=g.device if g is not None else "cpu")
+                      for g in generators], dim=axis)
+
+
 # --------------------------------------------------------------------------------------------------
 # curriculum: which decoder inputs are ground truth
 
@@ -465,16 +519,49 @@ class RevolutionModel(nn.Module):
     # ---- decoder ---------------------------------------------------------------------------------
 
     def initial_state(
-        self, batch: int, *, generator: torch.Generator | None = None, device: torch.device | None = None
+        self, batch: int, *, generator: torch.Generator | list[torch.Generator] | None = None,
+        device: torch.device | None = None
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """(h_0, c_0), each (decoder_layers, B, decoder_hidden), drawn from N(0, 1) with ``generator``."""
+        """(h_0, c_0), each (decoder_layers, B, decoder_hidden), drawn from N(0, 1) with ``generator``
+        (or a list of B generators, one per batch row: row k then equals a batch of one drawn with
+        ``generator[k]``)."""
         c = self.config
-        shape = (c.decoder_layers, batch, c.decoder_hidden)
-        gen_device = generator.device if generator is not None else torch.device("cpu")
-        h0 = torch.randn(shape, generator=generator, device=gen_device)
-        c0 = torch.randn(shape, generator=generator, device=gen_device)
         device = device or self.bop.device
-        return h0.to(device), c0.to(device)
+        gens = _generators(generator, batch)
+        if len(gens) == 1:
+            shape = (c.decoder_layers, batch, c.decoder_hidden)
+            gen_device = gens[0].device if gens[0] is not None else torch.device("cpu")
+            h0 = torch.randn(shape, generator=gens[0], device=gen_device)
+            c0 = torch.randn(shape, generator=gens[0], device=gen_device)
+            return h0.to(device), c0.to(device)
+        rows = [self.initial_state(1, generator=g, device=device) for g in gens]
+        return torch.cat([h for h, _ in rows], dim=1), torch.cat([c_ for _, c_ in rows], dim=1)
+
+    def _variety_noise(self, n: int, batch: int, variety: SeedVariety, generator, device,
+                       scale: torch.Tensor | float = 1.0) -> dict[str, torch.Tensor]:
+        """All of a song's variety draws at once (after the initial state's): ``state`` (boundaries, 2, layers,
+        B, H) and ``latent`` (B, n, d), the latent offsets (σ·u(t) + τ·v) times ``scale`` (the song's spread
+        of z per dimension, (B, 1, d))."""
+        c = self.config
+        gens = _generators(generator, batch)
+        out: dict[str, torch.Tensor] = {}
+        if not variety.active:
+            return out
+        p = variety.phrase
+        if variety.state_noise > 0 and p > 0:
+            bounds = max((n - 1) // p, 0)  # boundaries at frames p, 2p, ... < n
+            out["state"] = _randn((bounds, 2, c.decoder_layers, batch, c.decoder_hidden), gens, axis=3).to(device)
+        if variety.latent_noise > 0 and p > 0:
+            knots = _randn((batch, n // p + 2, c.d_model), gens, axis=0).to(device)  # at frames 0, p, 2p, ...
+            t = torch.arange(n, device=device)
+            k, f = t // p, ((t % p).float() / p)[None, :, None]
+            out["latent"] = variety.latent_noise * ((1 - f) * knots[:, k] + f * knots[:, k + 1])  # (B, n, d)
+        if variety.dance_latent > 0:
+            v = variety.dance_latent * _randn((batch, 1, c.d_model), gens, axis=0).to(device)  # (B, 1, d)
+            out["latent"] = out["latent"] + v if "latent" in out else v.expand(batch, n, c.d_model)
+        if "latent" in out:
+            out["latent"] = out["latent"] * scale
+        return out
 
     def _decoder_input(self, prev: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
         """Previous poses (B, L, P) and latents (B, L, d) → LSTM input (B, L, P [+ d])."""
@@ -575,6 +662,7 @@ class RevolutionModel(nn.Module):
         chunk: int | None = None,
         progress: bool = False,
         genre: torch.Tensor | None = None,
+        variety: SeedVariety | None = None,
     ) -> torch.Tensor:
         """Dance for a whole song, autoregressively from the begin-of-pose (inference mode).
 
@@ -585,8 +673,11 @@ class RevolutionModel(nn.Module):
         Parameters
         ----------
         music : (B, n, music_dim) normalised features at the training fps
-        generator : seeds the initial decoder state; the same seed gives the same dance
+        generator : seeds the initial decoder state (and the variety draws); the same seed gives the same
+            dance. A list of B generators seeds each batch row on its own (row k as a batch of one)
         genre : (B,) genre indices for a genre-conditioned model; None or -1: auto (the music decides)
+        variety : per-phrase perturbations that keep the seeds' dances apart (:class:`SeedVariety`);
+            None: the paper's decoding (the seed draws the initial state only)
 
         Returns
         -------
@@ -602,6 +693,7 @@ class RevolutionModel(nn.Module):
             if context is None:
                 context = self.config.window
             state = self.initial_state(B, generator=generator, device=music.device)
+            variety = variety or SeedVariety()
             prev = self.bop.expand(B, 1, -1)
             outputs = []
             starts = range(0, n, chunk)
@@ -609,12 +701,26 @@ class RevolutionModel(nn.Module):
                 from tqdm import tqdm
 
                 starts = tqdm(starts, desc="generate", unit="chunk")
-            for start in starts:
+
+            def latents(start: int) -> torch.Tensor:  # (B, ≤chunk, d), encoded with context on both sides
                 a, b = max(0, start - context), min(n, start + chunk + context)
                 z = self.encoder(music[:, a:b])[:, start - a : start - a + min(chunk, n - start)]
-                z = self._condition(z, genre)
-                y, prev, state = self._autoregress(z, prev, state)
-                outputs.append(y)
+                return self._condition(z, genre)
+
+            if not variety.active:
+                for start in starts:
+                    y, prev, state = self._autoregress(latents(start), prev, state)
+                    outputs.append(y)
+            else:  # the whole song's latents first: their spread per dimension scales the latent offsets
+                z = torch.cat([latents(start) for start in starts], dim=1)  # (B, n, d)
+                noise = self._variety_noise(n, B, variety, generator, music.device,
+                                            scale=z.std(dim=1, keepdim=True, correction=0))
+                if "latent" in noise:
+                    z = z + noise["latent"]
+                for a0, b0 in _phrases(0, n, variety.phrase) if variety.phrase else [(0, n)]:
+                    state = _perturb_state(state, noise, a0, variety)
+                    y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
+                    outputs.append(y)
             return torch.cat(outputs, dim=1) if outputs else music.new_zeros(B, 0, self.config.pose_dim)
         finally:
             self.train(was_training)
@@ -628,3 +734,28 @@ class RevolutionModel(nn.Module):
     def num_parameters(self) -> int:
         """Number of trainable parameters."""
         return sum(p.numel() for p in self.parameters() if p.requires_grad)
+
+
+def _generators(generator, batch: int) -> list[torch.Generator | None]:
+    """One generator for the batch, or a list of ``batch`` generators (one per row)."""
+    if isinstance(generator, (list, tuple)):
+        if len(generator) != batch:
+            raise ParameterError(f"{len(generator)} generators for a batch of {batch}")
+        return list(generator)
+    return [generator]
+
+
+def _phrases(a: int, b: int, phrase: int) -> list[tuple[int, int]]:
+    """Frames ``[a, b)`` split at the multiples of ``phrase``."""
+    cuts = [a, *range((a // phrase + 1) * phrase, b, phrase), b]
+    return [(x, y) for x, y in zip(cuts[:-1], cuts[1:]) if y > x]
+
+
+def _perturb_state(state, noise: dict[str, torch.Tensor], frame: int, variety: SeedVariety):
+    """The decoder state mixed with the seed's noise when ``frame`` starts a phrase (not the song's first)."""
+    if "state" not in noise or frame == 0 or frame % variety.phrase:
+        return state
+    eps = noise["state"][frame // variety.phrase - 1]  # (2, layers, B, H)
+    a = variety.state_noise
+    keep = math.sqrt(1.0 - a * a)
+    return keep * state[0] + a * eps[0], keep * state[1] + a * eps[1]

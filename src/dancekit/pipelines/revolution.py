@@ -31,7 +31,7 @@ import torch
 from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.precision import check_precision, to_precision
-from dancekit.models.revolution import RevolutionModel
+from dancekit.models.revolution import RevolutionModel, SeedVariety
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, get_representation
 from dancekit.pipelines.base import DanceResult, calm_motion, clean_motion, song_feature_set, song_features
@@ -70,6 +70,10 @@ class RevolutionPipeline:
         except ParameterError as exc:
             raise CheckpointError(f"checkpoint {folder}: {exc}") from None
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        #: how the seed keeps changing the dance (:class:`~dancekit.models.revolution.SeedVariety`), from the
+        #: checkpoint's ``"sampling": {"phrase_s": s, "state_noise": a, "latent_noise": σ, "dance_latent": τ}``; none: the paper's
+        #: decoding (the seed draws the initial decoder state only). Genre models dance with their parent's.
+        self.variety = variety_from_meta(meta, self.fps, folder=str(folder))
         self.genre_models = dict(genre_models or {})  # genre → checkpoint folder, loaded on first use
         self._genre_pipelines: dict[str, RevolutionPipeline] = {}
         self.genre_reader = genre_reader  # reads the genre from the music for genre="auto" (or None)
@@ -149,13 +153,14 @@ class RevolutionPipeline:
         postprocess: bool = True,
         beat_sync: bool = True,
         cleanup: bool = True,
+        variety: bool = True,
     ) -> DanceResult:
         """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
 
         Parameters
         ----------
         audio_path : any audio file :func:`dancekit.audio.load` reads
-        seed : seeds the initial decoder state; the same seed gives the same dance
+        seed : seeds the initial decoder state and the seed variety's draws; the same seed gives the same dance
         start, end : excerpt in seconds (None: from the beginning / to the end)
         genre : one of :attr:`genres` (e.g. "waltz"); "auto" or None: the genre read from the music by the
             folder's music attribute classifier (:meth:`read_genre`) when it has one and genres to
@@ -166,6 +171,9 @@ class RevolutionPipeline:
             feet on the floor (the running floor of :func:`dancekit.motion.analysis.floor_curve` moved to 0)
         beat_sync, cleanup : the shared pipeline stages (:mod:`dancekit.pipelines.stages`): the dance
             time-warped onto the song's beats, and its root path and floor contact cleaned up
+        variety : True: the checkpoint's seed variety (:attr:`variety`: the seed perturbs the decoding at
+            every phrase, so another seed is another dance all the way through); False: the paper's
+            decoding (the seed draws the initial decoder state only; the dances of one song converge)
 
         Input that does not look like music (beat strength below
         :data:`dancekit.features.MUSIC_BEAT_STRENGTH`: silence, noise, speech, birdsong) is danced calmly
@@ -199,13 +207,14 @@ class RevolutionPipeline:
             genre = max(probs, key=probs.get) if probs else None
         genre_index = self._genre_index(genre)
         genre = None if genre_index is None else genre
+        vary = self.variety if variety else SeedVariety()
         if genre is not None and self.genre_models:
             motion = self.genre_pipeline(genre).generate(audio_path, seed=seed, start=start, end=end,
-                                                         progress=progress, postprocess=postprocess)
+                                                         progress=progress, postprocess=postprocess, variety=vary)
             danced_by = str(self.genre_models[genre])
         else:
             motion = self.generate(audio_path, seed=seed, start=start, end=end, progress=progress,
-                                   postprocess=postprocess, genre_index=genre_index)
+                                   postprocess=postprocess, genre_index=genre_index, variety=vary)
             danced_by = self.folder
         if not music and self.representation == "positions3d":
             motion = calm_motion(motion)
@@ -218,14 +227,16 @@ class RevolutionPipeline:
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
                  end: float | None = None, progress: bool = False, postprocess: bool = True,
-                 genre_index: int | None = None) -> Motion:
+                 genre_index: int | None = None, variety: SeedVariety | None = None) -> Motion:
         """This model's own dance for the song (no genre models, no genre reading): the :class:`Motion`
-        of :meth:`__call__` with ``genre_index`` the genre input of a genre-conditioned model (or None)."""
+        of :meth:`__call__` with ``genre_index`` the genre input of a genre-conditioned model (or None)
+        and ``variety`` the seed variety (None: this checkpoint's :attr:`variety`)."""
         x = self.features(audio_path, start=start, end=end)  # (T, D)
         device = self.model.bop.device
         generator = torch.Generator(device="cpu").manual_seed(int(seed))
         y = self.model.generate(torch.from_numpy(x)[None].to(device), generator=generator, progress=progress,
-                                genre=None if genre_index is None else torch.tensor([genre_index]))
+                                genre=None if genre_index is None else torch.tensor([genre_index]),
+                                variety=self.variety if variety is None else variety)
         poses = self.stats.denormalize_dance(y[0].cpu().numpy())  # (T, P)
         motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
         return clean_motion(motion) if postprocess and self.representation == "positions3d" else motion
@@ -278,3 +289,18 @@ class RevolutionPipeline:
         if genre not in self.genres:
             raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}")
         return self.genres.index(genre)
+
+
+def variety_from_meta(meta: dict[str, Any], fps: float, *, folder: str = "?") -> SeedVariety:
+    """The checkpoint's seed variety: ``meta["sampling"]`` with ``phrase_s`` (seconds, converted to frames at
+    ``fps``), ``state_noise``, ``latent_noise`` and ``dance_latent``; no such entry: the paper's decoding (``SeedVariety()``)."""
+    spec = meta.get("sampling") or {}
+    if not isinstance(spec, dict):
+        raise CheckpointError(f"checkpoint {folder}: config.json 'sampling' must be an object, got {spec!r}")
+    try:
+        return SeedVariety(phrase=int(round(float(spec.get("phrase_s", 0.0)) * fps)),
+                           state_noise=float(spec.get("state_noise", 0.0)),
+                           latent_noise=float(spec.get("latent_noise", 0.0)),
+                           dance_latent=float(spec.get("dance_latent", 0.0)))
+    except (TypeError, ValueError, ParameterError) as exc:
+        raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None
