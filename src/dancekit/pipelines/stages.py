@@ -26,7 +26,11 @@ import numpy as np
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["beat_sync", "clean_up", "finish", "song_beats_for"]
+__all__ = ["SMOOTH_TARGET", "beat_sync", "clean_up", "finish", "foot_lock", "smooth", "song_beats_for"]
+
+#: The jitter-to-energy ratio the smoothing stage brings a jittery dance down to (chosen on the validation
+#: songs, ``benchmarks/tune_feet.py``).
+SMOOTH_TARGET = 0.05
 
 
 def _is_3d(motion: Motion) -> bool:
@@ -104,12 +108,75 @@ def clean_up(result: DanceResult) -> DanceResult:
     return dataclasses.replace(result, motion=cleaned)
 
 
+def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
+    """The result with frame-to-frame noise filtered out (:func:`dancekit.motion.footlock.smooth_positions`:
+    a Savitzky-Golay filter whose window is the shortest that brings the dance's jitter-to-energy ratio to
+    ``target``, default :data:`SMOOTH_TARGET`; a dance already that smooth is returned as it is). A motion
+    with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them,
+    so bone lengths stay exact."""
+    from dancekit.motion.footlock import _savgol, smoothing_window
+
+    motion = result.motion
+    if not _is_3d(motion):
+        return result
+    sk, fps = motion.skeleton, motion.fps
+    p = np.asarray(motion.to_positions(), np.float64)
+    window = smoothing_window(p, skeleton=sk, fps=fps, target=SMOOTH_TARGET if target is None else target)
+    if window <= 1:
+        return result
+    if motion.rotations is None:
+        smoothed = Motion(skeleton=sk, fps=fps, positions=_savgol(p, window, 3).astype(np.float32))
+    else:
+        import torch
+
+        from dancekit.motion.kinematics import rig_forward_kinematics
+
+        rot = _savgol(np.asarray(motion.rotations, np.float64).reshape(len(p), -1, 9), window, 3)
+        u, _, vt = np.linalg.svd(rot.reshape(len(p), -1, 3, 3))
+        d = np.sign(np.linalg.det(u @ vt))
+        u[..., :, -1] *= d[..., None]
+        rot = u @ vt
+        tr = _savgol(np.asarray(motion.root_translation, np.float64), window, 3)
+        pos = rig_forward_kinematics(torch.from_numpy(rot), torch.from_numpy(tr), sk).numpy()
+        smoothed = Motion(skeleton=sk, fps=fps, positions=pos.astype(np.float32),
+                          rotations=rot.astype(motion.rotations.dtype), root_translation=tr.astype(np.float32))
+    return _with_note(dataclasses.replace(result, motion=smoothed), f"smoothed ({window}-frame filter)")
+
+
+def foot_lock(result: DanceResult) -> DanceResult:
+    """The result with its planted feet pinned (:func:`dancekit.motion.footlock.lock_feet`: contacts from
+    foot height and speed, the foot held where it was planted, the leg solved by two-bone IK, blended in
+    and out). Only the legs change; a motion with rotations has its leg rotations updated
+    (:func:`~dancekit.motion.footlock.leg_rotations`). Skeletons without legs are returned unchanged."""
+    from dancekit.motion.footlock import leg_chains, leg_rotations, lock_feet
+
+    motion = result.motion
+    if not _is_3d(motion) or not leg_chains(motion.skeleton):
+        return result
+    sk, fps = motion.skeleton, motion.fps
+    p = np.asarray(motion.to_positions(), np.float64)
+    locked = lock_feet(p, skeleton=sk, fps=fps)
+    rot = tr = None
+    if motion.rotations is not None:
+        rot = leg_rotations(motion.rotations, p, locked, skeleton=sk).astype(motion.rotations.dtype)
+        tr = motion.root_translation
+    out = Motion(skeleton=sk, fps=fps, positions=locked.astype(np.float32), rotations=rot, root_translation=tr)
+    return dataclasses.replace(result, motion=out)
+
+
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
-           end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True) -> DanceResult:
-    """Both stages as switched: the clean-up first (it moves frames rigidly), then the beat sync (so the
-    speed minima it aligns are those of the final dance)."""
+           end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
+           foot_lock_on: bool | None = None, smooth_on: bool | None = None) -> DanceResult:
+    """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
+    a jittery dance is filtered), the foot lock (after the smoothing, so a pinned foot stays pinned), then
+    the beat sync (so the speed minima it aligns are those of the final dance). ``foot_lock_on`` and
+    ``smooth_on`` follow ``cleanup_on`` unless given."""
     if cleanup_on:
         result = clean_up(result)
+    if cleanup_on if smooth_on is None else smooth_on:
+        result = smooth(result)
+    if cleanup_on if foot_lock_on is None else foot_lock_on:
+        result = foot_lock(result)
     if beat_sync_on:
         result = beat_sync(result, audio_path, start=start, end=end)
     return result
