@@ -131,13 +131,14 @@ def main() -> None:
 
     if args.grid:
         settings = [{"name": "clean-up only", "variant": "before"}]
-        for target in (0.03, 0.05, 0.07):
-            settings.append({"name": f"smooth target {target}, no lock", "variant": "grid",
-                             "target": target, "lock": False})
-        for h_on, s_on, drift in ((0.05, 0.5, 0.1), (0.05, 0.5, 0.2), (0.05, 0.8, 0.2)):
-            settings.append({"name": f"lock h_on {h_on} s_on {s_on} drift {drift}", "variant": "grid",
-                             "height_on": h_on, "height_off": h_on + 0.03, "speed_on": s_on, "speed_off": s_on + 0.4,
-                             "max_drift_m": drift})
+        for target in (0.065, 0.09, 0.12):
+            settings.append({"name": f"smooth target {target}, no lock", "variant": "grid", "target": target,
+                             "lock": False})
+        for target in (0.065, 0.09):
+            for h_on, s_on, drift in ((0.05, 0.5, 0.2),):
+                settings.append({"name": f"smooth {target} + lock {h_on}/{s_on}/{drift}", "variant": "grid",
+                                 "target": target, "height_on": h_on, "height_off": h_on + 0.03, "speed_on": s_on,
+                                 "speed_off": s_on + 0.4, "max_drift_m": drift})
     else:
         settings = [{"name": "before", "variant": "before"}, {"name": "after", "variant": "after"}]
 

@@ -48,6 +48,8 @@ BLEND_S = 0.2
 #: from where it is held, or the leg could not reach it: generated dances glide with a foot near the floor
 #: for seconds, and holding it there would stretch the leg.
 MAX_DRIFT_M = 0.2
+#: The most the whole body is lowered (m) so that a held foot stays within ``reach_share`` of the leg's reach.
+MAX_DROP_M = 0.12
 
 
 def _check(positions: np.ndarray, name: str) -> np.ndarray:
@@ -149,14 +151,16 @@ def foot_contacts(
     return np.stack(cols, axis=1)
 
 
-def two_bone_ik(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def two_bone_ik(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray, *,
+                pole: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Analytic two-bone IK for every frame: ``(knee, ankle)`` new positions, each ``(T, 3)``.
 
     The hip stays; the thigh keeps its length ``|knee - hip|`` and the shin ``|ankle - knee|`` (each frame's
     own lengths); the ankle goes to ``target`` when it is reachable (``| l1 - l2 | <= |target - hip| <=
     l1 + l2``), else as close as the leg reaches along the hip → target direction (straight or folded). The
     knee bends in the plane through the hip, the target and the original knee, on the original knee's
-    side (the pole), so a leg that was bent forward stays bent forward.
+    side (the pole), so a leg that was bent forward stays bent forward; ``pole`` ``(T, 3)``: another
+    direction from the hip to bend toward (its part perpendicular to the hip → target axis counts).
     """
     hip, knee, ankle, target = (np.asarray(x, np.float64) for x in (hip, knee, ankle, target))
     l1 = np.linalg.norm(knee - hip, axis=-1)
@@ -167,7 +171,7 @@ def two_bone_ik(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np
     d_c = np.clip(d, lo + 1e-9 * hi, hi * (1 - 1e-12))
     u = to / np.maximum(d, 1e-12)[:, None]
     # the pole: the original knee's offset from the hip, perpendicular to the new leg axis
-    kv = knee - hip
+    kv = knee - hip if pole is None else np.asarray(pole, np.float64)
     v = kv - (kv * u).sum(-1, keepdims=True) * u
     vn = np.linalg.norm(v, axis=-1)
     # a knee exactly on the axis (straight leg): bend toward the original ankle's side, else any normal
@@ -257,10 +261,12 @@ def _segments(p: np.ndarray, contact: np.ndarray, hip: int, foot: list[int], ske
 @dataclass
 class FootLockReport:
     """What :func:`lock_feet` did: ``contacts`` ``(T, L)`` planted frames per leg, ``reach_error`` ``(T, L)``
-    the ankle's distance from its target where the leg could not reach it (skeleton units, 0 elsewhere)."""
+    the ankle's distance from its target where the leg could not reach it, ``drop`` ``(T,)`` how far the
+    whole body was lowered (skeleton units)."""
 
     contacts: np.ndarray
     reach_error: np.ndarray
+    drop: np.ndarray
 
 
 def lock_feet(
@@ -272,6 +278,8 @@ def lock_feet(
     blend_s: float = BLEND_S,
     max_drift_m: float = MAX_DRIFT_M,
     floor_on: bool = True,
+    max_drop_m: float = MAX_DROP_M,
+    reach_share: float = 0.97,
     return_report: bool = False,
     **contact_options,
 ) -> np.ndarray | tuple[np.ndarray, FootLockReport]:
@@ -282,7 +290,11 @@ def lock_feet(
     toe) are held at their positions of the contact's first frame while the original ankle stays within
     ``max_drift_m`` of it and the leg can reach it; beyond that the foot is re-planted after a few free
     frames (:func:`_segments`: a dance that glides gets steps, not a stretched leg). With ``floor_on`` a held
-    foot is also put down: its lowest joint on the local floor (the lowest joint within ±1 s). The leg is then solved
+    foot is also put down: its lowest joint on the local floor (the lowest joint within ±1 s). Where a held
+    foot would be farther from its hip than ``reach_share`` of thigh + shin, the whole body is lowered
+    (rigidly, by at most ``max_drop_m``, smoothly over the blend: the pelvis sinks and the knees bend, as a
+    dancer's do) instead of stretching the leg straight. The knee bends toward its original side, nudged
+    toward the toes (so a nearly straight leg does not flip its knee). The leg is then solved
     by :func:`two_bone_ik` (hip fixed, thigh and shin lengths kept, the knee on its original side), and the
     foot bones hang from the new ankle with their own lengths. Between contacts the correction is carried
     smoothly (:func:`_offsets`: a smoothstep across a short swing, a ``blend_s`` fade elsewhere), so the
@@ -301,27 +313,60 @@ def lock_feet(
     gap = max(2, blend)
     floor = _local_floor(p, skeleton, fps, 2.0) / skeleton.unit_scale  # (T,) skeleton units
     min_len = max(1, int(round(MIN_CONTACT_S * fps)))
-    out = p.copy()
     err = np.zeros((len(p), len(legs)))
     parents = list(skeleton.parents)
-    for leg, (hip, knee, ankle, below) in enumerate(legs):
+    up = np.zeros(3)
+    up[skeleton.up_index] = up_sign(skeleton)
+    targets, helds = [], []
+    drop = np.zeros(len(p))  # how far the body is lowered (skeleton units) so the held feet are in reach
+    for hip, knee, ankle, below in legs:
         foot = [ankle, *below]
-        orig = p[:, foot]  # (T, F, 3)
-        target = orig.copy()
+        target = p[:, foot].copy()
         held = np.zeros(len(p), dtype=bool)
-        for s, e in _segments(p, contacts[:, leg], hip, foot, skeleton, max_drift_m, gap, min_len):
+        for s, e in _segments(p, contacts[:, len(targets)], hip, foot,
+                              skeleton, max_drift_m, gap, min_len):
             pinned = p[s, foot].copy()  # the foot where it was planted (the hold's first frame) ...
             if floor_on:  # ... put down on the local floor
                 pinned[:, skeleton.up_index] -= up_sign(skeleton) * (heights(pinned, skeleton).min() - floor[s])
             target[s : e + 1] = pinned
             held[s : e + 1] = True
-        off = _offsets(target, orig, held, blend)
+        targets.append(target)
+        helds.append(held)
+        if max_drop_m > 0 and held.any():
+            reach = reach_share * (np.linalg.norm(p[:, knee] - p[:, hip], axis=-1)
+                                   + np.linalg.norm(p[:, ankle] - p[:, knee], axis=-1))
+            r = target[:, 0] - p[:, hip]
+            dv = r @ up  # < 0: the ankle below the hip
+            dh2 = np.maximum((r * r).sum(-1) - dv**2, 0.0)
+            need = -dv - np.sqrt(np.maximum(reach**2 - dh2, 0.0))
+            drop = np.maximum(drop, np.where(held, np.clip(need, 0.0, max_drop_m / skeleton.unit_scale), 0.0))
+    if drop.any():  # lowered smoothly: at least as far as needed around every frame, no sudden sink
+        from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+
+        drop = gaussian_filter1d(maximum_filter1d(drop, size=2 * blend + 1, mode="nearest"), sigma=blend / 2,
+                                 mode="nearest")
+        p = p - drop[:, None, None] * up
+    out = p.copy()
+    for leg, (hip, knee, ankle, below) in enumerate(legs):
+        foot = [ankle, *below]
+        orig = p[:, foot]  # (T, F, 3), the body lowered
+        off = _offsets(targets[leg], orig, helds[leg], blend)
         want = orig + off  # (T, F, 3) where the foot joints should be
+        if drop.any():  # a lowered body must not push a free foot through the floor
+            sink = np.maximum(floor - heights(want, skeleton).min(axis=1), 0.0) * (drop > 0)
+            want += sink[:, None, None] * up
+            off = want - orig
         changed = np.abs(off).max(axis=(1, 2)) > 0
         if not changed.any():
             continue
         t = np.flatnonzero(changed)
-        new_knee, new_ankle = two_bone_ik(p[t, hip], p[t, knee], p[t, ankle], want[t, 0])
+        # the knee bends toward its own side, nudged toward the toes (a nearly straight leg's side is noise)
+        toe = want[t, -1] - want[t, 0]
+        toe = toe - (toe @ up)[:, None] * up
+        toe /= np.maximum(np.linalg.norm(toe, axis=-1, keepdims=True), 1e-12)
+        thigh = np.linalg.norm(p[t, knee] - p[t, hip], axis=-1, keepdims=True)
+        pole = (p[t, knee] - p[t, hip]) + 0.25 * thigh * toe
+        new_knee, new_ankle = two_bone_ik(p[t, hip], p[t, knee], p[t, ankle], want[t, 0], pole=pole)
         out[t, knee] = new_knee
         out[t, ankle] = new_ankle
         err[t, leg] = np.linalg.norm(new_ankle - want[t, 0], axis=-1)
@@ -334,7 +379,7 @@ def lock_feet(
             d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
             out[t, j] = out[t, q] + length * d
     if return_report:
-        return out, FootLockReport(contacts=contacts, reach_error=err)
+        return out, FootLockReport(contacts=contacts, reach_error=err, drop=drop)
     return out
 
 
@@ -399,7 +444,7 @@ def leg_rotations(rotations: np.ndarray, old_positions: np.ndarray, new_position
 
 
 def smoothing_window(positions: np.ndarray, *, skeleton: Skeleton, fps: float, target: float,
-                     windows: tuple[int, ...] = (5, 7, 9, 11, 13), order: int = 3) -> int:
+                     windows: tuple[int, ...] = (5, 7, 9, 11, 13, 15, 17, 21), order: int = 3) -> int:
     """The shortest Savitzky-Golay window (frames, odd) of ``windows`` whose output has a jitter ratio
     (speed removed by a 5-frame average over the smoothed speed, :func:`dancekit.metrics`' jitter over
     energy) at most ``target``; 1 (no filter) when the dance already is; the longest when none is."""

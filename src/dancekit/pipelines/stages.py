@@ -159,7 +159,7 @@ def foot_lock(result: DanceResult) -> DanceResult:
     rot = tr = None
     if motion.rotations is not None:
         rot = leg_rotations(motion.rotations, p, locked, skeleton=sk).astype(motion.rotations.dtype)
-        tr = motion.root_translation
+        tr = locked[:, sk.root].astype(np.float32)  # the body may have been lowered
     out = Motion(skeleton=sk, fps=fps, positions=locked.astype(np.float32), rotations=rot, root_translation=tr)
     return dataclasses.replace(result, motion=out)
 
