@@ -48,6 +48,12 @@ def glide_share(p: np.ndarray, sk, fps: float) -> float:
     return float(np.clip(along[skate], -1, 2).mean()) if skate.any() else float("nan")
 
 
+def _decode(fix, y: torch.Tensor, sk, fps: float, origin) -> np.ndarray:
+    """(T, J, 3) positions of normalised rootdelta vectors (1, T, P)."""
+    x = fix.stats.denormalize_dance(y[0].numpy()).astype(np.float64)
+    return decode_rootdelta(x, sk, fps, origin=origin).to_positions()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
@@ -70,11 +76,10 @@ def main() -> None:
         R0 = m.rotations
         heading0 = float(np.arctan2(R0[0, sk.root, 0, 2], R0[0, sk.root, 2, 2]))
         tr0 = np.asarray(m.root_translation, np.float64)[0]
-        dec = lambda y: decode_rootdelta(fix.stats.denormalize_dance(y[0].numpy()).astype(np.float64), sk, m.fps,
-                                         origin=(tr0[0], tr0[2], heading0)).to_positions()
-        clean, corrupt = dec(z), dec(bad)
+        origin = (tr0[0], tr0[2], heading0)
+        clean, corrupt = (_decode(fix, y, sk, m.fps, origin) for y in (z, bad))
         with torch.no_grad():
-            fixed = dec(fix.model(bad.float()).double())
+            fixed = _decode(fix, fix.model(bad.float()).double(), sk, m.fps, origin)
         rows.append([foot_skating(q, fps=m.fps, skeleton=sk)["ratio"] for q in (clean, corrupt, fixed)])
     r = np.mean(rows, axis=0)
     print(f"real val dances, foot skating: clean {r[0]:.3f}, with the simulated sliding {r[1]:.3f}, "

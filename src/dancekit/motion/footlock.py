@@ -43,7 +43,7 @@ CONTACT_HEIGHT_OFF_M = 0.08
 CONTACT_SPEED_ON = 0.5
 CONTACT_SPEED_OFF = 0.9
 MIN_CONTACT_S = 0.12
-BLEND_S = 0.2
+BLEND_S = 0.32
 #: A held foot is re-planted (a new hold begins after a short gap) once the original foot has moved this far
 #: from where it is held, or the leg could not reach it: generated dances glide with a foot near the floor
 #: for seconds, and holding it there would stretch the leg.

@@ -26,11 +26,16 @@ import numpy as np
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["SMOOTH_TARGET", "beat_sync", "clean_up", "finish", "foot_lock", "smooth", "song_beats_for"]
+__all__ = ["NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock", "smooth", "song_beats_for"]
 
-#: The jitter-to-energy ratio the smoothing stage brings a jittery dance down to (chosen on the validation
-#: songs, ``benchmarks/tune_feet.py``).
-SMOOTH_TARGET = 0.05
+#: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
+#: jittery dance down to: about the 80th percentile of the real training dances' (0.055-0.28, median 0.065);
+#: a dance beyond :data:`NOISY_RATIO` (more than nearly every real dance: frame-to-frame noise, the dual
+#: model's 0.31-0.33) is brought to :data:`SMOOTH_TARGET_NOISY`, the real median. Chosen on the validation
+#: songs (``benchmarks/bench_feet.py --grid``, docs/STAGES.md).
+SMOOTH_TARGET = 0.09
+SMOOTH_TARGET_NOISY = 0.065
+NOISY_RATIO = 0.2
 
 
 def _is_3d(motion: Motion) -> bool:
@@ -111,17 +116,20 @@ def clean_up(result: DanceResult) -> DanceResult:
 def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
     """The result with frame-to-frame noise filtered out (:func:`dancekit.motion.footlock.smooth_positions`:
     a Savitzky-Golay filter whose window is the shortest that brings the dance's jitter-to-energy ratio to
-    ``target``, default :data:`SMOOTH_TARGET`; a dance already that smooth is returned as it is). A motion
+    ``target``, default :data:`SMOOTH_TARGET`, or :data:`SMOOTH_TARGET_NOISY` for a dance beyond
+    :data:`NOISY_RATIO`; a dance already that smooth is returned as it is). A motion
     with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them,
     so bone lengths stay exact."""
-    from dancekit.motion.footlock import _savgol, smoothing_window
+    from dancekit.motion.footlock import _jitter_ratio, _savgol, smoothing_window
 
     motion = result.motion
     if not _is_3d(motion):
         return result
     sk, fps = motion.skeleton, motion.fps
     p = np.asarray(motion.to_positions(), np.float64)
-    window = smoothing_window(p, skeleton=sk, fps=fps, target=SMOOTH_TARGET if target is None else target)
+    if target is None:
+        target = SMOOTH_TARGET_NOISY if _jitter_ratio(p, sk, fps) > NOISY_RATIO else SMOOTH_TARGET
+    window = smoothing_window(p, skeleton=sk, fps=fps, target=target)
     if window <= 1:
         return result
     if motion.rotations is None:
