@@ -12,8 +12,13 @@ model's own output):
 * **clean-up** (:func:`clean_up`): the figure's root path is kept within a dance floor (turned back
   toward its start beyond 4 m, never farther than 12 m) and its lowest joint put on the floor
   (:mod:`dancekit.motion.cleanup`).
+* **smoothing** (:func:`smooth`): a jittery dance gets a Savitzky-Golay filter whose window is chosen per
+  dance (:mod:`dancekit.motion.footlock`); a smooth one is left alone.
+* **foot lock** (:func:`foot_lock`): planted feet held where they were planted, the legs solved by two-bone
+  IK, the body lowered where a held foot is out of reach, blended in and out (:mod:`dancekit.motion.footlock`).
 
-:func:`finish` runs both (clean-up first, then the warp) and records what happened in ``result.notes`` (the summary line).
+:func:`finish` runs them (clean-up, smoothing, foot lock, then the warp) and records what happened in
+``result.notes`` (the summary line).
 """
 
 from __future__ import annotations
