@@ -123,8 +123,9 @@ def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
     a Savitzky-Golay filter whose window is the shortest that brings the dance's jitter-to-energy ratio to
     ``target``, default :data:`SMOOTH_TARGET`, or :data:`SMOOTH_TARGET_NOISY` for a dance beyond
     :data:`NOISY_RATIO`; a dance already that smooth is returned as it is). A motion
-    with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them,
-    so bone lengths stay exact."""
+    with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them;
+    a positions-only motion takes its bone directions from the filtered dance and keeps each frame's bone
+    lengths; so bone lengths stay exact either way."""
     from dancekit.motion.footlock import _jitter_ratio, _savgol, smoothing_window
 
     motion = result.motion
@@ -138,7 +139,15 @@ def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
     if window <= 1:
         return result
     if motion.rotations is None:
-        smoothed = Motion(skeleton=sk, fps=fps, positions=_savgol(p, window, 3).astype(np.float32))
+        q = _savgol(p, window, 3)
+        out = q.copy()  # bone directions from the filtered dance, each frame's own bone lengths kept
+        for j in sk.topological_order:
+            parent = sk.parents[j]
+            if parent >= 0:
+                d = q[:, j] - q[:, parent]
+                length = np.linalg.norm(p[:, j] - p[:, parent], axis=-1, keepdims=True)
+                out[:, j] = out[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+        smoothed = Motion(skeleton=sk, fps=fps, positions=out.astype(np.float32))
     else:
         import torch
 
