@@ -142,6 +142,22 @@ def test_stage_switches_reach_the_pipeline(tmp_path, capsys, checkpoint, song):
     assert bad.value.code == 2
 
 
+def test_foot_lock_and_smooth_switches(tmp_path, checkpoint, song):
+    from dancekit.pipelines import stages
+    from dancekit.pipelines.revolution import RevolutionPipeline
+
+    pipe = RevolutionPipeline.from_pretrained(checkpoint)
+    raw = pipe(song, seed=0, beat_sync=False, cleanup=False)
+    cases = ((("--foot-lock", "off", "--smooth", "off"), stages.clean_up(raw)),
+             (("--foot-lock", "on"), pipe(song, seed=0, beat_sync=False)),
+             (("--smooth", "off"), stages.foot_lock(stages.clean_up(raw))))
+    for flags, want in cases:
+        out = tmp_path / "_".join(flags)
+        assert main(["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint), "--quiet",
+                     "--format", "npz", "--beat-sync", "off", *flags]) == 0
+        np.testing.assert_allclose(read_motion(out / "ode.npz").positions, want.motion.positions, atol=1e-4)
+
+
 def test_fps_and_the_animator_formats(tmp_path, checkpoint, song):
     out = tmp_path / "fps"
     code = main(["dance", str(song), "-o", str(out), "--checkpoint", str(checkpoint), "--quiet",

@@ -52,6 +52,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cleanup", choices=("on", "off"), default="on",
                    help="physical clean-up: lowest joint on the floor, the figure kept within a dance floor "
                         "(turned back beyond 4 m from its start; default on)")
+    p.add_argument("--foot-lock", choices=("on", "off"), default=None,
+                   help="hold planted feet where they were planted (two-bone IK on the legs, blended in and out; "
+                        "default: as --cleanup)")
+    p.add_argument("--smooth", choices=("on", "off"), default=None,
+                   help="filter frame-to-frame jitter out of a jittery dance (a Savitzky-Golay filter whose window "
+                        "is chosen per dance; a smooth dance is left alone; default: as --cleanup)")
     p.add_argument("--format", default=",".join(DEFAULT_FORMATS),
                    help=f"comma-separated outputs from {', '.join(FORMATS)}")
     p.add_argument("--bvh-rig", choices=("exact", "humanoid"), default="exact",
@@ -96,15 +102,19 @@ def run(args: argparse.Namespace) -> int:
 
         fix = load_foot_constraint(args.foot_constraint)  # before the dance: a bad name fails fast
     stages_on = {"beat_sync": args.beat_sync == "on", "cleanup": args.cleanup == "on"}
+    extra = {k: None if v is None else v == "on" for k, v in (("foot_lock_on", args.foot_lock),
+                                                              ("smooth_on", args.smooth))}
+    own = fix is None and all(v is None for v in extra.values())  # the pipeline runs the stages itself
     result = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=args.genre,
-                  progress=not args.quiet, **(stages_on if fix is None else {"beat_sync": False, "cleanup": False}))
-    if fix is not None:  # the foot model sees the model's own dance; the stages come after it
+                  progress=not args.quiet, **(stages_on if own else {"beat_sync": False, "cleanup": False}))
+    if not own:  # the foot model sees the model's own dance; the stages come after it
         import dataclasses
 
         from dancekit.pipelines.stages import finish
 
-        result = finish(dataclasses.replace(result, motion=fix(result.motion)), str(audio), start=args.start,
-                        end=args.end, beat_sync_on=stages_on["beat_sync"], cleanup_on=stages_on["cleanup"])
+        motion = result.motion if fix is None else fix(result.motion)
+        result = finish(dataclasses.replace(result, motion=motion), str(audio), start=args.start,
+                        end=args.end, beat_sync_on=stages_on["beat_sync"], cleanup_on=stages_on["cleanup"], **extra)
     motion = result.motion
     if args.fps is not None and args.fps != motion.fps:
         motion = motion.resample(args.fps)

@@ -12,8 +12,13 @@ model's own output):
 * **clean-up** (:func:`clean_up`): the figure's root path is kept within a dance floor (turned back
   toward its start beyond 4 m, never farther than 12 m) and its lowest joint put on the floor
   (:mod:`dancekit.motion.cleanup`).
+* **smoothing** (:func:`smooth`): a jittery dance gets a Savitzky-Golay filter whose window is chosen per
+  dance (:mod:`dancekit.motion.footlock`); a smooth one is left alone.
+* **foot lock** (:func:`foot_lock`): planted feet held where they were planted, the legs solved by two-bone
+  IK, the body lowered where a held foot is out of reach, blended in and out (:mod:`dancekit.motion.footlock`).
 
-:func:`finish` runs both (clean-up first, then the warp) and records what happened in ``result.notes`` (the summary line).
+:func:`finish` runs them (clean-up, smoothing, foot lock, then the warp) and records what happened in
+``result.notes`` (the summary line).
 """
 
 from __future__ import annotations
@@ -26,7 +31,16 @@ import numpy as np
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["beat_sync", "clean_up", "finish", "song_beats_for"]
+__all__ = ["NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock", "smooth", "song_beats_for"]
+
+#: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
+#: jittery dance down to: about the 80th percentile of the real training dances' (0.055-0.28, median 0.065);
+#: a dance beyond :data:`NOISY_RATIO` (more than nearly every real dance: frame-to-frame noise, the dual
+#: model's 0.31-0.33) is brought to :data:`SMOOTH_TARGET_NOISY`, the real median. Chosen on the validation
+#: songs (``benchmarks/bench_feet.py --grid``, docs/STAGES.md).
+SMOOTH_TARGET = 0.09
+SMOOTH_TARGET_NOISY = 0.065
+NOISY_RATIO = 0.2
 
 
 def _is_3d(motion: Motion) -> bool:
@@ -104,12 +118,87 @@ def clean_up(result: DanceResult) -> DanceResult:
     return dataclasses.replace(result, motion=cleaned)
 
 
+def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
+    """The result with frame-to-frame noise filtered out (:func:`dancekit.motion.footlock.smooth_positions`:
+    a Savitzky-Golay filter whose window is the shortest that brings the dance's jitter-to-energy ratio to
+    ``target``, default :data:`SMOOTH_TARGET`, or :data:`SMOOTH_TARGET_NOISY` for a dance beyond
+    :data:`NOISY_RATIO`; a dance already that smooth is returned as it is). A motion
+    with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them;
+    a positions-only motion takes its bone directions from the filtered dance and keeps each frame's bone
+    lengths; so bone lengths stay exact either way."""
+    from dancekit.motion.footlock import _jitter_ratio, _savgol, smoothing_window
+
+    motion = result.motion
+    if not _is_3d(motion):
+        return result
+    sk, fps = motion.skeleton, motion.fps
+    p = np.asarray(motion.to_positions(), np.float64)
+    if target is None:
+        target = SMOOTH_TARGET_NOISY if _jitter_ratio(p, sk, fps) > NOISY_RATIO else SMOOTH_TARGET
+    window = smoothing_window(p, skeleton=sk, fps=fps, target=target)
+    if window <= 1:
+        return result
+    if motion.rotations is None:
+        q = _savgol(p, window, 3)
+        out = q.copy()  # bone directions from the filtered dance, each frame's own bone lengths kept
+        for j in sk.topological_order:
+            parent = sk.parents[j]
+            if parent >= 0:
+                d = q[:, j] - q[:, parent]
+                length = np.linalg.norm(p[:, j] - p[:, parent], axis=-1, keepdims=True)
+                out[:, j] = out[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+        smoothed = Motion(skeleton=sk, fps=fps, positions=out.astype(np.float32))
+    else:
+        import torch
+
+        from dancekit.motion.kinematics import rig_forward_kinematics
+
+        rot = _savgol(np.asarray(motion.rotations, np.float64).reshape(len(p), -1, 9), window, 3)
+        u, _, vt = np.linalg.svd(rot.reshape(len(p), -1, 3, 3))
+        d = np.sign(np.linalg.det(u @ vt))
+        u[..., :, -1] *= d[..., None]
+        rot = u @ vt
+        tr = _savgol(np.asarray(motion.root_translation, np.float64), window, 3)
+        pos = rig_forward_kinematics(torch.from_numpy(rot), torch.from_numpy(tr), sk).numpy()
+        smoothed = Motion(skeleton=sk, fps=fps, positions=pos.astype(np.float32),
+                          rotations=rot.astype(motion.rotations.dtype), root_translation=tr.astype(np.float32))
+    return _with_note(dataclasses.replace(result, motion=smoothed), f"smoothed ({window}-frame filter)")
+
+
+def foot_lock(result: DanceResult) -> DanceResult:
+    """The result with its planted feet pinned (:func:`dancekit.motion.footlock.lock_feet`: contacts from
+    foot height and speed, the foot held where it was planted, the leg solved by two-bone IK, blended in
+    and out). Only the legs change; a motion with rotations has its leg rotations updated
+    (:func:`~dancekit.motion.footlock.leg_rotations`). Skeletons without legs are returned unchanged."""
+    from dancekit.motion.footlock import leg_chains, leg_rotations, lock_feet
+
+    motion = result.motion
+    if not _is_3d(motion) or not leg_chains(motion.skeleton):
+        return result
+    sk, fps = motion.skeleton, motion.fps
+    p = np.asarray(motion.to_positions(), np.float64)
+    locked = lock_feet(p, skeleton=sk, fps=fps)
+    rot = tr = None
+    if motion.rotations is not None:
+        rot = leg_rotations(motion.rotations, p, locked, skeleton=sk).astype(motion.rotations.dtype)
+        tr = locked[:, sk.root].astype(np.float32)  # the body may have been lowered
+    out = Motion(skeleton=sk, fps=fps, positions=locked.astype(np.float32), rotations=rot, root_translation=tr)
+    return dataclasses.replace(result, motion=out)
+
+
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
-           end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True) -> DanceResult:
-    """Both stages as switched: the clean-up first (it moves frames rigidly), then the beat sync (so the
-    speed minima it aligns are those of the final dance)."""
+           end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
+           foot_lock_on: bool | None = None, smooth_on: bool | None = None) -> DanceResult:
+    """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
+    a jittery dance is filtered), the foot lock (after the smoothing, so a pinned foot stays pinned), then
+    the beat sync (so the speed minima it aligns are those of the final dance). ``foot_lock_on`` and
+    ``smooth_on`` follow ``cleanup_on`` unless given."""
     if cleanup_on:
         result = clean_up(result)
+    if cleanup_on if smooth_on is None else smooth_on:
+        result = smooth(result)
+    if cleanup_on if foot_lock_on is None else foot_lock_on:
+        result = foot_lock(result)
     if beat_sync_on:
         result = beat_sync(result, audio_path, start=start, end=end)
     return result

@@ -1,0 +1,209 @@
+"""Foot locking, two-bone IK and the smoothing stage (issue 15: planted feet that do not skate, jitter).
+
+Known answers are built independently of the code under test: random legs and targets drawn inside the
+reach (law of cosines), a figure made by forward kinematics of chosen joint rotations whose root slides at
+a known speed while a foot is on the floor, and cubic motions that a Savitzky-Golay filter must keep.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from dancekit.motion import Motion, get_skeleton
+from dancekit.motion.footlock import (
+    _hysteresis,
+    foot_contacts,
+    leg_chains,
+    leg_rotations,
+    lock_feet,
+    smooth_positions,
+    smoothing_window,
+    two_bone_ik,
+)
+from dancekit.motion.kinematics import rig_forward_kinematics
+from dancekit.motion.rotations import axis_angle_to_matrix
+
+FPS = 25.0
+SK = get_skeleton("tang2018")
+
+
+def _random_legs(n: int, rng: np.random.Generator):
+    hip = rng.normal(size=(n, 3)) * 10
+    l1, l2 = rng.uniform(30, 50, n), rng.uniform(30, 50, n)
+    knee = hip + l1[:, None] * _unit(rng.normal(size=(n, 3)))
+    ankle = knee + l2[:, None] * _unit(rng.normal(size=(n, 3)))
+    d = rng.uniform(np.abs(l1 - l2) + 1.0, l1 + l2 - 1.0)  # strictly inside the reach
+    target = hip + d[:, None] * _unit(rng.normal(size=(n, 3)))
+    return hip, knee, ankle, target, l1, l2
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def test_two_bone_ik_reaches_a_reachable_target_and_keeps_bone_lengths():
+    rng = np.random.default_rng(0)
+    hip, knee, ankle, target, l1, l2 = _random_legs(500, rng)
+    k, a = two_bone_ik(hip, knee, ankle, target)
+    np.testing.assert_allclose(a, target, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(k - hip, axis=-1), l1, rtol=1e-10)
+    np.testing.assert_allclose(np.linalg.norm(a - k, axis=-1), l2, rtol=1e-10)
+    # the knee bends toward the original knee's side of the hip -> target axis (the pole)
+    u = _unit(target - hip)
+    pole = (knee - hip) - ((knee - hip) * u).sum(-1, keepdims=True) * u
+    side = ((k - hip) * pole).sum(-1)
+    assert np.all(side >= -1e-9)
+    # and stays in the plane of hip, target and the original knee
+    normal = np.cross(u, _unit(pole))
+    np.testing.assert_allclose(((k - hip) * normal).sum(-1), 0.0, atol=1e-8)
+
+
+def test_two_bone_ik_stretches_toward_an_unreachable_target():
+    hip = np.zeros((1, 3))
+    knee = np.array([[0.0, -40.0, 5.0]])
+    ankle = np.array([[0.0, -80.0, 0.0]])
+    l1, l2 = np.linalg.norm(knee - hip), np.linalg.norm(ankle - knee)
+    target = np.array([[0.0, -200.0, 0.0]])
+    k, a = two_bone_ik(hip, knee, ankle, target)
+    np.testing.assert_allclose(a, [[0.0, -(l1 + l2), 0.0]], atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(k - hip), l1, rtol=1e-10)
+
+
+def test_hysteresis_and_minimum_duration():
+    on = np.array([0, 1, 0, 0, 0, 0, 0, 1, 0, 0, 1, 1, 1, 0], bool)
+    stay = np.array([0, 1, 1, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1], bool)
+    got = _hysteresis(on, stay, min_len=3)
+    # run 1..3 (starts on, stays 3 frames), run 7..8 too short, run 10..13
+    want = np.array([0, 1, 1, 1, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1], bool)
+    np.testing.assert_array_equal(got, want)
+
+
+def _sliding_figure(T: int = 60, speed_cm: float = 0.5):
+    """A figure made by FK: knees bent 40°, hips flexed 20°, the root sliding forward ``speed_cm`` per frame,
+    both feet on the floor (their lowest joint at height 0). Returns (rotations, root, positions)."""
+    rig = SK.rig()
+    rot = np.tile(np.eye(3), (T, rig.num_joints, 1, 1))
+    for side in ("left", "right"):
+        rot[:, SK.index(f"{side}_hip")] = axis_angle_to_matrix(torch.tensor([-0.35, 0.0, 0.0])).numpy()
+        rot[:, SK.index(f"{side}_knee")] = axis_angle_to_matrix(torch.tensor([0.7, 0.0, 0.0])).numpy()
+    root = np.zeros((T, 3))
+    root[:, 2] = speed_cm * np.arange(T)
+    p = rig_forward_kinematics(torch.from_numpy(rot), torch.from_numpy(root), SK).numpy()
+    lift = p[0, :, 1].min()
+    root[:, 1] -= lift
+    p[..., 1] -= lift
+    return rot, root, p
+
+
+def test_locked_foot_does_not_move_and_the_upper_body_is_untouched():
+    rot, root, p = _sliding_figure(speed_cm=0.2)
+    legs = leg_chains(SK)
+    assert len(legs) == 2
+    contacts = np.zeros((len(p), 2), bool)
+    contacts[10:40, 0] = True  # the left foot planted for 30 frames while the body slides 6 cm
+    out = lock_feet(p, skeleton=SK, fps=FPS, contacts=contacts, blend_s=0.2)
+    hip, knee, ankle, below = legs[0]
+    foot = [ankle, *below]
+    assert np.ptp(p[10:40, foot], axis=0).max() > 5  # before: the foot slid with the body
+    np.testing.assert_allclose(out[10:40, foot], np.broadcast_to(out[10, foot], (30, len(foot), 3)), atol=1e-9)
+    # only the left leg below the hip changed
+    moved = [knee, *foot]
+    others = [j for j in range(SK.num_joints) if j not in moved]
+    np.testing.assert_array_equal(out[:, others], p[:, others])
+    # bone lengths kept in every frame
+    for child in moved:
+        parent = SK.parents[child]
+        np.testing.assert_allclose(np.linalg.norm(out[:, child] - out[:, parent], axis=-1),
+                                   np.linalg.norm(p[:, child] - p[:, parent], axis=-1), rtol=1e-9)
+    # held where it was planted, put down on the floor (its lowest joint at height 0)
+    np.testing.assert_allclose(out[10, foot][:, [0, 2]], p[10, foot][:, [0, 2]], atol=1e-9)
+    assert abs(out[10, foot, 1].min()) < 1e-9 and p[10, foot, 1].min() > 0.1
+    # no pop: the correction at the contact's end (the 5.8-cm slide) is spread over the 5-frame blend (a
+    # smoothstep's slope is at most 1.5), never applied in one frame
+    step = np.linalg.norm(np.diff(out[:, ankle], axis=0), axis=-1)
+    assert step.max() < 0.2 + 1.5 * 5.8 / 5
+    # far from the contact the leg is the original one
+    np.testing.assert_array_equal(out[:4, foot], p[:4, foot])
+    np.testing.assert_array_equal(out[46:, foot], p[46:, foot])
+
+
+def test_contacts_found_on_a_sliding_planted_foot_and_not_on_a_lifted_one():
+    _, _, p = _sliding_figure()
+    lifted = p.copy()
+    legs = leg_chains(SK)
+    _, knee, ankle, below = legs[1]
+    lifted[20:40, [ankle, *below], 1] += 30.0  # the right foot 30 cm up for 0.8 s
+    c = foot_contacts(lifted, skeleton=SK, fps=FPS)
+    assert c[:, 0].all()  # slow (0.125 m/s) and on the floor all along
+    assert not c[22:38, 1].any()
+    assert c[:15, 1].all() and c[45:, 1].all()
+
+
+def test_leg_rotations_follow_the_locked_positions():
+    rot, root, p = _sliding_figure(speed_cm=0.2)
+    contacts = np.zeros((len(p), 2), bool)
+    contacts[5:50, :] = True
+    out = lock_feet(p, skeleton=SK, fps=FPS, contacts=contacts)
+    new_rot = leg_rotations(rot, p, out, skeleton=SK)
+    fk = rig_forward_kinematics(torch.from_numpy(new_rot), torch.from_numpy(root), SK).numpy()
+    np.testing.assert_allclose(fk, out, atol=1e-6)
+    legs_below_hip = {j for h, k, a, b in leg_chains(SK) for j in (h, k, a, *b)}
+    keep = [j for j in range(SK.rig().num_joints) if j not in legs_below_hip]
+    np.testing.assert_allclose(new_rot[:, keep], rot[:, keep], atol=1e-12)
+
+
+def test_smoothing_keeps_a_cubic_motion_and_removes_noise():
+    T = 200
+    t = np.arange(T) / FPS
+    rng = np.random.default_rng(1)
+    coef = rng.normal(size=(4, SK.num_joints, 3))
+    cubic = sum(coef[k] * (t[:, None, None] / 8.0) ** k for k in range(4)) * 20.0
+    out, _ = smooth_positions(cubic, skeleton=SK, fps=FPS, window=9)
+    np.testing.assert_allclose(out, cubic, atol=1e-8)
+    assert smoothing_window(cubic, skeleton=SK, fps=FPS, target=0.05) == 1  # already smooth: left alone
+    noisy = cubic + rng.normal(scale=1.0, size=cubic.shape)
+    w = smoothing_window(noisy, skeleton=SK, fps=FPS, target=0.1, windows=(5, 7, 9, 11, 13, 15, 21, 31))
+    assert w > 1
+    out, used = smooth_positions(noisy, skeleton=SK, fps=FPS, target=0.1)
+    assert used > 1
+    assert np.abs(out - cubic).mean() < 0.6 * np.abs(noisy - cubic).mean()
+
+
+def test_the_stages_lock_feet_of_a_rotation_motion():
+    from dancekit.pipelines.base import DanceResult
+    from dancekit.pipelines.stages import foot_lock
+
+    rot, root, p = _sliding_figure(speed_cm=0.1)
+    m = Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32), rotations=rot.astype(np.float32),
+               root_translation=root.astype(np.float32))
+    res = DanceResult(motion=m, model="x", seed=0)
+    out = foot_lock(res).motion
+    legs = leg_chains(SK)
+    for _, _, ankle, _ in legs:
+        speed = np.linalg.norm(np.diff(out.positions[5:55, ankle], axis=0), axis=-1)
+        assert speed.max() < 0.02  # both feet held: the body slides 0.1 cm a frame over them
+    fk = rig_forward_kinematics(torch.from_numpy(out.rotations.astype(np.float64)),
+                                torch.from_numpy(out.root_translation.astype(np.float64)), SK).numpy()
+    np.testing.assert_allclose(fk, out.positions, atol=1e-3)
+
+
+def test_a_gliding_foot_is_replanted_not_dragged():
+    _, _, p = _sliding_figure(T=100, speed_cm=1.0)  # 1 m in 4 s: far beyond one hold
+    contacts = np.ones((len(p), 2), bool)
+    out = lock_feet(p, skeleton=SK, fps=FPS, contacts=contacts, max_drift_m=0.1, floor_on=False)
+    _, _, ankle, _ = leg_chains(SK)[0]
+    step = np.linalg.norm(np.diff(out[:, ankle], axis=0), axis=-1)
+    held = step < 1e-9
+    assert 0.4 < held.mean() < 0.9  # held most of the time, moved to a new hold in between
+    # never farther from the original foot than the drift allows (plus a frame's slide)
+    assert np.linalg.norm(out[:, ankle] - p[:, ankle], axis=-1).max() <= 10.0 + 1.0 + 1e-9
+
+
+@pytest.mark.parametrize("bad", [np.zeros((5, 3)), np.zeros((0, 23, 3))])
+def test_bad_shapes_are_refused(bad):
+    from dancekit.errors import ParameterError
+
+    with pytest.raises(ParameterError):
+        lock_feet(bad, skeleton=SK, fps=FPS)
