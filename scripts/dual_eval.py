@@ -3,6 +3,9 @@
     python scripts/dual_eval.py beats --data data/tang2018 --split val CKPT [CKPT ...]
     python scripts/dual_eval.py compose --data data/tang2018 --split test CKPT -o runs/dual/compose_test
     python scripts/dual_eval.py dance --data data/tang2018 --split val CKPT [CKPT ...]
+    python scripts/dual_eval.py diversity --split test CKPT_OR_PRED_DIR [...] --max-frames N
+    python scripts/dual_eval.py diversity-ref --split test --max-frames N
+    python scripts/dual_eval.py excerpts --split test CKPT --seconds 30 -o runs/ab/x_NAME
 
 ``beats``: G_D→M composes chroma + beats for every dance of the split (seed 0); for each beat-picking threshold,
 the beat F1 (±0.1 s, mir_eval) of the picked beats against the real music's beats, the composed tempo
@@ -11,6 +14,9 @@ against the real tempo, and the notes accuracy of the composed chroma (dual pape
 within 0.1 s of the composed beats next to the same share for the real music, MIDI + WAV written per dance.
 ``dance``: G_M→D dances for every song of the split (seed 0): stillness, energy and jitter ratios against the
 real dance (the issue's no-freezing criteria).
+``diversity``: the dual paper's diversity over 5 start poses (and with the root subtracted); ``diversity-ref``:
+the same measure for the real dances and the random_train baseline; ``excerpts``: Table 4 at a reduced budget
+(5 start poses on the first seconds of each song, for ``dancekit evaluate --pred``).
 """
 
 from __future__ import annotations
