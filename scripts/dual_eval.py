@@ -3,6 +3,9 @@
     python scripts/dual_eval.py beats --data data/tang2018 --split val CKPT [CKPT ...]
     python scripts/dual_eval.py compose --data data/tang2018 --split test CKPT -o runs/dual/compose_test
     python scripts/dual_eval.py dance --data data/tang2018 --split val CKPT [CKPT ...]
+    python scripts/dual_eval.py diversity --split test CKPT_OR_PRED_DIR [...] --max-frames N
+    python scripts/dual_eval.py diversity-ref --split test --max-frames N
+    python scripts/dual_eval.py excerpts --split test CKPT --seconds 30 -o runs/ab/x_NAME
 
 ``beats``: G_D→M composes chroma + beats for every dance of the split (seed 0); for each beat-picking threshold,
 the beat F1 (±0.1 s, mir_eval) of the picked beats against the real music's beats, the composed tempo
@@ -11,6 +14,9 @@ against the real tempo, and the notes accuracy of the composed chroma (dual pape
 within 0.1 s of the composed beats next to the same share for the real music, MIDI + WAV written per dance.
 ``dance``: G_M→D dances for every song of the split (seed 0): stillness, energy and jitter ratios against the
 real dance (the issue's no-freezing criteria).
+``diversity``: the dual paper's diversity over 5 start poses (and with the root subtracted); ``diversity-ref``:
+the same measure for the real dances and the random_train baseline; ``excerpts``: Table 4 at a reduced budget
+(5 start poses on the first seconds of each song, for ``dancekit evaluate --pred``).
 """
 
 from __future__ import annotations
@@ -120,35 +126,111 @@ def cmd_dance(args):
                   flush=True)
 
 
-def cmd_diversity(args):
-    """Mean pairwise mean joint distance (cm) between the dances of one song from seeds 0..4 (for the dual
-    model: 5 start poses drawn from the pool), first ``--max-frames`` frames, averaged over the split's songs.
-    ``ckpt`` may be a dual model, or a folder of ``NAME__k.npz`` dances (e.g. ``dancekit evaluate``'s pred/)."""
+def _diversity(dances, root: int) -> tuple[float, float]:
+    """Mean pairwise mean joint distance between ``dances`` ((T, J, 3) each, cropped to the shortest): as they
+    are, and with each frame's root subtracted (the pose alone, without where the dancer stands)."""
     from itertools import combinations
 
-    from dancekit.data.prepared import PreparedData
     from dancekit.metrics.distance import mean_joint_distance
+
+    n = min(len(d) for d in dances)
+    dances = [np.asarray(d[:n], np.float64) for d in dances]
+    local = [d - d[:, root: root + 1] for d in dances]
+    return (float(np.mean([mean_joint_distance(a, b) for a, b in combinations(dances, 2)])),
+            float(np.mean([mean_joint_distance(a, b) for a, b in combinations(local, 2)])))
+
+
+def cmd_diversity(args):
+    """The dual paper's diversity (§4.3): mean pairwise mean joint distance (cm) between the 5 dances of one
+    song from seeds 0..4 (for the dual model: 5 start poses drawn from the pool), first ``--max-frames``
+    frames, averaged over the split's songs; also with the root subtracted per frame (``diversity_local_cm``).
+    ``ckpt`` may be a dual model, or a folder of ``NAME__k.npz`` dances (e.g. ``dancekit evaluate``'s pred/)."""
+    from dancekit.data.prepared import PreparedData
     from dancekit.motion.formats import read_motion
 
     data = PreparedData(args.data)
     n = args.max_frames or 500
     for ckpt in args.ckpt:
         folder = Path(ckpt)
-        per = {}
+        per, per_local = {}, {}
         pipe = None
         for name in data.names(args.split):
             if (folder / f"{name}__0.npz").exists():
-                dances = [read_motion(folder / f"{name}__{k}.npz").to_positions()[:n] for k in range(5)]
+                motions = [read_motion(folder / f"{name}__{k}.npz") for k in range(5)]
             else:
                 if pipe is None:
                     from dancekit.pipelines.dual import DualPipeline
 
                     pipe = DualPipeline.from_pretrained(ckpt)
-                end = n / pipe.fps
-                dances = [pipe(data.audio(name).path, seed=k, end=end).motion.to_positions()[:n] for k in range(5)]
-            per[name] = float(np.mean([mean_joint_distance(a, b) for a, b in combinations(dances, 2)]))
+                motions = [r.motion for r in pipe.dances(data.audio(name).path, seeds=list(range(5)),
+                                                         end=n / pipe.fps)]
+            root = motions[0].skeleton.root
+            per[name], per_local[name] = _diversity([m.to_positions()[:n] for m in motions], root)
         print(json.dumps(dict(ckpt=str(ckpt), frames=n, diversity_cm=float(np.mean(list(per.values()))),
-                              per_song=per)), flush=True)
+                              diversity_local_cm=float(np.mean(list(per_local.values()))), per_song=per,
+                              per_song_local=per_local)), flush=True)
+
+
+def cmd_diversity_ref(args):
+    """Diversity of the references, measured like :func:`cmd_diversity`: ``real`` = the real dances of the
+    split against each other (mean over pairs of different songs, cropped to the shorter), ``random_train`` =
+    for each song 5 random training dances (the ``random_train`` baseline with seeds 0..4, cropped or looped
+    to the song's length, :func:`dancekit.evaluation.baselines.make_baselines`)."""
+    import tempfile
+
+    from dancekit.data.prepared import PreparedData
+    from dancekit.evaluation.baselines import make_baselines
+    from dancekit.motion.formats import read_motion
+
+    data = PreparedData(args.data)
+    n = args.max_frames or 500
+    names = data.names(args.split)
+    root = data.skeleton.root
+    real = [data.motion(name).to_positions()[:n] for name in names]
+    from itertools import combinations
+
+    pairs = [_diversity([a, b], root) for a, b in combinations(real, 2)]
+    print(json.dumps(dict(reference="real", frames=n, diversity_cm=float(np.mean([p[0] for p in pairs])),
+                          diversity_local_cm=float(np.mean([p[1] for p in pairs])))), flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        folders = [make_baselines(args.data, Path(tmp) / str(k), seed=k)["random_train"] for k in range(5)]
+        per, per_local = {}, {}
+        for name in names:
+            dances = [read_motion(f / f"{name}.npz").to_positions()[:n] for f in folders]
+            per[name], per_local[name] = _diversity(dances, root)
+    print(json.dumps(dict(reference="random_train", frames=n, diversity_cm=float(np.mean(list(per.values()))),
+                          diversity_local_cm=float(np.mean(list(per_local.values()))), per_song=per,
+                          per_song_local=per_local)), flush=True)
+
+
+def cmd_excerpts(args):
+    """Table 4 at a reduced budget: G_M→D dances the first ``--seconds`` s of every song of the split from 5
+    start poses (seeds 0..4, one batch, beat sync off) into ``OUT/pred/NAME__k.npz``, and the real dances cut
+    the same way go to ``OUT/ref/NAME.npz``; then ``dancekit evaluate --pred OUT/pred --ref OUT/ref --data DATA``
+    scores them and ``diversity OUT/pred`` measures the diversity over the start poses."""
+    import time
+
+    from dancekit.data.prepared import PreparedData
+    from dancekit.motion import write_motion
+    from dancekit.pipelines.dual import DualPipeline
+
+    data = PreparedData(args.data)
+    out = Path(args.out)
+    for sub in ("pred", "ref"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    pipe = DualPipeline.from_pretrained(args.ckpt[0])
+    t0, seconds = time.perf_counter(), 0.0
+    for name in data.names(args.split):
+        audio, real = data.audio(name), data.motion(name)
+        n = min(real.num_frames, int(round(args.seconds * real.fps)))
+        write_motion(out / "ref" / f"{name}.npz", real.slice(0, n))
+        start = audio.start or 0.0
+        end = start + n / real.fps
+        for k, r in enumerate(pipe.dances(audio.path, seeds=list(range(5)), start=start, end=end, beat_sync=False)):
+            write_motion(out / "pred" / f"{name}__{k}.npz", r.motion.slice(0, min(n, r.motion.num_frames)))
+        seconds += 5 * n / real.fps
+        print(name, n, f"{time.perf_counter() - t0:.1f} s", flush=True)
+    print(json.dumps(dict(ckpt=args.ckpt[0], seconds_danced=seconds, elapsed_s=time.perf_counter() - t0)), flush=True)
 
 
 def cmd_ablate(args):
@@ -244,9 +326,9 @@ def main(argv=None):
     torch.set_num_threads(1)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
-    for cmd in ("beats", "dance", "compose", "diversity", "ablate"):
+    for cmd in ("beats", "dance", "compose", "diversity", "diversity-ref", "excerpts", "ablate"):
         p = sub.add_parser(cmd)
-        p.add_argument("ckpt", nargs="+")
+        p.add_argument("ckpt", nargs="*")
         p.add_argument("--data", default="data/tang2018")
         p.add_argument("--split", default="val")
         p.add_argument("--seed", type=int, default=0)
@@ -255,8 +337,10 @@ def main(argv=None):
         p.add_argument("--min-gaps", type=float, nargs="+", default=[0.25], help="beat picking gaps (beats)")
         p.add_argument("--smooth", type=int, nargs="+", default=[1, 3, 5], help="moving averages to try (dance)")
         p.add_argument("--max-frames", type=int, default=None, help="score the first frames of each dance only")
+        p.add_argument("--seconds", type=float, default=30.0, help="excerpts: seconds from each song's start")
     args = ap.parse_args(argv)
-    {"beats": cmd_beats, "dance": cmd_dance, "compose": cmd_compose, "diversity": cmd_diversity, "ablate": cmd_ablate}[args.cmd](args)
+    {"beats": cmd_beats, "dance": cmd_dance, "compose": cmd_compose, "diversity": cmd_diversity,
+     "diversity-ref": cmd_diversity_ref, "excerpts": cmd_excerpts, "ablate": cmd_ablate}[args.cmd](args)
 
 
 if __name__ == "__main__":

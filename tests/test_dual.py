@@ -581,3 +581,25 @@ def test_compose_cli_uses_the_embedded_model_by_default(tmp_path):
     assert main(["compose", str(tmp_path / "dance.npz"), "-o", str(out), "--render", "builtin", "--no-video",
                  "--quiet"]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["dance.mid", "dance.wav"]
+
+
+def test_dances_batches_the_seeds_and_equals_one_call_per_seed(tiny_checkpoint, tmp_path):
+    """``DualPipeline.dances`` (what ``dancekit evaluate --seeds N`` calls) decodes the seeds as one batch: each
+    dance equals the one-seed call with the same seed, and the seeds' start poses give different dances."""
+    from dancekit.audio import save_wav
+    from dancekit.audio.synth import ode_to_joy
+    from dancekit.pipelines.dual import DualPipeline
+
+    song = tmp_path / "ode.wav"
+    save_wav(song, ode_to_joy(sr=22050, bpm=120)[: 3 * 22050], sr=22050)
+    pipe = DualPipeline.from_pretrained(tiny_checkpoint)
+    with torch.no_grad():  # a pool of start poses, as training fills it
+        pipe.model.pose_pool.copy_(torch.randn(pipe.model.pose_pool.shape, generator=torch.Generator().manual_seed(0)))
+        pipe.model.pool_count.fill_(pipe.model.pose_pool.shape[0])
+    kw = dict(beat_sync=False, cleanup=False, smooth_frames=3)
+    batch = pipe.dances(song, seeds=[4, 1], **kw)
+    assert [r.seed for r in batch] == [4, 1]
+    for seed, result in zip([4, 1], batch):
+        one = pipe(song, seed=seed, **kw)
+        np.testing.assert_allclose(result.motion.to_positions(), one.motion.to_positions(), atol=1e-3, rtol=1e-3)
+    assert np.abs(batch[0].motion.to_positions() - batch[1].motion.to_positions()).max() > 1e-2

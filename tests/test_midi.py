@@ -136,3 +136,39 @@ def test_wav_is_audible_unclipped_and_its_tracked_beats_are_the_midi_beats(bpm):
     tracked = librosa.frames_to_time(frames, sr=sr)
     assert beat_f1(tracked, arr.beat_times, min_beat_time=2.0) >= 0.9
     assert float(np.atleast_1d(tempo)[0]) == pytest.approx(arr.tempo, rel=0.05)
+
+
+def _saturated_activation(period_s, seconds=30.0, seed=0):
+    """A beat activation like the shipped G_D→M's: above 0.5 on most frames, with a rise to a peak every
+    ``period_s`` seconds (not a whole number of frames) and noise; returns (activation, true beat times)."""
+    rng = np.random.default_rng(seed)
+    T = int(seconds * FPS)
+    t = np.arange(T) / FPS
+    beats = np.arange(0.37, seconds, period_s)
+    dist = np.min(np.abs(t[:, None] - beats[None]), axis=1)
+    act = 0.55 + 0.35 * np.exp(-0.5 * (dist / 0.04) ** 2) + rng.normal(0, 0.03, T)
+    return np.clip(act, 0, 1), beats
+
+
+@pytest.mark.parametrize("bpm", [72.0, 103.0, 141.0])
+def test_periodic_beats_find_the_period_of_a_saturated_activation(bpm):
+    from dancekit.audio.midi import periodic_beats
+    from dancekit.metrics.music_beats import beat_f1, tempo_from_beats
+
+    act, truth = _saturated_activation(60.0 / bpm)
+    beats, tempo = periodic_beats(act, fps=FPS)
+    assert tempo == pytest.approx(bpm, rel=0.02)
+    assert tempo_from_beats(beats) == pytest.approx(bpm, rel=0.05)
+    assert beat_f1(beats, truth, tolerance=0.05) > 0.95
+
+
+def test_periodic_tempo_in_arrange_and_its_fallback():
+    from dancekit.audio.midi import periodic_beats
+
+    act, _ = _saturated_activation(0.6)
+    chroma = np.ones((len(act), 12))
+    arr = arrange(chroma, act, fps=FPS, tempo="periodic")
+    assert arr.tempo == pytest.approx(100.0, rel=0.05)
+    flat = np.full(200, 0.7)  # no periodicity: the default grid, as with no picked beats
+    assert len(periodic_beats(flat, fps=FPS)[0]) == 0
+    assert arrange(np.ones((200, 12)), flat, fps=FPS, tempo="periodic").tempo == pytest.approx(120.0)

@@ -77,6 +77,66 @@ def pick_beats(beat: np.ndarray, *, fps: float, threshold: float = 0.5, min_gap:
     return np.sort(np.asarray(kept, np.float64)) / fps
 
 
+def periodic_beats(beat: np.ndarray, *, fps: float, min_bpm: float = 60.0, max_bpm: float = 180.0,
+                   prior_bpm: float = 120.0, snap: int = 3, step: float = 0.002) -> tuple[np.ndarray, float]:
+    """Beats on the metrical level of a beat activation's periodicity, not on its thresholded peaks.
+
+    The metrical level is the highest local maximum of the autocorrelation of the activation's half-wave
+    rectified frame difference (its rises: an activation that stays above a threshold on most frames still
+    rises periodically), at lags between ``60 / max_bpm`` and ``60 / min_bpm`` s, weighted by a log-normal
+    tempo prior (``prior_bpm``, one octave standard deviation, as librosa's tempo estimator). The period is then
+    refined to ``step`` s within ±4 % of that lag, and the phase chosen (half-frame steps), by the grid whose
+    mean activation over the whole piece is highest (a comb over all beats, finer than a frame); each grid time
+    is finally moved to the activation's maximum within ``snap`` frames.
+
+    Parameters
+    ----------
+    beat : (T,) beat activation per frame
+    fps : frames per second of ``beat``
+    min_bpm, max_bpm : the tempo range searched (BPM)
+    prior_bpm : centre of the tempo prior (BPM)
+    snap : frames a grid beat may move to the activation's local maximum (0: the plain grid)
+    step : period resolution of the refinement, seconds
+
+    Returns
+    -------
+    (beat times (s), tempo in BPM of the grid); (empty, NaN) for a flat activation or one shorter than two
+    periods of ``min_bpm``
+    """
+    b = np.asarray(beat, np.float64).reshape(-1)
+    if not 0 < min_bpm < max_bpm or fps <= 0 or snap < 0 or prior_bpm <= 0:
+        raise ParameterError(f"periodic_beats needs 0 < min_bpm < max_bpm, fps > 0, prior_bpm > 0, snap >= 0; got "
+                             f"{min_bpm}, {max_bpm}, {fps}, {prior_bpm}, {snap}")
+    n = len(b)
+    x = np.maximum(np.diff(b, prepend=b[:1]), 0.0)
+    x = x - x.mean()
+    if n < 2 * 60.0 / min_bpm * fps or not np.any(np.abs(x) > 1e-12):
+        return np.zeros(0), float("nan")
+    acf = np.correlate(x, x, "full")[n - 1:] / np.arange(n, 0, -1)  # unbiased
+    lags = np.arange(int(np.floor(60.0 / max_bpm * fps)), int(np.ceil(60.0 / min_bpm * fps)) + 1)
+    a = acf[lags] * np.exp(-0.5 * np.log2(60.0 * fps / lags / prior_bpm) ** 2)
+    peaks = np.flatnonzero((a[1:-1] >= a[:-2]) & (a[1:-1] > a[2:])) + 1
+    lag = float(lags[peaks[np.argmax(a[peaks])]] if len(peaks) else lags[int(np.argmax(a))])
+    t, duration = np.arange(n) / fps, n / fps
+
+    def comb(period: float) -> tuple[float, float]:  # (best mean activation over phases, that phase)
+        phases = np.arange(0.0, period, 0.5 / fps)
+        means = [np.interp(np.arange(ph, duration, period), t, b).mean() for ph in phases]
+        k = int(np.argmax(means))
+        return float(means[k]), float(phases[k])
+
+    periods = np.arange(0.96 * lag / fps, 1.04 * lag / fps, step)
+    scores = [comb(p) for p in periods]
+    k = int(np.argmax([s[0] for s in scores]))
+    period, phase = float(periods[k]), scores[k][1]
+    grid = np.arange(phase, duration, period)
+    if snap:
+        idx = np.clip(np.round(grid * fps).astype(int), 0, n - 1)
+        grid = np.unique([(max(0, i - snap) + int(np.argmax(b[max(0, i - snap): i + snap + 1]))) / fps
+                          for i in idx])
+    return grid, 60.0 / period
+
+
 def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | float = "auto",
             threshold: float = 0.5, min_gap: float = 0.25, default_bpm: float = 120.0) -> Arrangement:
     """Chords on the beats, a bass line on the chord roots and a drum track on the beats.
@@ -86,8 +146,9 @@ def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | fl
     chroma : (T, 12) chroma per frame (any non-negative scale)
     beat : (T,) beat activation per frame in [0, 1]
     fps : frames per second of both
-    tempo : ``"auto"`` (the picked beats; a ``default_bpm`` grid when fewer than two are found) or a BPM
-        (a regular grid phased on the first picked beat)
+    tempo : ``"auto"`` (the picked beats; a ``default_bpm`` grid when fewer than two are found),
+        ``"periodic"`` (:func:`periodic_beats`: the activation's own period; the ``default_bpm`` grid when it
+        has none) or a BPM (a regular grid phased on the first picked beat)
     threshold : beat activation that counts as a beat
     min_gap : shortest time between two picked beats, seconds (:func:`pick_beats`)
 
@@ -103,7 +164,9 @@ def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | fl
         raise ParameterError(f"need chroma (T, 12) and beat (T,) with T > 0, got {chroma.shape} and {beat.shape}")
     duration = len(beat) / float(fps)
     picked = pick_beats(beat, fps=fps, threshold=threshold, min_gap=min_gap)
-    if tempo == "auto":
+    if tempo in ("auto", "periodic"):
+        if tempo == "periodic":
+            picked = periodic_beats(beat, fps=fps)[0]
         if len(picked) >= 2:
             times = picked
         else:
@@ -112,7 +175,7 @@ def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | fl
         try:
             bpm = float(tempo)
         except (TypeError, ValueError):
-            raise ParameterError(f"tempo must be 'auto' or a number of BPM, got {tempo!r}") from None
+            raise ParameterError(f"tempo must be 'auto', 'periodic' or a number of BPM, got {tempo!r}") from None
         if not 20.0 <= bpm <= 400.0:
             raise ParameterError(f"tempo must be between 20 and 400 BPM, got {bpm}")
         period = 60.0 / bpm

@@ -35,20 +35,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f"{DEFAULT_COMPOSE_MODEL!r} model)")
     g.add_argument("--checkpoint", default=None, help="a dual checkpoint folder (from `dancekit train dual`)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the start chord (default 0)")
-    p.add_argument("--tempo", default="auto", help="auto (the composed beats, default) or a tempo in BPM")
+    p.add_argument("--tempo", default=None, help="auto (the peaks of the composed beat activation), periodic (beats "
+                   "on its periodicity), or a tempo in BPM; default: the model's setting (auto)")
     p.add_argument("--render", default="auto", choices=("auto", "fluidsynth", "builtin"), help="audio renderer")
     p.add_argument("--no-video", action="store_true", help="write the MIDI and WAV only (no mp4 / html)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=run)
 
 
-def parse_tempo(text: str) -> str | float:
-    if text == "auto":
+def parse_tempo(text: str | None) -> str | float | None:
+    if text is None or text in ("auto", "periodic"):
         return text
     try:
         return float(text)
     except ValueError:
-        raise ParameterError(f"--tempo must be 'auto' or a number of BPM, got {text!r}") from None
+        raise ParameterError(f"--tempo must be 'auto', 'periodic' or a number of BPM, got {text!r}") from None
 
 
 def run(args: argparse.Namespace) -> int:

@@ -362,7 +362,7 @@ def load_music_dir(folder: str | os.PathLike, names: Sequence[str], settings: Mu
 
 
 def compose_split(model: str | os.PathLike, data_root: str | os.PathLike, out: str | os.PathLike, *,
-                  split: str = "test", seed: int = 0, tempo: str | float = "auto", render: str = "builtin",
+                  split: str = "test", seed: int = 0, tempo: str | float | None = None, render: str = "builtin",
                   progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Compose music for every dance of ``split`` with a ``dual`` model: ``out/NAME.mid`` and ``out/NAME.wav``
     (``out`` is written as a whole: it appears, or replaces an earlier one, once every piece is written).

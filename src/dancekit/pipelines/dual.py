@@ -103,18 +103,37 @@ class DualPipeline:
         6D columns; the 6D are re-orthonormalised when decoded), 1 = none; default: the checkpoint's
         ``smooth_frames`` (chosen on the validation songs, docs/DUAL.md), else 1.
         """
+        return self.dances(audio_path, seeds=[seed], start=start, end=end, genre=genre, start_pose=start_pose,
+                           smooth_frames=smooth_frames, beat_sync=beat_sync, cleanup=cleanup)[0]
+
+    @torch.no_grad()
+    def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
+               end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
+               smooth_frames: int | None = None, progress: bool = False, beat_sync: bool = True,
+               cleanup: bool = True) -> list[DanceResult]:
+        """One dance per seed for the song, generated as one batch (the features and the decoder loop once):
+        ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])`` (to float rounding).
+        Each seed draws its own start pose from the pool (the paper's diversity over start poses); arguments
+        as :meth:`__call__` (``start_pose`` given: every seed starts from it)."""
         if genre not in (None, "auto", "none"):
             raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
+        seeds = [int(s) for s in seeds]
+        if not seeds:
+            raise ParameterError("dances() needs at least one seed")
         x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
-        s = self.start_pose(start_pose, seed)[None]  # (1, P)
-        y = self.model.generate_dance(x, start=s)[0].cpu().numpy()  # (T, P)
-        y = moving_average(y, self.smooth_frames if smooth_frames is None else int(smooth_frames))
-        motion = decode_motion(self.stats.denormalize_dance(y), self.skeleton, self.fps, "rot6d")
-        result = DanceResult(motion=motion, model=self.folder, seed=int(seed),
-                             genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
-        result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
-                                   start=start, end=end)
-        return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
+        s = torch.stack([self.start_pose(start_pose, seed) for seed in seeds])  # (B, P)
+        y = self.model.generate_dance(x.expand(len(seeds), -1, -1), start=s).cpu().numpy()  # (B, T, P)
+        k_avg = self.smooth_frames if smooth_frames is None else int(smooth_frames)
+        out = []
+        for seed, yk in zip(seeds, y):
+            motion = decode_motion(self.stats.denormalize_dance(moving_average(yk, k_avg)), self.skeleton, self.fps,
+                                   "rot6d")
+            result = DanceResult(motion=motion, model=self.folder, seed=seed,
+                                 genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
+            result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
+                                       hop_length=self.hop_length, start=start, end=end)
+            out.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup))
+        return out
 
 
 @dataclass
@@ -156,6 +175,7 @@ class ComposePipeline:
         # beat picking, the checkpoint's composing settings (chosen on the validation dances, docs/DUAL.md)
         self.beat_threshold = float(meta.get("beat_threshold", 0.5))
         self.beat_min_gap = float(meta.get("beat_min_gap", 0.25))
+        self.beat_tempo = meta.get("beat_tempo", "auto")  # "auto" (thresholded peaks) or "periodic"
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> ComposePipeline:
@@ -163,7 +183,7 @@ class ComposePipeline:
         return cls(model, meta=meta, stats=stats, folder=str(folder))
 
     @torch.no_grad()
-    def __call__(self, motion: Motion, *, seed: int = 0, tempo: str | float = "auto",
+    def __call__(self, motion: Motion, *, seed: int = 0, tempo: str | float | None = None,
                  root: int | str | None = None, minor: bool | None = None) -> ComposeResult:
         """Compose chroma + beats for ``motion`` and arrange them (chords on the beats, bass, drums).
 
@@ -172,7 +192,9 @@ class ComposePipeline:
         motion : a 3D dance (resampled to the model's fps when it differs); a dance on another skeleton is
             mapped to the model's joints by role (:func:`dancekit.motion.retarget.map_by_role`)
         seed : draws the start chord (root of 12 pitch classes × major / minor) unless given
-        tempo : "auto" (the composed beats) or a BPM (a regular grid phased on the first composed beat)
+        tempo : "auto" (the composed beats: peaks of the beat activation), "periodic" (beats on the
+            activation's periodicity, :func:`dancekit.audio.midi.periodic_beats`), a BPM (a regular grid phased on
+            the first composed beat), or None: the checkpoint's ``beat_tempo`` setting ("auto" when it has none)
         root, minor : the start chord (e.g. ``root="A", minor=True``)
         """
         if not isinstance(motion, Motion):
@@ -194,7 +216,7 @@ class ComposePipeline:
         root_name = PITCH_CLASSES[int(root)] if not isinstance(root, str) else root
         return ComposeResult(chroma=chroma, beat=beat, fps=self.fps, seed=int(seed),
                              start_chord=f"{root_name} {'minor' if minor else 'major'}",
-                             arrangement=arrange(chroma, beat, fps=self.fps, tempo=tempo,
+                             arrangement=arrange(chroma, beat, fps=self.fps, tempo=self.beat_tempo if tempo is None else tempo,
                                                  threshold=self.beat_threshold, min_gap=self.beat_min_gap))
 
 
