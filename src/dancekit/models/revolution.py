@@ -465,9 +465,18 @@ class RevolutionModel(nn.Module):
     # ---- decoder ---------------------------------------------------------------------------------
 
     def initial_state(
-        self, batch: int, *, generator: torch.Generator | None = None, device: torch.device | None = None
+        self, batch: int, *, generator: torch.Generator | list[torch.Generator] | None = None,
+        device: torch.device | None = None
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """(h_0, c_0), each (decoder_layers, B, decoder_hidden), drawn from N(0, 1) with ``generator``."""
+        """(h_0, c_0), each (decoder_layers, B, decoder_hidden), drawn from N(0, 1) with ``generator``.
+
+        ``generator`` may also be a list of ``batch`` generators, one per row: row ``k`` then gets exactly the
+        state that ``initial_state(1, generator=generator[k])`` draws (many seeds in one batch)."""
+        if isinstance(generator, (list, tuple)):
+            if len(generator) != batch:
+                raise ParameterError(f"{len(generator)} generators for a batch of {batch}")
+            rows = [self.initial_state(1, generator=g, device=device) for g in generator]
+            return torch.cat([h for h, _ in rows], dim=1), torch.cat([c for _, c in rows], dim=1)
         c = self.config
         shape = (c.decoder_layers, batch, c.decoder_hidden)
         gen_device = generator.device if generator is not None else torch.device("cpu")
@@ -567,7 +576,7 @@ class RevolutionModel(nn.Module):
         self,
         music: torch.Tensor,
         *,
-        generator: torch.Generator | None = None,
+        generator: torch.Generator | list[torch.Generator] | None = None,
         chunk: int | None = None,
         progress: bool = False,
         genre: torch.Tensor | None = None,
@@ -580,8 +589,11 @@ class RevolutionModel(nn.Module):
 
         Parameters
         ----------
-        music : (B, n, music_dim) normalised features at the training fps
-        generator : seeds the initial decoder state; the same seed gives the same dance
+        music : (B, n, music_dim) normalised features at the training fps; (1, n, music_dim) with a list of
+            ``B`` generators: one song danced ``B`` times (its music encoded once)
+        generator : seeds the initial decoder state; the same seed gives the same dance. A list of generators
+            (one per row, :meth:`initial_state`): many dances in one batch, row ``k`` the dance that
+            ``generator[k]`` alone gives (to float rounding: the batched matrix products may round differently)
         genre : (B,) genre indices for a genre-conditioned model; None or -1: auto (the music decides)
 
         Returns
@@ -593,6 +605,10 @@ class RevolutionModel(nn.Module):
         self.eval()
         try:
             B, n, _ = music.shape
+            if isinstance(generator, (list, tuple)) and B == 1:
+                B = len(generator)  # one song, many seeds: the encoder runs on the one song, its output is shared
+            elif isinstance(generator, (list, tuple)) and len(generator) != B:
+                raise ParameterError(f"{len(generator)} generators for a batch of {B} songs")
             chunk = chunk or self.config.encoder_chunk
             context = self.encoder.receptive_field
             if context is None:
@@ -608,6 +624,7 @@ class RevolutionModel(nn.Module):
             for start in starts:
                 a, b = max(0, start - context), min(n, start + chunk + context)
                 z = self.encoder(music[:, a:b])[:, start - a : start - a + min(chunk, n - start)]
+                z = z.expand(B, -1, -1) if z.shape[0] != B else z
                 z = self._condition(z, genre)
                 y, prev, state = self._autoregress(z, prev, state)
                 outputs.append(y)

@@ -24,8 +24,8 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, encode_motion
-from dancekit.pipelines.base import DanceResult, calm_if_not_music, song_features
-from dancekit.pipelines.stages import finish
+from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
+from dancekit.pipelines.stages import finish, song_beats_for
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -98,18 +98,38 @@ class DualPipeline:
         6D columns; the 6D are re-orthonormalised when decoded), 1 = none; default: the checkpoint's
         ``smooth_frames`` (chosen on the validation songs, docs/DUAL.md), else 1.
         """
+        return self.dances(audio_path, seeds=[seed], start=start, end=end, genre=genre, start_pose=start_pose,
+                           smooth_frames=smooth_frames, progress=progress, beat_sync=beat_sync, cleanup=cleanup)[0]
+
+    @torch.no_grad()
+    def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
+               end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
+               smooth_frames: int | None = None, progress: bool = False, beat_sync: bool = True,
+               cleanup: bool = True) -> list[DanceResult]:
+        """One dance per seed for the song, generated as one batch (the features and the song's beats once,
+        G_M→D on all start poses together, the stages per dance): ``dances(song, seeds=[0, 1])[k]`` is
+        ``pipe(song, seed=[0, 1][k])`` to float rounding. Arguments as :meth:`__call__` (a ``start_pose``
+        starts every dance from it)."""
         if genre not in (None, "auto", "none"):
             raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
-        x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
-        s = self.start_pose(start_pose, seed)[None]  # (1, P)
-        y = self.model.generate_dance(x, start=s)[0].cpu().numpy()  # (T, P)
-        y = moving_average(y, self.smooth_frames if smooth_frames is None else int(smooth_frames))
-        motion = decode_motion(self.stats.denormalize_dance(y), self.skeleton, self.fps, "rot6d")
-        result = DanceResult(motion=motion, model=self.folder, seed=int(seed),
-                             genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
-        result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
-                                   start=start, end=end)
-        return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
+        seeds = check_seeds(seeds)
+        feats = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
+        s = torch.stack([self.start_pose(start_pose, seed) for seed in seeds])  # (B, P)
+        y = self.model.generate_dance(feats.expand(len(seeds), -1, -1), start=s).cpu().numpy()  # (B, T, P)
+        frames = self.smooth_frames if smooth_frames is None else int(smooth_frames)
+        results, beats = [], None
+        for k, seed in enumerate(seeds):
+            motion = decode_motion(self.stats.denormalize_dance(moving_average(y[k], frames)), self.skeleton,
+                                   self.fps, "rot6d")
+            result = DanceResult(motion=motion, model=self.folder, seed=seed,
+                                 genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
+            result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
+                                       hop_length=self.hop_length, start=start, end=end)
+            if beat_sync and result.looks_like_music and beats is None:
+                beats = song_beats_for(audio_path, start=start, end=end)
+            results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
+                                  cleanup_on=cleanup, beats=beats))
+        return results
 
 
 @dataclass

@@ -105,13 +105,16 @@ def clean_up(result: DanceResult) -> DanceResult:
 
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
-           end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True) -> DanceResult:
+           end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
+           beats=None) -> DanceResult:
     """Both stages as switched: the clean-up first (it moves frames rigidly), then the beat sync (so the
-    speed minima it aligns are those of the final dance)."""
+    speed minima it aligns are those of the final dance). ``beats``: the song's
+    :class:`~dancekit.features.pulse.SongBeats` when already tracked (many dances of one song), else tracked
+    here when needed."""
     if cleanup_on:
         result = clean_up(result)
     if beat_sync_on:
-        result = beat_sync(result, audio_path, start=start, end=end)
+        result = beat_sync(result, audio_path, start=start, end=end, beats=beats)
     return result
 
 
