@@ -247,12 +247,12 @@ def format_bvh(data: BvhData, path: str | os.PathLike) -> None:
     lines.append("MOTION")
     lines.append(f"Frames: {data.values.shape[0]}")
     lines.append(f"Frame Time: {data.frame_time:.8f}")
-    body = "\n".join(" ".join(f"{v:.6f}" for v in row) for row in np.asarray(data.values, dtype=np.float64))
+    values = np.asarray(data.values, dtype=np.float64)
     with atomic_path(path, suffix=".bvh") as tmp:
         with open(tmp, "w") as f:
             f.write("\n".join(lines) + "\n")
-            if body:
-                f.write(body + "\n")
+            for a in range(0, len(values), 1000):  # a thousand frames of text at a time, not the whole song's
+                f.write("".join(" ".join(f"{v:.6f}" for v in row) + "\n" for row in values[a: a + 1000]))
 
 
 # ------------------------------------------------------------------ to Motion
