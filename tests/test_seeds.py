@@ -55,7 +55,7 @@ def test_model_rows_are_the_seeds_alone():
 def test_dances_equal_each_seed_alone(song, name):
     """Every dance family: pipe.dances(seeds=...)[k] is pipe(seed=seeds[k]) with the stages on."""
     pipe = load_pipeline(name)
-    seeds = [3, 0, 5]
+    seeds = [3, 0]
     batch = pipe.dances(str(song), seeds=seeds)
     assert [r.seed for r in batch] == seeds
     for r, s in zip(batch, seeds):

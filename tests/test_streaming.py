@@ -151,3 +151,16 @@ def test_html_written_in_pieces_is_the_one_string_page(monkeypatch, tmp_path):
     q = np.frombuffer(base64.b64decode(blob["positions"]), "<u2").reshape(300, sk.num_joints, 3)
     assert q.max() == 65535 and blob["frames"] == 300
     del Motion
+
+
+def test_tempogram_mean_is_librosas_mean():
+    import librosa
+
+    env = np.abs(np.random.default_rng(5).standard_normal(900)).astype(np.float32)
+    ref = np.mean(librosa.feature.tempogram(onset_envelope=env, sr=22050, hop_length=512, win_length=344), axis=-1,
+                  keepdims=True)
+    assert np.array_equal(spectral.tempogram_mean(onset_envelope=env, win_length=344, chunk=10_000), ref)
+    chunked = spectral.tempogram_mean(onset_envelope=env, win_length=344, chunk=100)
+    assert np.allclose(chunked, ref, rtol=1e-12, atol=1e-15)
+    bpm = librosa.feature.tempo(onset_envelope=env, sr=22050, hop_length=512)
+    assert np.array_equal(librosa.feature.tempo(tg=chunked, sr=22050, hop_length=512), bpm)

@@ -298,11 +298,15 @@ def extract_path(
         y, sr = load(path, start=start, end=end)
         return extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)
     chunk = spectral.CHUNK_FRAMES if chunk is None else int(chunk)
-    y_feat = _Growing(_expected_samples(path, start, end, fsr))
+    expected = _expected_samples(path, start, end, fsr)
+    y_feat = _Growing(expected)
+    n_fft = spectral._n_fft(None, hop_length)
+    mel = spectral.MelPowerStream(sr=fsr, n_fft=n_fft, hop_length=hop_length, expected_samples=expected)
     fine = spectral.MelPowerStream(sr=rhythm.BEAT_SR, n_fft=rhythm._BEAT_NFFT, hop_length=rhythm.BEAT_HOP,
                                    expected_samples=_expected_samples(path, start, end, rhythm.BEAT_SR))
     for block_feat, block_fine in stream(path, rates=[fsr, rhythm.BEAT_SR], start=start, end=end):
         y_feat.add(block_feat)
+        mel.feed(block_feat)
         fine.feed(block_fine)
     y = y_feat.array()
     T = spectral.n_frames(n_samples=len(y), hop_length=hop_length)
@@ -313,7 +317,9 @@ def extract_path(
         col += d
     features = np.zeros((T, PRESET_DIMS[preset]), np.float32)
 
-    S = spectral.log_melspectrogram(y=y, sr=fsr, hop_length=hop_length)  # (128, T) dB
+    # log_melspectrogram(y=y, ...) from the streamed mel power (the same chunks: the same numbers)
+    S = spectral._fit(spectral.power_to_db_inplace(mel.finish()), T)  # (128, T) dB
+    del mel
     if preset == "revolution":
         m = spectral.mfcc(S=S, sr=fsr, hop_length=hop_length)
         features[:, at["mfcc"]] = m.T

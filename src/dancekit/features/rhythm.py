@@ -109,10 +109,16 @@ def _estimate_tempo(S_db: np.ndarray, env: np.ndarray, *, start_bpm: float) -> f
     )
     if not np.any(env512 > 0):
         env512 = env[::2]
+    from dancekit.features.spectral import tempogram_mean
+
+    # librosa.feature.tempo(onset_envelope=env512, ...), its mean tempogram summed in chunks (a whole-song
+    # tempogram at this rate is ~1 GB for an hour of music)
+    win = int(librosa.time_to_frames(8.0, sr=BEAT_SR, hop_length=2 * BEAT_HOP))  # librosa's ac_size 8 s
     coarse = float(
         np.atleast_1d(
             librosa.feature.tempo(
-                onset_envelope=env512, sr=BEAT_SR, hop_length=2 * BEAT_HOP, start_bpm=start_bpm
+                tg=tempogram_mean(onset_envelope=env512, win_length=win), sr=BEAT_SR, hop_length=2 * BEAT_HOP,
+                start_bpm=start_bpm,
             )
         )[0]
     )

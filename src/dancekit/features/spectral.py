@@ -394,6 +394,36 @@ def chroma_cqt_chunked(*, y: np.ndarray, sr: int, hop_length: int = 512, n_chrom
     return out
 
 
+def _tempogram_blocks(env: np.ndarray, *, win_length: int, chunk: int):
+    """librosa's autocorrelation tempogram of ``env`` (float64, ``norm=inf``), ``chunk`` frames at a time:
+    yields ``(f0, f1, tg (win_length, f1 - f0))``. Every frame is its own window of the (ramp-padded)
+    envelope, so the blocks are the columns of ``librosa.feature.tempogram(onset_envelope=env, ...)``."""
+    import librosa
+
+    env = np.asarray(env)
+    n = env.shape[-1]
+    ac_window = librosa.filters.get_window("hann", win_length, fftbins=True)[:, None]
+    half = int(win_length // 2)
+    padded = np.pad(env, (half, half), mode="linear_ramp", end_values=[0, 0])
+    for f0 in range(0, n, int(chunk)):
+        f1 = min(n, f0 + int(chunk))
+        frames = librosa.util.frame(padded[f0: f1 + win_length - 1], frame_length=win_length, hop_length=1)
+        yield f0, f1, librosa.util.normalize(librosa.autocorrelate(frames[:, : f1 - f0] * ac_window, axis=-2),
+                                             norm=np.inf, axis=-2)
+
+
+def tempogram_mean(*, onset_envelope: np.ndarray, win_length: int, chunk: int = 4 * CHUNK_FRAMES) -> np.ndarray:
+    """The time average ``(win_length, 1)`` float64 of librosa's tempogram of ``onset_envelope`` (what
+    ``librosa.feature.tempo`` aggregates; pass it as ``tg=``), summed ``chunk`` frames at a time instead of
+    a whole-song ``(win_length, T)`` array and its complex FFT. One chunk: librosa's mean bit for bit; more:
+    the same sum in another order (float rounding)."""
+    env = np.asarray(onset_envelope)
+    total = np.zeros((win_length, 1), np.float64)
+    for _, _, tg in _tempogram_blocks(env, win_length=win_length, chunk=chunk):
+        total += np.sum(tg, axis=-1, keepdims=True)
+    return total / max(1, env.shape[-1])
+
+
 def tempogram_chunked(*, onset_envelope: np.ndarray, win_length: int = 384, chunk: int = CHUNK_FRAMES,
                       out: np.ndarray | None = None) -> np.ndarray:
     """:func:`tempogram` (librosa's autocorrelation tempogram: centred windows, the envelope padded with a
@@ -405,18 +435,8 @@ def tempogram_chunked(*, onset_envelope: np.ndarray, win_length: int = 384, chun
     -------
     np.ndarray, float32, shape (T, win_length) — frames first
     """
-    import librosa
-
     env = np.asarray(onset_envelope, dtype=np.float32)
-    n = env.shape[-1]
-    out = np.zeros((n, win_length), np.float32) if out is None else out
-    ac_window = librosa.filters.get_window("hann", win_length, fftbins=True)[:, None]
-    half = int(win_length // 2)
-    padded = np.pad(env, (half, half), mode="linear_ramp", end_values=[0, 0])
-    for f0 in range(0, n, int(chunk)):
-        f1 = min(n, f0 + int(chunk))
-        frames = librosa.util.frame(padded[f0: f1 + win_length - 1], frame_length=win_length, hop_length=1)
-        tg = librosa.util.normalize(librosa.autocorrelate(frames[:, : f1 - f0] * ac_window, axis=-2), norm=np.inf,
-                                    axis=-2)
+    out = np.zeros((env.shape[-1], win_length), np.float32) if out is None else out
+    for f0, f1, tg in _tempogram_blocks(env, win_length=win_length, chunk=chunk):
         out[f0:f1] = np.nan_to_num(tg, nan=0.0).T
     return out
