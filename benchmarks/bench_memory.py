@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -58,13 +59,58 @@ def profile(song: Path) -> None:
         print(f"  {stat.size / 2**20:8.1f} MiB still held  {stat.traceback[0]}")
 
 
+def stages(song: Path, formats: str, out: Path) -> None:
+    """``dancekit dance``'s steps one by one in this process (default model, all stages), printing the peak
+    resident memory after each (``ru_maxrss``: a step that does not raise it stayed below the earlier peak)."""
+    from dancekit.export import check_formats, export_motion
+    from dancekit.pipelines import load_pipeline
+    from dancekit.render import AudioClip
+
+    def peak(what: str, t0: float) -> None:
+        print(f"  {what:34s} peak RSS so far {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.2f} GiB "
+              f"({time.perf_counter() - t0:.0f} s)", flush=True)
+
+    t0 = time.perf_counter()
+    pipe = load_pipeline()
+    peak("imports + model", t0)
+    from dancekit.features import extract_file
+
+    for preset in (pipe.preset, "music2dance"):
+        t0 = time.perf_counter()
+        extract_file(song, fps=pipe.fps, preset=preset, hop_length=pipe.hop_length)
+        peak(f"features ({preset})", t0)
+    from dancekit.pipelines.stages import song_beats_for
+
+    t0 = time.perf_counter()
+    song_beats_for(song)
+    peak("song beats (fine grid)", t0)
+    t0 = time.perf_counter()
+    result = pipe(str(song), seed=0)
+    peak("dance (cached features; generation, stages)", t0)
+    for fmt in check_formats(formats):
+        t0 = time.perf_counter()
+        export_motion(result.motion, out, stem=f"{song.stem}", formats=[fmt], audio=AudioClip(song), progress=False)
+        peak(f"export {fmt}", t0)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, nargs="+", default=[20.0, 60.0])
     ap.add_argument("--format", default="mp4,html,npz,bvh")
     ap.add_argument("--song", default=None)
     ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--stages", action="store_true",
+                    help="instead: run the steps one by one in this process, the peak after each")
     args = ap.parse_args()
+    if args.stages:
+        with tempfile.TemporaryDirectory(prefix="dk-mem-") as tmp:
+            tmp = Path(tmp)
+            os.environ["DANCEKIT_CACHE"] = str(tmp / "cache")
+            for minutes in ([None] if args.song else args.minutes):
+                song = Path(args.song) if args.song else make_song(tmp / f"long{minutes:g}.mp3", minutes)
+                print(f"{song.name}, --format {args.format}:", flush=True)
+                stages(song, args.format, tmp / "out")
+        return 0
     rows = []
     with tempfile.TemporaryDirectory(prefix="dk-mem-") as tmp:
         tmp = Path(tmp)

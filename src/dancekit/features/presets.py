@@ -230,24 +230,31 @@ def extract(
     )
 
 
-class _Growing:
-    """A 1-D float32 array filled block by block: allocated once at the expected length, grown if longer."""
+class _Spool:
+    """A float32 signal written block by block to an unnamed temporary file and read back by sample ranges:
+    the feature-rate song (184 MB for an hour at 12.8 kHz) stays on disk while the chunks are analysed."""
 
-    def __init__(self, expected: int):
-        self.a = np.empty(max(16, int(expected)), np.float32)
+    def __init__(self):
+        import tempfile
+
+        self.fh = tempfile.TemporaryFile(prefix="dancekit-song-")
         self.n = 0
+        self.nonzero = False
 
     def add(self, block: np.ndarray) -> None:
-        k = len(block)
-        if self.n + k > len(self.a):
-            grown = np.empty(max(self.n + k, int(len(self.a) * 1.25)), np.float32)
-            grown[: self.n] = self.a[: self.n]
-            self.a = grown
-        self.a[self.n: self.n + k] = block
-        self.n += k
+        block = np.ascontiguousarray(block, dtype="<f4")
+        self.fh.write(block.tobytes())
+        self.n += len(block)
+        self.nonzero = self.nonzero or bool(np.any(block))
 
-    def array(self) -> np.ndarray:
-        return self.a[: self.n]
+    def read(self, a: int, b: int) -> np.ndarray:
+        """Samples ``[a, b)`` (clipped to the signal) as float32."""
+        a, b = max(0, int(a)), min(self.n, int(b))
+        self.fh.seek(4 * a)
+        return np.frombuffer(self.fh.read(4 * max(0, b - a)), dtype="<f4").astype(np.float32)
+
+    def close(self) -> None:
+        self.fh.close()
 
 
 def _expected_samples(path, start: float | None, end: float | None, rate: int) -> int:
@@ -274,8 +281,8 @@ def extract_path(
     blocks (:class:`~dancekit.features.spectral.MelPowerStream`), and the chromagram and tempogram are
     computed ``chunk`` frames at a time with enough context on both sides
     (:func:`~dancekit.features.spectral.chroma_cqt_chunked`, :func:`~dancekit.features.spectral.tempogram_chunked`).
-    What remains in memory is the song at the feature rate (``fps * hop_length`` Hz, float32), the two mel
-    spectrograms and the output.
+    What remains in memory is the two mel spectrograms and the output: the song at the feature rate
+    (``fps * hop_length`` Hz, float32) waits in a temporary file for the chromagram's chunks.
 
     The result equals ``extract(*load(path, start=start, end=end), ...)`` to float rounding (the constant-Q
     chunks: ~1e-6; everything else bit for bit); ``tests/test_streaming.py`` checks it with a small chunk.
@@ -299,7 +306,7 @@ def extract_path(
         return extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)
     chunk = spectral.CHUNK_FRAMES if chunk is None else int(chunk)
     expected = _expected_samples(path, start, end, fsr)
-    y_feat = _Growing(expected)
+    y_feat = _Spool()
     n_fft = spectral._n_fft(None, hop_length)
     mel = spectral.MelPowerStream(sr=fsr, n_fft=n_fft, hop_length=hop_length, expected_samples=expected)
     fine = spectral.MelPowerStream(sr=rhythm.BEAT_SR, n_fft=rhythm._BEAT_NFFT, hop_length=rhythm.BEAT_HOP,
@@ -308,27 +315,30 @@ def extract_path(
         y_feat.add(block_feat)
         mel.feed(block_feat)
         fine.feed(block_fine)
-    y = y_feat.array()
-    T = spectral.n_frames(n_samples=len(y), hop_length=hop_length)
-    blocks = PRESETS[preset]
-    at, col = {}, 0
-    for name, d in blocks:
-        at[name] = slice(col, col + d)
-        col += d
-    features = np.zeros((T, PRESET_DIMS[preset]), np.float32)
+    try:
+        T = spectral.n_frames(n_samples=y_feat.n, hop_length=hop_length)
+        blocks = PRESETS[preset]
+        at, col = {}, 0
+        for name, d in blocks:
+            at[name] = slice(col, col + d)
+            col += d
+        features = np.zeros((T, PRESET_DIMS[preset]), np.float32)
 
-    # log_melspectrogram(y=y, ...) from the streamed mel power (the same chunks: the same numbers)
-    S = spectral._fit(spectral.power_to_db_inplace(mel.finish()), T)  # (128, T) dB
-    del mel
-    if preset == "revolution":
-        m = spectral.mfcc(S=S, sr=fsr, hop_length=hop_length)
-        features[:, at["mfcc"]] = m.T
-        features[:, at["mfcc_delta"]] = spectral.mfcc_delta(mfcc=m).T
-    env = spectral.onset_strength(S=S, sr=fsr, hop_length=hop_length)
-    del S
-    features[:, at["onset_strength"]] = env[:, None]
-    spectral.chroma_cqt_chunked(y=y, sr=fsr, hop_length=hop_length, chunk=chunk, out=features[:, at["chroma_cqt"]])
-    del y, y_feat
+        # log_melspectrogram(y=y, ...) from the streamed mel power (the same chunks: the same numbers)
+        S = spectral._fit(spectral.power_to_db_inplace(mel.finish()), T)  # (128, T) dB
+        del mel
+        if preset == "revolution":
+            m = spectral.mfcc(S=S, sr=fsr, hop_length=hop_length)
+            features[:, at["mfcc"]] = m.T
+            features[:, at["mfcc_delta"]] = spectral.mfcc_delta(mfcc=m).T
+        env = spectral.onset_strength(S=S, sr=fsr, hop_length=hop_length)
+        del S
+        features[:, at["onset_strength"]] = env[:, None]
+        spectral.chroma_cqt_chunked(y=y_feat.read if y_feat.nonzero else np.zeros(y_feat.n, np.float32), sr=fsr,
+                                    hop_length=hop_length, chunk=chunk, out=features[:, at["chroma_cqt"]],
+                                    n_samples=y_feat.n)
+    finally:
+        y_feat.close()
     if preset == "revolution":
         spectral.tempogram_chunked(onset_envelope=env, chunk=chunk, out=features[:, at["tempogram"]])
 

@@ -358,14 +358,15 @@ CHUNK_FRAMES = 1500
 CQT_MARGIN_S = 4.0
 
 
-def chroma_cqt_chunked(*, y: np.ndarray, sr: int, hop_length: int = 512, n_chroma: int = 12,
-                       bins_per_octave: int = 36, chunk: int = CHUNK_FRAMES, out: np.ndarray | None = None
+def chroma_cqt_chunked(*, y, sr: int, hop_length: int = 512, n_chroma: int = 12, bins_per_octave: int = 36,
+                       chunk: int = CHUNK_FRAMES, out: np.ndarray | None = None, n_samples: int | None = None
                        ) -> np.ndarray:
     """:func:`chroma_cqt` computed ``chunk`` frames at a time, each chunk's constant-Q transform taken over
     its frames plus :data:`CQT_MARGIN_S` of audio each side (chunks start on a hop, a multiple of the
     octave decimation, so every chunk's octaves are sampled on the song's grid): equal to the whole-song
     chromagram (librosa 0.11: 0 tuning, no estimate), in memory bounded by the chunk. ``out``: a ``(T, n_chroma)`` array to write into (e.g. columns of a
-    feature matrix), else one is allocated.
+    feature matrix), else one is allocated. ``y`` may also be a function ``read(a, b)`` returning samples
+    ``[a, b)`` of a signal of ``n_samples`` samples that is not all zero (e.g. one kept on disk).
 
     Returns
     -------
@@ -373,10 +374,15 @@ def chroma_cqt_chunked(*, y: np.ndarray, sr: int, hop_length: int = 512, n_chrom
     """
     import librosa
 
-    y = np.asarray(y, dtype=np.float32)
-    T = n_frames(n_samples=len(y), hop_length=hop_length)
+    if callable(y):
+        read, n = y, int(n_samples)
+    else:
+        y = np.asarray(y, dtype=np.float32)
+        n = len(y)
+        read = lambda a, b: y[a:b]  # noqa: E731
+    T = n_frames(n_samples=n, hop_length=hop_length)
     out = np.zeros((T, n_chroma), np.float32) if out is None else out
-    if not np.any(y):
+    if not callable(y) and not np.any(y):
         out[:] = 0.0
         return out
     n_oct = _cqt_octaves(sr)
@@ -384,7 +390,7 @@ def chroma_cqt_chunked(*, y: np.ndarray, sr: int, hop_length: int = 512, n_chrom
     for f0 in range(0, T, int(chunk)):
         f1 = min(T, f0 + int(chunk))
         a = max(0, f0 - margin)
-        seg = y[a * hop_length: min(len(y), (f1 + margin) * hop_length)]
+        seg = read(a * hop_length, min(n, (f1 + margin) * hop_length))
         C = np.abs(librosa.cqt(y=seg, sr=sr, hop_length=hop_length, fmin=CQT_FMIN, n_bins=n_oct * bins_per_octave,
                                bins_per_octave=bins_per_octave))
         C = _fit(C, n_frames(n_samples=len(seg), hop_length=hop_length))[:, f0 - a: f1 - a]
