@@ -230,7 +230,7 @@ def chroma_cqt(
 
     The constant-Q transform starts at C1 (32.7 Hz) and spans up to 7 octaves,
     fewer at low sample rates so that the top bin stays below Nyquist (6
-    octaves at ``sr = 15 * 512``). Tuning is estimated from the signal. Each
+    octaves at ``sr = 15 * 512``). Tuning 0 (librosa 0.11's default: none is estimated). Each
     column is scaled to a maximum of 1 (all-zero for silence).
 
     Returns
