@@ -344,7 +344,7 @@ def extract_path(
 
     S_fine = spectral.power_to_db_inplace(fine.finish())
     del fine
-    env_fine = rhythm._fine_onset(S_fine)
+    env_fine = rhythm._fine_onset_chunked(S_fine)
     tempo, beat_times = rhythm._beat_track_fine(S_fine, env_fine)
     downbeat_times = rhythm._downbeats_fine(S_fine, env_fine, beat_times) if preset == "music2dance" else None
     del S_fine

@@ -25,6 +25,7 @@ from dancekit.features.rhythm import (
     _beat_track_fine,
     _fine_log_mel,
     _fine_onset,
+    _fine_onset_chunked,
     _to_beat_sr,
 )
 
@@ -126,7 +127,7 @@ def _song_beats_streamed(path, *, start: float | None, end: float | None, min_cl
     for (block,) in stream(path, rates=[BEAT_SR], start=start, end=end):
         mel.feed(block)
     S_db = power_to_db_inplace(mel.finish())
-    env = _fine_onset(S_db)
+    env = _fine_onset_chunked(S_db)
     tempo, times = _beat_track_fine(S_db, env)
     del S_db
     clarity = pulse_clarity(envelope=env, tempo=tempo)
