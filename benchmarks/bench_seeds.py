@@ -11,6 +11,10 @@ wall time of ``--repeats`` runs for one seed and for the seed list, their ratio 
 npz``: <= 2), and the 1-minute load average when each pair started (the machine may be shared). Rendering
 is per dance: with mp4 in the formats, N seeds render N videos, so that row grows with N by design.
 The song defaults to ../shared/music/Kevin_MacLeod_-_Vibe_Ace.ogg (61.5 s).
+
+``--compare [SECONDS]`` instead compares, in this process, each batched dance with the seed danced alone
+(every dance family, stages off and on, the first SECONDS of the song, default 20): the largest and mean
+joint distance in cm.
 """
 
 from __future__ import annotations
@@ -39,15 +43,38 @@ def dance(song: Path, out: Path, cache: Path, formats: str, seed_args: list[str]
     return wall
 
 
+def compare(song: Path, seeds: list[int], seconds: float) -> None:
+    import numpy as np
+
+    from dancekit.pipelines import load_pipeline
+
+    print(f"song: {song.name}, first {seconds:g} s, seeds {seeds}: batch row against the seed alone")
+    print("| model | stages | seed | max (cm) | mean (cm) |")
+    print("| --- | --- | ---: | ---: | ---: |")
+    for name in ("revolution", "music2dance", "dual"):
+        pipe = load_pipeline(name)
+        for on in (False, True):
+            batch = pipe.dances(str(song), seeds=seeds, end=seconds, beat_sync=on, cleanup=on)
+            for r, seed in zip(batch, seeds):
+                alone = pipe(str(song), seed=seed, end=seconds, beat_sync=on, cleanup=on)
+                d = np.abs(r.motion.to_positions() - alone.motion.to_positions())
+                print(f"| {name} | {'on' if on else 'off'} | {seed} | {d.max():.4f} | {d.mean():.5f} |", flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--song", default=str(SONG))
     ap.add_argument("--seeds", default="0-7")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--formats", nargs="+", default=["npz", "mp4,html,npz,bvh"])
+    ap.add_argument("--compare", type=float, nargs="?", const=20.0, default=None, metavar="SECONDS")
     args = ap.parse_args()
     song = Path(args.song)
     from dancekit.pipelines import parse_seeds
+
+    if args.compare is not None:
+        compare(song, parse_seeds(args.seeds)[:2] if args.seeds == "0-7" else parse_seeds(args.seeds), args.compare)
+        return 0
 
     n = len(parse_seeds(args.seeds))
     rows = []
