@@ -315,6 +315,14 @@ def extract_path(
         y_feat.add(block_feat)
         mel.feed(block_feat)
         fine.feed(block_fine)
+    # the beat grid first: its spectrogram (160 MB per hour) is freed before the feature matrix is filled
+    S_fine = spectral.power_to_db_inplace(fine.finish())
+    del fine
+    env_fine = rhythm._fine_onset_chunked(S_fine)
+    tempo, beat_times = rhythm._beat_track_fine(S_fine, env_fine)
+    downbeat_times = rhythm._downbeats_fine(S_fine, env_fine, beat_times) if preset == "music2dance" else None
+    del S_fine
+    strength = rhythm.beat_strength(onset_envelope=env_fine, rate=rhythm.BEAT_SR / rhythm.BEAT_HOP)
     try:
         T = spectral.n_frames(n_samples=y_feat.n, hop_length=hop_length)
         blocks = PRESETS[preset]
@@ -342,13 +350,6 @@ def extract_path(
     if preset == "revolution":
         spectral.tempogram_chunked(onset_envelope=env, chunk=chunk, out=features[:, at["tempogram"]])
 
-    S_fine = spectral.power_to_db_inplace(fine.finish())
-    del fine
-    env_fine = rhythm._fine_onset_chunked(S_fine)
-    tempo, beat_times = rhythm._beat_track_fine(S_fine, env_fine)
-    downbeat_times = rhythm._downbeats_fine(S_fine, env_fine, beat_times) if preset == "music2dance" else None
-    del S_fine
-    strength = rhythm.beat_strength(onset_envelope=env_fine, rate=rhythm.BEAT_SR / rhythm.BEAT_HOP)
     features[:, at["beat"]] = rhythm.beat_onehot(beat_times=beat_times, fps=fps, n_frames=T)[:, None]
     if preset == "music2dance":
         features[:, at["downbeat"]] = rhythm.beat_onehot(beat_times=downbeat_times, fps=fps, n_frames=T)[:, None]
