@@ -18,7 +18,7 @@ import os
 import re
 import struct
 import subprocess
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +27,7 @@ import soundfile as sf
 from dancekit._io import atomic_path
 from dancekit.errors import AudioError, ExternalToolError, ParameterError
 
-__all__ = ["MIN_DURATION", "check_audio_path", "load", "resample", "save_wav", "validate_audio"]
+__all__ = ["MIN_DURATION", "check_audio_path", "load", "resample", "save_wav", "stream", "validate_audio"]
 
 #: Shortest audio accepted by :func:`validate_audio`, in seconds.
 MIN_DURATION = 1.0
@@ -425,6 +425,104 @@ def load(
         y = resample(y, orig_sr=native_sr, target_sr=int(sr))
         return y, int(sr)
     return y, int(native_sr)
+
+
+def stream(
+    path: str | os.PathLike,
+    *,
+    rates: Sequence[int],
+    start: float | None = None,
+    end: float | None = None,
+) -> Iterator[list[np.ndarray]]:
+    """Decode an audio file to mono in blocks, resampled on the fly to each of ``rates``: memory is a block,
+    not the song.
+
+    Yields one list per decoded block: the block's samples at each of ``rates`` (float32, (n_k,) each; soxr
+    ``HQ`` resampling streams, so a block may yield fewer or more samples than its share). Concatenated, the
+    samples at rate ``r`` equal ``load(path, sr=r, start=start, end=end)[0]`` exactly (the same blocks are
+    read and mixed down, soxr's stream gives the same samples as its one-shot resampler, and the tail is
+    zero-padded to ``ceil(n * r / native_sr)`` samples as librosa pads it). The same checks as :func:`load`
+    (range, truncation, finite samples, at least :data:`MIN_DURATION` s) raise the same errors, a
+    non-finite or too-short song only once its blocks have been read. Formats libsndfile cannot read (m4a,
+    aac, ...) are decoded whole by ffmpeg first (one block).
+
+    Raises
+    ------
+    AudioError, ParameterError
+        As :func:`load`.
+    """
+    import soxr
+
+    path = Path(path)
+    rates = [int(r) for r in rates]
+    if not rates or any(r <= 0 for r in rates):
+        raise ParameterError(f"rates must be positive sample rates in Hz, got {rates!r}")
+    _validate_range(start, end)
+    check_audio_path(path)
+    with _quiet_c_stderr():
+        try:
+            f = sf.SoundFile(path)
+        except (sf.LibsndfileError, RuntimeError):
+            f = None
+    if f is None:
+        y, native = load(path, start=start, end=end)
+        yield [resample(y, orig_sr=native, target_sr=r) for r in rates]
+        return
+    with f:
+        with _quiet_c_stderr():
+            _check_truncated(path, f.format)
+        native, total = f.samplerate, f.frames
+        a = 0 if start is None else int(round(start * native))
+        b = total if end is None else min(total, int(round(end * native)))
+        _check_range(path, start, end, total / native)
+        if a > 0:
+            f.seek(a)
+        want = max(0, b - a)
+        streams = {r: soxr.ResampleStream(native, r, 1, dtype="float32", quality="HQ") for r in rates if r != native}
+        counts = dict.fromkeys(rates, 0)
+        got, flushed = 0, False
+        while got < want:
+            try:
+                with _quiet_c_stderr():
+                    raw = f.read(min(_BLOCK, want - got), dtype="float32", always_2d=True)
+            except sf.LibsndfileError as exc:
+                raise AudioError(f"cannot decode audio file {str(path)!r}: corrupt data ({exc})") from None
+            k = raw.shape[0]
+            if k == 0:
+                break
+            block = np.mean(raw, axis=1, dtype=np.float32) if raw.shape[1] > 1 else np.ascontiguousarray(raw[:, 0])
+            del raw
+            finite = np.isfinite(block)
+            if not finite.all():
+                bad_here = int(k - np.count_nonzero(finite))
+                first = got + int(np.argmin(finite))
+                raise AudioError(f"audio file {str(path)!r} holds non-finite samples (NaN or inf; {bad_here} in "
+                                 f"one block), the first at {first / native:.3f} s")
+            got += k
+            flushed = got >= want
+            out = [block if r == native else streams[r].resample_chunk(block, last=flushed) for r in rates]
+            for r, o in zip(rates, out):
+                counts[r] += len(o)
+            yield out
+        if got < want and not (f.format in ("MP3", "MPEG") and got > 0):  # an mp3's length is only an estimate
+            raise AudioError(
+                f"audio file is truncated or corrupt: {str(path)!r} declares {total} frames but only "
+                f"{total - (want - got)} could be decoded"
+            )
+    if got == 0:
+        raise AudioError(f"audio file {str(path)!r} holds no samples (zero-length audio)")
+    if got < MIN_DURATION * native:
+        raise AudioError(f"audio file {str(path)!r} is too short: {got / native:.3f} s ({got} samples at {native} "
+                         f"Hz); need at least {MIN_DURATION:g} s")
+    tail = []
+    for r in rates:
+        rest = streams[r].resample_chunk(np.zeros(0, np.float32), last=True) if r != native and not flushed \
+            else np.zeros(0, np.float32)
+        n_r = got if r == native else int(np.ceil(got * r / native))
+        pad = max(0, n_r - counts[r] - len(rest))
+        tail.append(np.concatenate([rest, np.zeros(pad, np.float32)])[: max(0, n_r - counts[r])])
+    if any(len(t) for t in tail):
+        yield tail
 
 
 def save_wav(path: str | os.PathLike, y: np.ndarray, *, sr: int, subtype: str = "PCM_16") -> Path:

@@ -19,6 +19,15 @@ def _seed(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
 
 
+def _seeds(text: str) -> list[int]:
+    from dancekit.pipelines.base import parse_seeds
+
+    try:
+        return parse_seeds(text)
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "dance",
@@ -36,9 +45,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="dance genre: auto, none or one of the model's genres (`dancekit models` lists them; the "
                         "default model: waltz, rumba, chacha, tango); auto (default): read from the music when the "
                         "model has a music attribute classifier, else as none; none: the model alone")
-    p.add_argument("--seed", type=_seed, default=0,
-                   help="random seed: another seed, another dance (default 0); any integer (seeds outside "
-                        "[0, 2**63) are hashed to 63 bits)")
+    seeds = p.add_mutually_exclusive_group()
+    seeds.add_argument("--seed", type=_seed, default=0,
+                       help="random seed: another seed, another dance (default 0); any integer (seeds outside "
+                            "[0, 2**63) are hashed to 63 bits)")
+    seeds.add_argument("--seeds", type=_seeds, default=None, metavar="LIST",
+                       help="several dances in one pass, one per seed: 0-7 (a range, ends included), 0,3,9, or "
+                            "both (0-3,10); generated as one batch (the song's features once) and written as "
+                            "NAME_seedK.mp4, NAME_seedK.html, ... (one output set per seed; at most 64)")
     p.add_argument("--foot-constraint", nargs="?", const="default", default=None, metavar="MODEL",
                    help="post-process the dance with the Foot Constraint Model of Music2Dance (less foot sliding; "
                         "the lower body alone is corrected, the path over the floor is kept): the one embedded with "
@@ -105,25 +119,32 @@ def run(args: argparse.Namespace) -> int:
     extra = {k: None if v is None else v == "on" for k, v in (("foot_lock_on", args.foot_lock),
                                                               ("smooth_on", args.smooth))}
     own = fix is None and all(v is None for v in extra.values())  # the pipeline runs the stages itself
-    result = pipe(str(audio), seed=args.seed, start=args.start, end=args.end, genre=args.genre,
-                  progress=not args.quiet, **(stages_on if own else {"beat_sync": False, "cleanup": False}))
+    seeds = [args.seed] if args.seeds is None else args.seeds
+    results = pipe.dances(str(audio), seeds=seeds, start=args.start, end=args.end, genre=args.genre,
+                          progress=not args.quiet,
+                          **(stages_on if own else {"beat_sync": False, "cleanup": False}))
     if not own:  # the foot model sees the model's own dance; the stages come after it
         import dataclasses
 
-        from dancekit.pipelines.stages import finish
+        from dancekit.pipelines.stages import finish, song_beats_for
 
-        motion = result.motion if fix is None else fix(result.motion)
-        result = finish(dataclasses.replace(result, motion=motion), str(audio), start=args.start,
-                        end=args.end, beat_sync_on=stages_on["beat_sync"], cleanup_on=stages_on["cleanup"], **extra)
-    motion = result.motion
-    if args.fps is not None and args.fps != motion.fps:
-        motion = motion.resample(args.fps)
-    written = export_motion(motion, out, stem=audio.stem, formats=formats, audio=clip, options=options,
-                            progress=not args.quiet, bvh_rig=args.bvh_rig)
-    elapsed = time.perf_counter() - t0
-    how = f" {result.summary()}" if result.summary() else ""
-    print(
-        f"danced {audio.name}{how}: {motion.duration:.1f} s, {motion.num_frames} frames at {motion.fps:g} fps "
-        f"in {elapsed:.1f} s → " + ", ".join(str(p) for p in written)
-    )
+        beats = song_beats_for(str(audio), start=args.start, end=args.end) if stages_on["beat_sync"] else None
+        results = [finish(dataclasses.replace(r, motion=r.motion if fix is None else fix(r.motion)), str(audio),
+                          start=args.start, end=args.end, beat_sync_on=stages_on["beat_sync"],
+                          cleanup_on=stages_on["cleanup"], beats=beats, **extra)
+                   for r in results]
+    for result in results:
+        motion = result.motion
+        if args.fps is not None and args.fps != motion.fps:
+            motion = motion.resample(args.fps)
+        stem = audio.stem if args.seeds is None else f"{audio.stem}_seed{result.seed}"
+        written = export_motion(motion, out, stem=stem, formats=formats, audio=clip, options=options,
+                                progress=not args.quiet, bvh_rig=args.bvh_rig)
+        elapsed = time.perf_counter() - t0
+        how = f" {result.summary()}" if result.summary() else ""
+        seed = "" if args.seeds is None else f" (seed {result.seed})"
+        print(
+            f"danced {audio.name}{seed}{how}: {motion.duration:.1f} s, {motion.num_frames} frames at "
+            f"{motion.fps:g} fps in {elapsed:.1f} s → " + ", ".join(str(p) for p in written)
+        )
     return 0

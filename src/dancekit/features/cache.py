@@ -11,16 +11,16 @@ import warnings
 from pathlib import Path
 
 from dancekit._io import file_sha256
-from dancekit.audio.io import check_audio_path, load
+from dancekit.audio.io import check_audio_path
 from dancekit.errors import DancekitError, ParameterError
 from dancekit.features.featureset import FeatureSet
-from dancekit.features.presets import BACKENDS, PRESETS, _check_choice, extract, feature_sr
+from dancekit.features.presets import BACKENDS, PRESETS, _check_choice, extract_path, feature_sr
 
 __all__ = ["CACHE_MAX_BYTES", "FEATURES_VERSION", "cache_key", "cache_max_bytes", "default_cache_dir",
            "extract_file", "prune_cache"]
 
 #: Bump when feature values change, so stale cache entries are never read.
-FEATURES_VERSION = 2  # 2: FeatureSet.beat_strength
+FEATURES_VERSION = 3  # 2: FeatureSet.beat_strength; 3: streamed extraction (extract_path: chromagram in chunks, ~1e-6)
 
 #: Default size bound of the feature cache folder in bytes (1 GiB: about twenty 20-minute songs'
 #: revolution features); ``DANCEKIT_CACHE_MAX_MB`` overrides it.
@@ -135,6 +135,11 @@ def extract_file(
 ) -> FeatureSet:
     """Load an audio file (or an excerpt) and :func:`~dancekit.features.extract` a preset, with caching.
 
+    The features are computed by :func:`~dancekit.features.presets.extract_path`: the song is decoded and
+    resampled in blocks and the chromagram and tempogram computed in chunks, so memory is bounded by a
+    chunk (plus the feature-rate song and the output), equal to :func:`extract` on the loaded song to float
+    rounding.
+
     The cache entry is ``<cache_dir>/<key>.npz`` where the key hashes the
     file's SHA-256 and every parameter, so editing the file or changing any
     argument misses the cache. Entries are written atomically; an unreadable
@@ -202,8 +207,7 @@ def extract_file(
             warnings.warn(f"feature cache disabled: cannot create {str(folder)!r} ({exc})", stacklevel=2)
             entry = None
 
-    y, sr = load(path, start=start, end=end)
-    fs = extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)
+    fs = extract_path(path, fps=fps, preset=preset, hop_length=hop_length, backend=backend, start=start, end=end)
     if entry is not None:
         try:
             fs.save(entry)

@@ -32,7 +32,7 @@ from dancekit.errors import ParameterError
 from dancekit.features import rhythm, spectral
 from dancekit.features.featureset import FeatureSet
 
-__all__ = ["BACKENDS", "PRESETS", "PRESET_DIMS", "extract", "feature_sr"]
+__all__ = ["BACKENDS", "PRESETS", "PRESET_DIMS", "extract", "extract_path", "feature_sr"]
 
 #: Column blocks of each preset: (block name, width).
 PRESETS: dict[str, tuple[tuple[str, int], ...]] = {
@@ -216,6 +216,143 @@ def extract(
         np.concatenate([cols[name] for name, _ in blocks], axis=1), dtype=np.float32
     )
     assert features.shape == (T, PRESET_DIMS[preset])
+    assert np.isfinite(features).all(), "non-finite feature values from finite audio"
+    return FeatureSet(
+        features=features,
+        names=tuple(f"{name}:{d}" for name, d in blocks),
+        beat_times=np.asarray(beat_times, dtype=np.float64),
+        fps=float(fps),
+        preset=preset,
+        tempo=float(tempo),
+        hop_length=int(hop_length),
+        downbeat_times=None if downbeat_times is None else np.asarray(downbeat_times, dtype=np.float64),
+        beat_strength=strength,
+    )
+
+
+class _Spool:
+    """A float32 signal written block by block to an unnamed temporary file and read back by sample ranges:
+    the feature-rate song (184 MB for an hour at 12.8 kHz) stays on disk while the chunks are analysed."""
+
+    def __init__(self):
+        import tempfile
+
+        self.fh = tempfile.TemporaryFile(prefix="dancekit-song-")
+        self.n = 0
+        self.nonzero = False
+
+    def add(self, block: np.ndarray) -> None:
+        block = np.ascontiguousarray(block, dtype="<f4")
+        self.fh.write(block.tobytes())
+        self.n += len(block)
+        self.nonzero = self.nonzero or bool(np.any(block))
+
+    def read(self, a: int, b: int) -> np.ndarray:
+        """Samples ``[a, b)`` (clipped to the signal) as float32."""
+        a, b = max(0, int(a)), min(self.n, int(b))
+        self.fh.seek(4 * a)
+        return np.frombuffer(self.fh.read(4 * max(0, b - a)), dtype="<f4").astype(np.float32)
+
+    def close(self) -> None:
+        self.fh.close()
+
+
+def _expected_samples(path, start: float | None, end: float | None, rate: int) -> int:
+    """The decoded length at ``rate`` that libsndfile's header promises (0 when unknown)."""
+    import soundfile as sf
+
+    try:
+        info = sf.info(str(path))
+    except Exception:  # not a libsndfile format: ffmpeg decodes it in one block
+        return 0
+    a = 0.0 if start is None else float(start)
+    b = info.frames / info.samplerate if end is None else min(float(end), info.frames / info.samplerate)
+    return int(np.ceil(max(0.0, b - a) * rate)) + 16
+
+
+@_quiet_short_input
+def extract_path(
+    path, *, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa",
+    start: float | None = None, end: float | None = None, chunk: int | None = None,
+) -> FeatureSet:
+    """:func:`extract` of an audio file (its excerpt ``[start, end)`` s), in memory bounded by a chunk rather
+    than the song: the file is decoded in blocks and resampled on the fly (:func:`dancekit.audio.io.stream`;
+    the native-rate song is never held), the fine beat-tracking spectrogram is built from the streamed
+    blocks (:class:`~dancekit.features.spectral.MelPowerStream`), and the chromagram and tempogram are
+    computed ``chunk`` frames at a time with enough context on both sides
+    (:func:`~dancekit.features.spectral.chroma_cqt_chunked`, :func:`~dancekit.features.spectral.tempogram_chunked`).
+    What remains in memory is the two mel spectrograms and the output: the song at the feature rate
+    (``fps * hop_length`` Hz, float32) waits in a temporary file for the chromagram's chunks.
+
+    The result equals ``extract(*load(path, start=start, end=end), ...)`` to float rounding (the constant-Q
+    chunks: ~1e-6; everything else bit for bit); ``tests/test_streaming.py`` checks it with a small chunk.
+    The ``dual`` preset (harmonic / percussive separation of the whole song) and the madmom backend take
+    the whole-song path of :func:`extract`.
+
+    Parameters
+    ----------
+    path : an audio file :func:`dancekit.audio.load` reads
+    fps, preset, hop_length, backend : as :func:`extract`
+    start, end : excerpt in seconds
+    chunk : frames per chromagram / tempogram chunk (default :data:`dancekit.features.spectral.CHUNK_FRAMES`)
+    """
+    from dancekit.audio.io import load, stream
+
+    _check_choice("preset", preset, PRESETS)
+    _check_choice("backend", backend, BACKENDS)
+    fsr = feature_sr(fps=fps, hop_length=hop_length)
+    if backend != "librosa" or preset == "dual":
+        y, sr = load(path, start=start, end=end)
+        return extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)
+    chunk = spectral.CHUNK_FRAMES if chunk is None else int(chunk)
+    expected = _expected_samples(path, start, end, fsr)
+    y_feat = _Spool()
+    n_fft = spectral._n_fft(None, hop_length)
+    mel = spectral.MelPowerStream(sr=fsr, n_fft=n_fft, hop_length=hop_length, expected_samples=expected)
+    fine = spectral.MelPowerStream(sr=rhythm.BEAT_SR, n_fft=rhythm._BEAT_NFFT, hop_length=rhythm.BEAT_HOP,
+                                   expected_samples=_expected_samples(path, start, end, rhythm.BEAT_SR))
+    for block_feat, block_fine in stream(path, rates=[fsr, rhythm.BEAT_SR], start=start, end=end):
+        y_feat.add(block_feat)
+        mel.feed(block_feat)
+        fine.feed(block_fine)
+    # the beat grid first: its spectrogram (160 MB per hour) is freed before the feature matrix is filled
+    S_fine = spectral.power_to_db_inplace(fine.finish())
+    del fine
+    env_fine = rhythm._fine_onset_chunked(S_fine)
+    tempo, beat_times = rhythm._beat_track_fine(S_fine, env_fine)
+    downbeat_times = rhythm._downbeats_fine(S_fine, env_fine, beat_times) if preset == "music2dance" else None
+    del S_fine
+    strength = rhythm.beat_strength(onset_envelope=env_fine, rate=rhythm.BEAT_SR / rhythm.BEAT_HOP)
+    try:
+        T = spectral.n_frames(n_samples=y_feat.n, hop_length=hop_length)
+        blocks = PRESETS[preset]
+        at, col = {}, 0
+        for name, d in blocks:
+            at[name] = slice(col, col + d)
+            col += d
+        features = np.zeros((T, PRESET_DIMS[preset]), np.float32)
+
+        # log_melspectrogram(y=y, ...) from the streamed mel power (the same chunks: the same numbers)
+        S = spectral._fit(spectral.power_to_db_inplace(mel.finish()), T)  # (128, T) dB
+        del mel
+        if preset == "revolution":
+            m = spectral.mfcc(S=S, sr=fsr, hop_length=hop_length)
+            features[:, at["mfcc"]] = m.T
+            features[:, at["mfcc_delta"]] = spectral.mfcc_delta(mfcc=m).T
+        env = spectral.onset_strength(S=S, sr=fsr, hop_length=hop_length)
+        del S
+        features[:, at["onset_strength"]] = env[:, None]
+        spectral.chroma_cqt_chunked(y=y_feat.read if y_feat.nonzero else np.zeros(y_feat.n, np.float32), sr=fsr,
+                                    hop_length=hop_length, chunk=chunk, out=features[:, at["chroma_cqt"]],
+                                    n_samples=y_feat.n)
+    finally:
+        y_feat.close()
+    if preset == "revolution":
+        spectral.tempogram_chunked(onset_envelope=env, chunk=chunk, out=features[:, at["tempogram"]])
+
+    features[:, at["beat"]] = rhythm.beat_onehot(beat_times=beat_times, fps=fps, n_frames=T)[:, None]
+    if preset == "music2dance":
+        features[:, at["downbeat"]] = rhythm.beat_onehot(beat_times=downbeat_times, fps=fps, n_frames=T)[:, None]
     assert np.isfinite(features).all(), "non-finite feature values from finite audio"
     return FeatureSet(
         features=features,

@@ -25,6 +25,7 @@ from dancekit.features.rhythm import (
     _beat_track_fine,
     _fine_log_mel,
     _fine_onset,
+    _fine_onset_chunked,
     _to_beat_sr,
 )
 
@@ -82,7 +83,6 @@ def song_beats_file(path, *, start: float | None = None, end: float | None = Non
     from pathlib import Path
 
     from dancekit._io import atomic_path, file_sha256
-    from dancekit.audio import load
     from dancekit.audio.io import check_audio_path
     from dancekit.features.cache import cache_key, default_cache_dir
 
@@ -100,8 +100,7 @@ def song_beats_file(path, *, start: float | None = None, end: float | None = Non
                                      clarity=float(z["clarity"]), has_beat=bool(z["has_beat"]))
             except (OSError, KeyError, ValueError, EOFError):
                 pass  # an unreadable entry is recomputed
-    y, sr = load(path, sr=BEAT_SR, start=start, end=end)
-    beats = song_beats(y=y, sr=sr)
+    beats = _song_beats_streamed(path, start=start, end=end)
     if entry is not None:
         try:
             entry.parent.mkdir(parents=True, exist_ok=True)
@@ -111,3 +110,26 @@ def song_beats_file(path, *, start: float | None = None, end: float | None = Non
         except (OSError, DancekitError):
             pass  # caching is an optimisation only
     return beats
+
+
+def _song_beats_streamed(path, *, start: float | None, end: float | None, min_clarity: float = MIN_PULSE_CLARITY,
+                         min_beats: int = MIN_BEATS) -> SongBeats:
+    """:func:`song_beats` of ``load(path, sr=BEAT_SR, start=start, end=end)`` with the song decoded and
+    resampled in blocks straight into the fine mel spectrogram (:class:`~dancekit.features.spectral.MelPowerStream`,
+    the same numbers): the song itself is never held, at any rate."""
+    from dancekit.audio.io import stream
+    from dancekit.features.presets import _expected_samples
+    from dancekit.features.rhythm import _BEAT_NFFT
+    from dancekit.features.spectral import MelPowerStream, power_to_db_inplace
+
+    mel = MelPowerStream(sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP,
+                         expected_samples=_expected_samples(path, start, end, BEAT_SR))
+    for (block,) in stream(path, rates=[BEAT_SR], start=start, end=end):
+        mel.feed(block)
+    S_db = power_to_db_inplace(mel.finish())
+    env = _fine_onset_chunked(S_db)
+    tempo, times = _beat_track_fine(S_db, env)
+    del S_db
+    clarity = pulse_clarity(envelope=env, tempo=tempo)
+    return SongBeats(tempo=float(tempo), times=np.asarray(times, np.float64), clarity=float(clarity),
+                     has_beat=bool(len(times) >= min_beats and clarity >= min_clarity))

@@ -55,6 +55,31 @@ def _fine_log_mel(y_fine: np.ndarray, n_mels: int = 128) -> np.ndarray:
     return librosa.power_to_db(M).astype(np.float32)
 
 
+def _onset_chunked(S_db: np.ndarray, *, hop_length: int, aggregate, chunk: int = 8192) -> np.ndarray:
+    """``librosa.onset.onset_strength(S=S_db, sr=BEAT_SR, hop_length=hop_length, n_fft=_BEAT_NFFT,
+    aggregate=aggregate)`` (centred, lag 1) computed ``chunk`` frames at a time: each value is the aggregated
+    positive difference of two neighbouring frames, so chunks overlapping by one frame give the same values
+    without the two full-size difference arrays (2 x 160 MB for an hour at the beat grid). float32 (T,)."""
+    import librosa
+
+    T = S_db.shape[-1]
+    raw = np.zeros(T, np.float32)  # raw[j]: frame j against frame j - 1
+    for a in range(1, T, int(chunk)):
+        b = min(T, a + int(chunk))
+        o = librosa.onset.onset_strength(S=S_db[:, a - 1: b], sr=BEAT_SR, hop_length=hop_length, n_fft=_BEAT_NFFT,
+                                         aggregate=aggregate, center=False)
+        raw[a:b] = o[1:]
+    pad = 1 + _BEAT_NFFT // (2 * hop_length)  # librosa's centring shift
+    env = np.zeros(T, np.float32)
+    env[pad:] = raw[1: T - pad + 1]
+    return env
+
+
+def _fine_onset_chunked(S_db: np.ndarray, aggregate=np.median) -> np.ndarray:
+    """:func:`_fine_onset` in chunks (:func:`_onset_chunked`): the same envelope."""
+    return _onset_chunked(S_db, hop_length=BEAT_HOP, aggregate=aggregate)
+
+
 def _fine_onset(S_db: np.ndarray, aggregate=np.median) -> np.ndarray:
     import librosa
 
@@ -104,15 +129,19 @@ def _estimate_tempo(S_db: np.ndarray, env: np.ndarray, *, start_bpm: float) -> f
     """
     import librosa
 
-    env512 = librosa.onset.onset_strength(
-        S=S_db[:, ::2], sr=BEAT_SR, hop_length=2 * BEAT_HOP, n_fft=_BEAT_NFFT, aggregate=np.mean
-    )
+    env512 = _onset_chunked(S_db[:, ::2], hop_length=2 * BEAT_HOP, aggregate=np.mean)  # librosa's, in chunks
     if not np.any(env512 > 0):
         env512 = env[::2]
+    from dancekit.features.spectral import tempogram_mean
+
+    # librosa.feature.tempo(onset_envelope=env512, ...), its mean tempogram summed in chunks (a whole-song
+    # tempogram at this rate is ~1 GB for an hour of music)
+    win = int(librosa.time_to_frames(8.0, sr=BEAT_SR, hop_length=2 * BEAT_HOP))  # librosa's ac_size 8 s
     coarse = float(
         np.atleast_1d(
             librosa.feature.tempo(
-                onset_envelope=env512, sr=BEAT_SR, hop_length=2 * BEAT_HOP, start_bpm=start_bpm
+                tg=tempogram_mean(onset_envelope=env512, win_length=win), sr=BEAT_SR, hop_length=2 * BEAT_HOP,
+                start_bpm=start_bpm,
             )
         )[0]
     )

@@ -230,7 +230,7 @@ def chroma_cqt(
 
     The constant-Q transform starts at C1 (32.7 Hz) and spans up to 7 octaves,
     fewer at low sample rates so that the top bin stays below Nyquist (6
-    octaves at ``sr = 15 * 512``). Tuning is estimated from the signal. Each
+    octaves at ``sr = 15 * 512``). Tuning 0 (librosa 0.11's default: none is estimated). Each
     column is scaled to a maximum of 1 (all-zero for silence).
 
     Returns
@@ -282,3 +282,167 @@ def hpss(
     y_h = librosa.istft(H, hop_length=hop_length, n_fft=n_fft, length=len(y))
     y_p = librosa.istft(P, hop_length=hop_length, n_fft=n_fft, length=len(y))
     return y_h.astype(np.float32), y_p.astype(np.float32)
+
+
+# ---------------------------------------------------------------------------------------------
+# streaming and chunked forms (issue 18): memory bounded by a chunk, the same numbers as the whole-song forms
+
+
+class MelPowerStream:
+    """:func:`mel_power` of a signal that arrives in blocks: ``feed`` each block, then ``finish`` for the
+    ``(n_mels, 1 + n // hop_length)`` float32 mel power spectrogram. Frames are computed in the same
+    :data:`_MEL_CHUNK`-frame chunks as :func:`mel_power` (the same STFT frames, the same products), so the
+    result equals ``mel_power(y=concatenated blocks, ...)`` bit for bit; memory is one chunk of samples plus
+    the output. ``expected_samples``: the signal's length if known (the output is allocated once; it grows
+    if the signal turns out longer).
+    """
+
+    def __init__(self, *, sr: int, n_fft: int, hop_length: int, n_mels: int = 128, expected_samples: int = 0):
+        import librosa
+
+        self.n_fft, self.hop = int(n_fft), int(hop_length)
+        self.basis = librosa.filters.mel(sr=sr, n_fft=self.n_fft, n_mels=n_mels).astype(np.float32)
+        self.buf = np.zeros(self.n_fft // 2, np.float32)  # the centring pad of mel_power
+        self.done = 0  # frames computed
+        self.out = np.empty((n_mels, 1 + max(0, int(expected_samples)) // self.hop), np.float32)
+        self.n = 0  # samples fed
+
+    def _need(self, frames: int) -> int:
+        return (frames - 1) * self.hop + self.n_fft
+
+    def _compute(self, frames: int) -> None:
+        import librosa
+
+        D = librosa.stft(self.buf[: self._need(frames)], n_fft=self.n_fft, hop_length=self.hop, center=False)
+        if self.done + frames > self.out.shape[1]:
+            grown = np.empty((self.out.shape[0], max(self.done + frames, int(self.out.shape[1] * 1.25) + 1)),
+                             np.float32)
+            grown[:, : self.done] = self.out[:, : self.done]
+            self.out = grown
+        self.out[:, self.done: self.done + frames] = self.basis @ (D.real**2 + D.imag**2)
+        self.done += frames
+        self.buf = self.buf[frames * self.hop:].copy()
+
+    def feed(self, block: np.ndarray) -> None:
+        """Add the next samples ``(k,)``."""
+        block = np.asarray(block, np.float32)
+        self.n += len(block)
+        self.buf = np.concatenate([self.buf, block])
+        while len(self.buf) >= self._need(_MEL_CHUNK):
+            self._compute(_MEL_CHUNK)
+
+    def finish(self) -> np.ndarray:
+        """The mel power ``(n_mels, 1 + n // hop_length)`` of everything fed (the end zero-padded as centred)."""
+        self.buf = np.concatenate([self.buf, np.zeros(self.n_fft // 2, np.float32)])
+        total = 1 + self.n // self.hop
+        while self.done < total:
+            self._compute(min(_MEL_CHUNK, total - self.done))
+        out, self.out = self.out[:, :total], None
+        return out
+
+
+def power_to_db_inplace(M: np.ndarray, *, amin: float = 1e-10, top_db: float = 80.0) -> np.ndarray:
+    """``librosa.power_to_db(M)`` (ref 1.0, top_db 80) computed in ``M``'s own memory (float32 ``M`` is
+    overwritten and returned): the same numbers, without the two full-size temporaries."""
+    np.maximum(M, amin, out=M)
+    np.log10(M, out=M)
+    M *= 10.0
+    np.maximum(M, M.max() - top_db, out=M)
+    return M
+
+
+#: Frames per chunk of :func:`chroma_cqt_chunked` and :func:`tempogram_chunked` (60 s at 25 fps).
+CHUNK_FRAMES = 1500
+#: Context each side of a constant-Q chunk, seconds: the longest C1 filter spans 1.6 s (36 bins per
+#: octave), and the octave resampling adds its own filter's support.
+CQT_MARGIN_S = 4.0
+
+
+def chroma_cqt_chunked(*, y, sr: int, hop_length: int = 512, n_chroma: int = 12, bins_per_octave: int = 36,
+                       chunk: int = CHUNK_FRAMES, out: np.ndarray | None = None, n_samples: int | None = None
+                       ) -> np.ndarray:
+    """:func:`chroma_cqt` computed ``chunk`` frames at a time, each chunk's constant-Q transform taken over
+    its frames plus :data:`CQT_MARGIN_S` of audio each side (chunks start on a hop, a multiple of the
+    octave decimation, so every chunk's octaves are sampled on the song's grid): equal to the whole-song
+    chromagram (librosa 0.11: 0 tuning, no estimate), in memory bounded by the chunk. ``out``: a ``(T, n_chroma)`` array to write into (e.g. columns of a
+    feature matrix), else one is allocated. ``y`` may also be a function ``read(a, b)`` returning samples
+    ``[a, b)`` of a signal of ``n_samples`` samples that is not all zero (e.g. one kept on disk).
+
+    Returns
+    -------
+    np.ndarray, float32, shape (1 + len(y) // hop_length, n_chroma) — frames first
+    """
+    import librosa
+
+    if callable(y):
+        read, n = y, int(n_samples)
+    else:
+        y = np.asarray(y, dtype=np.float32)
+        n = len(y)
+        read = lambda a, b: y[a:b]  # noqa: E731
+    T = n_frames(n_samples=n, hop_length=hop_length)
+    out = np.zeros((T, n_chroma), np.float32) if out is None else out
+    if not callable(y) and not np.any(y):
+        out[:] = 0.0
+        return out
+    n_oct = _cqt_octaves(sr)
+    margin = int(np.ceil(CQT_MARGIN_S * sr / hop_length))
+    for f0 in range(0, T, int(chunk)):
+        f1 = min(T, f0 + int(chunk))
+        a = max(0, f0 - margin)
+        seg = read(a * hop_length, min(n, (f1 + margin) * hop_length))
+        C = np.abs(librosa.cqt(y=seg, sr=sr, hop_length=hop_length, fmin=CQT_FMIN, n_bins=n_oct * bins_per_octave,
+                               bins_per_octave=bins_per_octave))
+        C = _fit(C, n_frames(n_samples=len(seg), hop_length=hop_length))[:, f0 - a: f1 - a]
+        chroma = librosa.feature.chroma_cqt(C=C, sr=sr, bins_per_octave=bins_per_octave, n_chroma=n_chroma,
+                                            n_octaves=n_oct)
+        out[f0:f1] = np.nan_to_num(chroma, nan=0.0).T
+    return out
+
+
+def _tempogram_blocks(env: np.ndarray, *, win_length: int, chunk: int):
+    """librosa's autocorrelation tempogram of ``env`` (float64, ``norm=inf``), ``chunk`` frames at a time:
+    yields ``(f0, f1, tg (win_length, f1 - f0))``. Every frame is its own window of the (ramp-padded)
+    envelope, so the blocks are the columns of ``librosa.feature.tempogram(onset_envelope=env, ...)``."""
+    import librosa
+
+    env = np.asarray(env)
+    n = env.shape[-1]
+    ac_window = librosa.filters.get_window("hann", win_length, fftbins=True)[:, None]
+    half = int(win_length // 2)
+    padded = np.pad(env, (half, half), mode="linear_ramp", end_values=[0, 0])
+    for f0 in range(0, n, int(chunk)):
+        f1 = min(n, f0 + int(chunk))
+        frames = librosa.util.frame(padded[f0: f1 + win_length - 1], frame_length=win_length, hop_length=1)
+        yield f0, f1, librosa.util.normalize(librosa.autocorrelate(frames[:, : f1 - f0] * ac_window, axis=-2),
+                                             norm=np.inf, axis=-2)
+
+
+def tempogram_mean(*, onset_envelope: np.ndarray, win_length: int, chunk: int = 4 * CHUNK_FRAMES) -> np.ndarray:
+    """The time average ``(win_length, 1)`` float64 of librosa's tempogram of ``onset_envelope`` (what
+    ``librosa.feature.tempo`` aggregates; pass it as ``tg=``), summed ``chunk`` frames at a time instead of
+    a whole-song ``(win_length, T)`` array and its complex FFT. One chunk: librosa's mean bit for bit; more:
+    the same sum in another order (float rounding)."""
+    env = np.asarray(onset_envelope)
+    total = np.zeros((win_length, 1), np.float64)
+    for _, _, tg in _tempogram_blocks(env, win_length=win_length, chunk=chunk):
+        total += np.sum(tg, axis=-1, keepdims=True)
+    return total / max(1, env.shape[-1])
+
+
+def tempogram_chunked(*, onset_envelope: np.ndarray, win_length: int = 384, chunk: int = CHUNK_FRAMES,
+                      out: np.ndarray | None = None) -> np.ndarray:
+    """:func:`tempogram` (librosa's autocorrelation tempogram: centred windows, the envelope padded with a
+    linear ramp to 0, a Hann window, each frame scaled to a maximum of 1) computed ``chunk`` frames at a
+    time — every frame is its own window of the envelope, so the chunks give the same frames — instead of a
+    ``(win_length + 1, T)`` complex FFT of the whole song. ``out``: a ``(T, win_length)`` array to write into.
+
+    Returns
+    -------
+    np.ndarray, float32, shape (T, win_length) — frames first
+    """
+    env = np.asarray(onset_envelope, dtype=np.float32)
+    out = np.zeros((env.shape[-1], win_length), np.float32) if out is None else out
+    for f0, f1, tg in _tempogram_blocks(env, win_length=win_length, chunk=chunk):
+        out[f0:f1] = np.nan_to_num(tg, nan=0.0).T
+    return out

@@ -658,7 +658,7 @@ class RevolutionModel(nn.Module):
         self,
         music: torch.Tensor,
         *,
-        generator: torch.Generator | None = None,
+        generator: torch.Generator | list[torch.Generator] | None = None,
         chunk: int | None = None,
         progress: bool = False,
         genre: torch.Tensor | None = None,
@@ -672,9 +672,12 @@ class RevolutionModel(nn.Module):
 
         Parameters
         ----------
-        music : (B, n, music_dim) normalised features at the training fps
+        music : (B, n, music_dim) normalised features at the training fps; (1, n, music_dim) with a list of
+            ``B`` generators: one song danced ``B`` times (its music encoded once)
         generator : seeds the initial decoder state (and the variety draws); the same seed gives the same
-            dance. A list of B generators seeds each batch row on its own (row k as a batch of one)
+            dance. A list of generators (one per row, :meth:`initial_state`): many dances in one batch, row
+            ``k`` the dance that ``generator[k]`` alone gives (to float rounding: the batched matrix products
+            may round differently)
         genre : (B,) genre indices for a genre-conditioned model; None or -1: auto (the music decides)
         variety : per-phrase perturbations that keep the seeds' dances apart (:class:`SeedVariety`);
             None: the paper's decoding (the seed draws the initial state only)
@@ -688,6 +691,10 @@ class RevolutionModel(nn.Module):
         self.eval()
         try:
             B, n, _ = music.shape
+            if isinstance(generator, (list, tuple)) and B == 1:
+                B = len(generator)  # one song, many seeds: the encoder runs on the one song, its output is shared
+            elif isinstance(generator, (list, tuple)) and len(generator) != B:
+                raise ParameterError(f"{len(generator)} generators for a batch of {B} songs")
             chunk = chunk or self.config.encoder_chunk
             context = self.encoder.receptive_field
             if context is None:
@@ -705,6 +712,7 @@ class RevolutionModel(nn.Module):
             def latents(start: int) -> torch.Tensor:  # (B, ≤chunk, d), encoded with context on both sides
                 a, b = max(0, start - context), min(n, start + chunk + context)
                 z = self.encoder(music[:, a:b])[:, start - a : start - a + min(chunk, n - start)]
+                z = z.expand(B, -1, -1) if z.shape[0] != B else z
                 return self._condition(z, genre)
 
             if not variety.active:

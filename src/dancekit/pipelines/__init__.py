@@ -1,6 +1,8 @@
 """Inference pipelines (inference only: no training or dataset imports).
 
-``Pipeline.from_pretrained(name_or_folder)(audio_path, seed=...) -> DanceResult`` for dance models;
+``Pipeline.from_pretrained(name_or_folder)(audio_path, seed=...) -> DanceResult`` for dance models, and
+``pipe.dances(audio_path, seeds=[0, 1, 2]) -> list[DanceResult]`` (one batch, one dance per seed) for every
+dance family (revolution, music2dance, dual);
 :func:`load_pipeline` picks the pipeline class from the family registry (:mod:`dancekit.registry`).
 Pipelines are imported lazily (``from dancekit.pipelines import RevolutionPipeline`` works).
 """
@@ -20,10 +22,11 @@ _LAZY = {
     "Music2DancePipeline": "dancekit.pipelines.music2dance",
     "FootConstraintPipeline": "dancekit.pipelines.foot_constraint",
     "load_pipeline": "dancekit.pipelines.base",
+    "parse_seeds": "dancekit.pipelines.base",
 }
 
 __all__ = ["ComposePipeline", "DanceResult", "DualPipeline", "FootConstraintPipeline", "Music2DancePipeline",
-           "MusicAttributePipeline", "RevolutionPipeline", "StylePipeline", "load_pipeline"]
+           "MusicAttributePipeline", "RevolutionPipeline", "StylePipeline", "load_pipeline", "parse_seeds"]
 
 
 def __getattr__(name: str) -> Any:

@@ -84,6 +84,61 @@ class DanceResult:
         return "; ".join(parts + list(self.notes))
 
 
+#: The most seeds ``dancekit dance --seeds`` takes in one pass: each is a whole dance in memory.
+MAX_SEEDS = 64
+
+
+def check_seeds(seeds) -> list[int]:
+    """``seeds`` (an iterable of integers) as a list of Python ints, in order (a seed may repeat: with another
+    genre per row, say).
+
+    Raises
+    ------
+    ParameterError
+        For no seeds or a non-integer.
+    """
+    if isinstance(seeds, (int, np.integer)) or isinstance(seeds, (str, bytes)):
+        raise ParameterError(f"seeds must be a list of integers, got {seeds!r}")
+    out = []
+    for s in seeds:
+        if isinstance(s, bool) or not isinstance(s, (int, np.integer)):
+            raise ParameterError(f"seeds must be integers, got {s!r}")
+        out.append(int(s))
+    if not out:
+        raise ParameterError("at least one seed is needed")
+    return out
+
+
+def parse_seeds(text: str) -> list[int]:
+    """Seeds written as ``dancekit dance --seeds`` takes them: ``"0-7"`` (a range, both ends included),
+    ``"0,3,9"``, or both (``"0-3,10,20-21"``); every seed in ``[0, 2**63)``.
+
+    Raises
+    ------
+    ParameterError
+        For anything else (a reversed range, a repeated seed, a negative number, more than :data:`MAX_SEEDS`).
+    """
+    seeds: list[int] = []
+    for part in str(text).split(","):
+        part = part.strip()
+        lo, sep, hi = part.partition("-")
+        try:
+            a = int(lo)
+            b = int(hi) if sep else a
+        except ValueError:
+            raise ParameterError(f"seeds must look like 0-7 or 0,3,9, got {text!r}") from None
+        if a < 0 or b < a or b >= 2**63:
+            raise ParameterError(f"bad seed range {part!r} in {text!r} (non-negative, low-high)")
+        if b - a >= MAX_SEEDS:
+            raise ParameterError(f"{b - a + 1} seeds in {part!r}; at most {MAX_SEEDS} in one pass")
+        seeds.extend(range(a, b + 1))
+    if len(set(seeds)) != len(seeds):
+        raise ParameterError(f"seeds repeat in {text!r} (the same seed gives the same dance)")
+    if len(seeds) > MAX_SEEDS:
+        raise ParameterError(f"{len(seeds)} seeds in {text!r}; at most {MAX_SEEDS} in one pass")
+    return check_seeds(seeds)
+
+
 def load_pipeline(model: str | os.PathLike | None = None, checkpoint: str | os.PathLike | None = None,
                   *, device: str = "cpu", precision: str = "fp32") -> Any:
     """The inference pipeline of a model: a name (the user's models folder, then the embedded models) or a

@@ -25,8 +25,8 @@ from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
 from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, encode_motion
-from dancekit.pipelines.base import DanceResult, calm_if_not_music, song_features
-from dancekit.pipelines.stages import finish
+from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
+from dancekit.pipelines.stages import finish, song_beats_for
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -104,36 +104,37 @@ class DualPipeline:
         ``smooth_frames`` (chosen on the validation songs, docs/DUAL.md), else 1.
         """
         return self.dances(audio_path, seeds=[seed], start=start, end=end, genre=genre, start_pose=start_pose,
-                           smooth_frames=smooth_frames, beat_sync=beat_sync, cleanup=cleanup)[0]
+                           smooth_frames=smooth_frames, progress=progress, beat_sync=beat_sync, cleanup=cleanup)[0]
 
     @torch.no_grad()
     def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
                end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
                smooth_frames: int | None = None, progress: bool = False, beat_sync: bool = True,
                cleanup: bool = True) -> list[DanceResult]:
-        """One dance per seed for the song, generated as one batch (the features and the decoder loop once):
-        ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])`` (to float rounding).
-        Each seed draws its own start pose from the pool (the paper's diversity over start poses); arguments
-        as :meth:`__call__` (``start_pose`` given: every seed starts from it)."""
+        """One dance per seed for the song, generated as one batch (the features and the song's beats once,
+        G_M→D on all start poses together, the stages per dance): ``dances(song, seeds=[0, 1])[k]`` is
+        ``pipe(song, seed=[0, 1][k])`` to float rounding. Arguments as :meth:`__call__` (a ``start_pose``
+        starts every dance from it)."""
         if genre not in (None, "auto", "none"):
             raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
-        seeds = [int(s) for s in seeds]
-        if not seeds:
-            raise ParameterError("dances() needs at least one seed")
-        x = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
+        seeds = check_seeds(seeds)
+        feats = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
         s = torch.stack([self.start_pose(start_pose, seed) for seed in seeds])  # (B, P)
-        y = self.model.generate_dance(x.expand(len(seeds), -1, -1), start=s).cpu().numpy()  # (B, T, P)
-        k_avg = self.smooth_frames if smooth_frames is None else int(smooth_frames)
-        out = []
-        for seed, yk in zip(seeds, y):
-            motion = decode_motion(self.stats.denormalize_dance(moving_average(yk, k_avg)), self.skeleton, self.fps,
-                                   "rot6d")
+        y = self.model.generate_dance(feats.expand(len(seeds), -1, -1), start=s).cpu().numpy()  # (B, T, P)
+        frames = self.smooth_frames if smooth_frames is None else int(smooth_frames)
+        results, beats = [], None
+        for k, seed in enumerate(seeds):
+            motion = decode_motion(self.stats.denormalize_dance(moving_average(y[k], frames)), self.skeleton,
+                                   self.fps, "rot6d")
             result = DanceResult(motion=motion, model=self.folder, seed=seed,
                                  genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
             result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
                                        hop_length=self.hop_length, start=start, end=end)
-            out.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup))
-        return out
+            if beat_sync and result.looks_like_music and beats is None:
+                beats = song_beats_for(audio_path, start=start, end=end)
+            results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
+                                  cleanup_on=cleanup, beats=beats))
+        return results
 
 
 @dataclass

@@ -34,9 +34,9 @@ from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
-from dancekit.pipelines.base import DanceResult, calm_if_not_music, song_features
+from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import finish
+from dancekit.pipelines.stages import finish, song_beats_for
 
 
 class Music2DancePipeline:
@@ -195,9 +195,7 @@ class Music2DancePipeline:
         genre_scale = self.genre_scale if genre_scale is None else float(genre_scale)
         if not (np.isfinite(genre_scale) and genre_scale >= 0):
             raise ParameterError(f"genre_scale must be a finite number >= 0, got {genre_scale!r}")
-        seeds = [int(s) for s in seeds]
-        if not seeds:
-            raise ParameterError("dances() needs at least one seed")
+        seeds = check_seeds(seeds)
         wanted = list(genre) if isinstance(genre, (list, tuple)) else [genre] * len(seeds)
         if len(wanted) != len(seeds):
             raise ParameterError(f"{len(wanted)} genres for {len(seeds)} seeds")
@@ -223,7 +221,7 @@ class Music2DancePipeline:
 
             D = self.model.config.gmm_dim
             y = torch.cat([gaussian_smooth(y[..., :D], self.smooth_sigma), y[..., D:]], -1)
-        out = []
+        out, beats = [], None
         for k, (seed, g) in enumerate(zip(seeds, wanted)):
             requested, danced, probs = read[g]
             poses = self.stats.denormalize_dance(y[k].cpu().numpy().astype(np.float64))
@@ -232,7 +230,10 @@ class Music2DancePipeline:
                                    genre=danced, genre_probs=probs, danced_by=self.folder))
             out[-1] = calm_if_not_music(out[-1], audio_path, fps=self.fps, preset=self.preset,
                                         hop_length=self.hop_length, start=start, end=end)
-            out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
+            if beat_sync and out[-1].looks_like_music and beats is None:  # the song's beats once for all seeds
+                beats = song_beats_for(audio_path, start=start, end=end)
+            out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup,
+                             beats=beats)
         return out
 
 

@@ -34,9 +34,16 @@ from dancekit.models.precision import check_precision, to_precision
 from dancekit.models.revolution import RevolutionModel, SeedVariety
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, get_representation
-from dancekit.pipelines.base import DanceResult, calm_motion, clean_motion, song_feature_set, song_features
+from dancekit.pipelines.base import (
+    DanceResult,
+    calm_motion,
+    check_seeds,
+    clean_motion,
+    song_feature_set,
+    song_features,
+)
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import finish
+from dancekit.pipelines.stages import finish, song_beats_for
 
 
 class RevolutionPipeline:
@@ -195,8 +202,38 @@ class RevolutionPipeline:
             For a genre the model does not know, or any genre for a model with neither a genre condition
             nor genre models.
         """
+        return self.dances(audio_path, seeds=[seed], start=start, end=end, genre=genre, progress=progress,
+                           postprocess=postprocess, beat_sync=beat_sync, cleanup=cleanup, variety=variety)[0]
+
+    @torch.no_grad()
+    def dances(
+        self,
+        audio_path: str | os.PathLike,
+        *,
+        seeds: list[int],
+        start: float | None = None,
+        end: float | None = None,
+        genre: str | None = None,
+        progress: bool = False,
+        postprocess: bool = True,
+        beat_sync: bool = True,
+        cleanup: bool = True,
+        variety: bool = True,
+    ) -> list[DanceResult]:
+        """One dance per seed for the song, generated as one batch: the features, the genre reading and the
+        song's beats once, the music encoded once, the decoder run on all seeds together, the stages applied
+        to each dance. ``dances(song, seeds=[0, 1, 2])[k]`` is ``pipe(song, seed=[0, 1, 2][k])`` (the same
+        initial state; the batched matrix products may round the last float bits differently). Other
+        arguments as :meth:`__call__`.
+
+        Raises
+        ------
+        ParameterError
+            For an empty ``seeds``; otherwise as :meth:`__call__`.
+        """
         from dancekit.features import MUSIC_BEAT_STRENGTH
 
+        seeds = check_seeds(seeds)
         requested = "auto" if genre is None else str(genre)
         strength = song_feature_set(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
                                     start=start, end=end).beat_strength
@@ -209,20 +246,26 @@ class RevolutionPipeline:
         genre = None if genre_index is None else genre
         vary = self.variety if variety else SeedVariety()
         if genre is not None and self.genre_models:
-            motion = self.genre_pipeline(genre).generate(audio_path, seed=seed, start=start, end=end,
-                                                         progress=progress, postprocess=postprocess, variety=vary)
+            motions = self.genre_pipeline(genre).generate_many(audio_path, seeds=seeds, start=start, end=end,
+                                                               progress=progress, postprocess=postprocess,
+                                                               variety=vary)
             danced_by = str(self.genre_models[genre])
         else:
-            motion = self.generate(audio_path, seed=seed, start=start, end=end, progress=progress,
-                                   postprocess=postprocess, genre_index=genre_index, variety=vary)
+            motions = self.generate_many(audio_path, seeds=seeds, start=start, end=end, progress=progress,
+                                         postprocess=postprocess, genre_index=genre_index, variety=vary)
             danced_by = self.folder
-        if not music and self.representation == "positions3d":
-            motion = calm_motion(motion)
-            motion = clean_motion(motion) if postprocess else motion
-        result = DanceResult(motion=motion, model=self.folder, seed=int(seed), genre_requested=requested,
-                             genre=genre, genre_probs=probs, danced_by=danced_by, beat_strength=float(strength),
-                             looks_like_music=music)
-        return finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup)
+        beats = song_beats_for(audio_path, start=start, end=end) if beat_sync and music else None
+        results = []
+        for seed, motion in zip(seeds, motions):
+            if not music and self.representation == "positions3d":
+                motion = calm_motion(motion)
+                motion = clean_motion(motion) if postprocess else motion
+            result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
+                                 genre=genre, genre_probs=probs, danced_by=danced_by, beat_strength=float(strength),
+                                 looks_like_music=music)
+            results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
+                                  cleanup_on=cleanup, beats=beats))
+        return results
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
@@ -231,15 +274,28 @@ class RevolutionPipeline:
         """This model's own dance for the song (no genre models, no genre reading): the :class:`Motion`
         of :meth:`__call__` with ``genre_index`` the genre input of a genre-conditioned model (or None)
         and ``variety`` the seed variety (None: this checkpoint's :attr:`variety`)."""
+        return self.generate_many(audio_path, seeds=[seed], start=start, end=end, progress=progress,
+                                  postprocess=postprocess, genre_index=genre_index, variety=variety)[0]
+
+    @torch.no_grad()
+    def generate_many(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
+                      end: float | None = None, progress: bool = False, postprocess: bool = True,
+                      genre_index: int | None = None, variety: SeedVariety | None = None) -> list[Motion]:
+        """:meth:`generate` for each of ``seeds``, as one batch (the features once, the music encoded once)."""
+        seeds = check_seeds(seeds)
         x = self.features(audio_path, start=start, end=end)  # (T, D)
         device = self.model.bop.device
-        generator = torch.Generator(device="cpu").manual_seed(int(seed))
-        y = self.model.generate(torch.from_numpy(x)[None].to(device), generator=generator, progress=progress,
+        generators = [torch.Generator(device="cpu").manual_seed(s) for s in seeds]
+        y = self.model.generate(torch.from_numpy(x)[None].to(device), generator=generators, progress=progress,
                                 genre=None if genre_index is None else torch.tensor([genre_index]),
-                                variety=self.variety if variety is None else variety)
-        poses = self.stats.denormalize_dance(y[0].cpu().numpy())  # (T, P)
-        motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
-        return clean_motion(motion) if postprocess and self.representation == "positions3d" else motion
+                                variety=self.variety if variety is None else variety)  # (B, T, P)
+        del x
+        motions = []
+        for k in range(len(seeds)):
+            poses = self.stats.denormalize_dance(y[k].cpu().numpy())  # (T, P)
+            motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
+            motions.append(clean_motion(motion) if postprocess and self.representation == "positions3d" else motion)
+        return motions
 
     def read_genre(self, audio_path: str | os.PathLike, *, start: float | None = None,
                    end: float | None = None) -> dict[str, float]:

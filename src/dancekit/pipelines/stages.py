@@ -188,11 +188,13 @@ def foot_lock(result: DanceResult) -> DanceResult:
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
            end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
-           foot_lock_on: bool | None = None, smooth_on: bool | None = None) -> DanceResult:
+           foot_lock_on: bool | None = None, smooth_on: bool | None = None, beats=None) -> DanceResult:
     """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
     a jittery dance is filtered), the foot lock (after the smoothing, so a pinned foot stays pinned), then
     the beat sync (so the speed minima it aligns are those of the final dance). ``foot_lock_on`` and
-    ``smooth_on`` follow ``cleanup_on`` unless given."""
+    ``smooth_on`` follow ``cleanup_on`` unless given. ``beats``: the song's
+    :class:`~dancekit.features.pulse.SongBeats` when already tracked (many dances of one song), else tracked
+    here when needed."""
     if cleanup_on:
         result = clean_up(result)
     if cleanup_on if smooth_on is None else smooth_on:
@@ -200,7 +202,7 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     if cleanup_on if foot_lock_on is None else foot_lock_on:
         result = foot_lock(result)
     if beat_sync_on:
-        result = beat_sync(result, audio_path, start=start, end=end)
+        result = beat_sync(result, audio_path, start=start, end=end, beats=beats)
     return result
 
 

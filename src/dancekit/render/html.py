@@ -55,7 +55,30 @@ def page_html(
     elevation: float = _ELEVATION,
     figure: str = "stick",
 ) -> str:
-    """The html text of a player page for ``scene`` (``audio``: encoded bytes and MIME type).
+    """The html text of a player page for ``scene`` (``audio``: encoded bytes and MIME type): the text that
+    :func:`write_page` writes, as one string. Arguments as :func:`write_page`."""
+    import io
+
+    buf = io.StringIO()
+    write_page(buf.write, scene, audio=audio, duration=duration, title=title, azimuth=azimuth,
+               elevation=elevation, figure=figure)
+    return buf.getvalue()
+
+
+def write_page(
+    write,
+    scene: Scene,
+    *,
+    audio: tuple[bytes, str] | None = None,
+    duration: float | None = None,
+    title: str = "dancekit",
+    azimuth: float | None = None,
+    elevation: float = _ELEVATION,
+    figure: str = "stick",
+) -> None:
+    """Write the html of a player page for ``scene`` piece by piece with ``write(text)`` (e.g. an open
+    file's ``write``): the song and the motion go out as base64 in pieces, so a one-hour song's page is
+    never one string in memory (``audio``: encoded bytes and MIME type).
 
     ``azimuth`` / ``elevation`` (degrees) set the initial camera; azimuth None is a
     three-quarter view of the dancer's front. ``figure``: ``"stick"`` or ``"body"`` (shaded
@@ -96,16 +119,33 @@ def page_html(
         data["limb"] = limb.astype(int).tolist()
     else:
         data["figure"] = "stick"
+    data["positions"] = _B64_SLOT
     blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
-    audio_tag = ""
+    before, after = blob.split(_B64_SLOT, 1)
+    head, tail = _shell_parts(title)
+    write(head)
     if audio is not None:
-        b64 = base64.b64encode(audio[0]).decode("ascii")
-        audio_tag = f'<audio id="dk-audio" preload="auto" src="data:{audio[1]};base64,{b64}"></audio>\n'
-    return page_shell(title, (
-        f"{audio_tag}"
-        f'<script id="dk-data" type="application/json">{blob}</script>\n'
-        f"<script>\n{_asset('player.js')}</script>\n"
-    ))
+        write(f'<audio id="dk-audio" preload="auto" src="data:{audio[1]};base64,')
+        _write_base64(write, audio[0])
+        write('"></audio>\n')
+    write('<script id="dk-data" type="application/json">')
+    write(before)
+    _write_base64(write, qbytes)
+    write(after)
+    write(f"</script>\n<script>\n{_asset('player.js')}</script>\n")
+    write(tail)
+
+
+_B64_SLOT = "@@dancekit-positions@@"
+#: Bytes per base64 piece written (a multiple of 3, so the pieces join into the one base64 text).
+_B64_PIECE = 3 << 18
+
+
+def _write_base64(write, data: bytes) -> None:
+    """``write(base64(data))`` in pieces: the same text as one encode, without a full-size copy."""
+    view = memoryview(data)
+    for a in range(0, len(view), _B64_PIECE):
+        write(base64.b64encode(view[a: a + _B64_PIECE]).decode("ascii"))
 
 
 def render_html(
@@ -188,17 +228,9 @@ def render_html(
     title = options.title
     if title is None:
         title = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    text = page_html(
-        scene,
-        audio=encoded,
-        duration=duration,
-        title=title,
-        azimuth=options.azimuth,
-        elevation=options.elevation,
-        figure=options.figure,
-    )
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        write_page(fh.write, scene, audio=encoded, duration=duration, title=title, azimuth=options.azimuth,
+                   elevation=options.elevation, figure=options.figure)
 
 
 def render_motion_html(
@@ -225,6 +257,12 @@ def render_motion_html(
 def page_shell(title: str, body: str) -> str:
     """The html page of the players: a head (error recorder, styles), the canvas, title, help line and
     play/scrub controls, then ``body`` (the page's data and script tags). ``title`` is escaped here."""
+    head, tail = _shell_parts(title)
+    return f"{head}{body}{tail}"
+
+
+def _shell_parts(title: str) -> tuple[str, str]:
+    """The page of :func:`page_shell` before and after its body."""
     esc = html_lib.escape(title)
     # the first script records errors (even a syntax error in the player) on <html data-dk-error>
     return (
@@ -253,6 +291,4 @@ def page_shell(title: str, body: str) -> str:
         '<input id="dk-scrub" type="range" min="0" max="0" step="1" value="0" aria-label="time">\n'
         '<span id="dk-time">0:00.0</span>\n'
         "</div>\n</div>\n"
-        f"{body}"
-        "</body>\n</html>\n"
-    )
+    ), "</body>\n</html>\n"

@@ -247,12 +247,12 @@ def format_bvh(data: BvhData, path: str | os.PathLike) -> None:
     lines.append("MOTION")
     lines.append(f"Frames: {data.values.shape[0]}")
     lines.append(f"Frame Time: {data.frame_time:.8f}")
-    body = "\n".join(" ".join(f"{v:.6f}" for v in row) for row in np.asarray(data.values, dtype=np.float64))
+    values = np.asarray(data.values, dtype=np.float64)
     with atomic_path(path, suffix=".bvh") as tmp:
         with open(tmp, "w") as f:
             f.write("\n".join(lines) + "\n")
-            if body:
-                f.write(body + "\n")
+            for a in range(0, len(values), 1000):  # a thousand frames of text at a time, not the whole song's
+                f.write("".join(" ".join(f"{v:.6f}" for v in row) + "\n" for row in values[a: a + 1000]))
 
 
 # ------------------------------------------------------------------ to Motion
@@ -609,8 +609,13 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
     except DancekitError as exc:
         raise MotionFormatError(f"cannot compute rotations for {path}: {exc}") from exc
     assert m.rotations is not None and m.root_translation is not None
-    R = torch.from_numpy(np.asarray(m.rotations, dtype=np.float64))
-    eul = np.rad2deg(matrix_to_euler_angles(R, order).numpy())  # (T, J, 3)
+    rots = m.rotations
+    eul = np.concatenate([  # (T, J, 3); 4,096 frames at a time: no full-song float64 temporaries
+        np.rad2deg(matrix_to_euler_angles(torch.from_numpy(np.asarray(rots[a: a + 4096], dtype=np.float64)),
+                                          order).numpy())
+        for a in range(0, max(len(rots), 1), 4096)
+    ]) if len(rots) else np.rad2deg(matrix_to_euler_angles(torch.from_numpy(np.asarray(rots, np.float64)),
+                                                             order).numpy())
     rot_ch = tuple(f"{a}rotation" for a in order)
     rig = sk.rig()
     J = rig.num_joints
