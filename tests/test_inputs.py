@@ -201,7 +201,10 @@ def test_signal_during_render_leaves_nothing(tmp_path, sig):
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
     proc = subprocess.Popen([sys.executable, "-m", "dancekit.cli.main", "dance", str(song), "-o", str(out),
                              "--format", "mp4", "--quiet"], env=env, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True,
+                            # a closed terminal's SIGHUP as a user's shell delivers it, even when the tests
+                            # themselves run under nohup (SIG_IGN is inherited, and dancekit leaves it alone)
+                            preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL))
     deadline = time.monotonic() + 120
     while proc.poll() is None and time.monotonic() < deadline:
         if out.is_dir() and any(p.name.startswith(".dancekit-") for p in out.iterdir()):

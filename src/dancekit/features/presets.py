@@ -236,8 +236,11 @@ class _Spool:
 
     def __init__(self):
         import tempfile
+        import weakref
 
         self.fh = tempfile.TemporaryFile(prefix="dancekit-song-")
+        # closed (and so deleted) with the spool too, when an error unwinds before close(): no ResourceWarning
+        weakref.finalize(self, self.fh.close)
         self.n = 0
         self.nonzero = False
 
@@ -261,8 +264,11 @@ def _expected_samples(path, start: float | None, end: float | None, rate: int) -
     """The decoded length at ``rate`` that libsndfile's header promises (0 when unknown)."""
     import soundfile as sf
 
+    from dancekit.audio.io import _quiet_c_stderr
+
     try:
-        info = sf.info(str(path))
+        with _quiet_c_stderr():  # libsndfile's mpg123 prints notes on a damaged mp3 to fd 2
+            info = sf.info(str(path))
     except Exception:  # not a libsndfile format: ffmpeg decodes it in one block
         return 0
     a = 0.0 if start is None else float(start)
