@@ -100,7 +100,6 @@ def _quiet_short_input(fn):
     return wrapper
 
 
-@_quiet_short_input
 def extract(
     y: np.ndarray, *, sr: int, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa"
 ) -> FeatureSet:
@@ -146,6 +145,16 @@ def extract(
     >>> fs.features.shape
     (251, 15)
     """
+    return _extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)[0]
+
+
+@_quiet_short_input
+def _extract(
+    y: np.ndarray, *, sr: int, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa"
+) -> tuple[FeatureSet, np.ndarray | None]:
+    """:func:`extract`, and the fine-grid onset envelope the beats were tracked on when that is the full mix's
+    (the ``librosa`` backend, presets other than ``dual``; else None): with the features' tempo and beats it
+    is the song's :class:`~dancekit.features.pulse.SongBeats`, which :func:`extract_file` caches too."""
     _check_choice("preset", preset, PRESETS)
     _check_choice("backend", backend, BACKENDS)
     fsr = feature_sr(fps=fps, hop_length=hop_length)
@@ -217,7 +226,7 @@ def extract(
     )
     assert features.shape == (T, PRESET_DIMS[preset])
     assert np.isfinite(features).all(), "non-finite feature values from finite audio"
-    return FeatureSet(
+    fs = FeatureSet(
         features=features,
         names=tuple(f"{name}:{d}" for name, d in blocks),
         beat_times=np.asarray(beat_times, dtype=np.float64),
@@ -228,3 +237,4 @@ def extract(
         downbeat_times=None if downbeat_times is None else np.asarray(downbeat_times, dtype=np.float64),
         beat_strength=strength,
     )
+    return fs, (env_fine if backend == "librosa" and preset != "dual" else None)
