@@ -4,12 +4,14 @@
                                           [--model music2dance] [--repeats 5] [--format npz] [--threads N]
                                           [--src OTHER_CHECKOUT/src]
 
+``--model=`` (empty) times the default model; ``--src`` another checkout's sources (e.g. main's, to compare).
+
 Two kinds of fresh process, each with its own empty feature cache (``DANCEKIT_CACHE`` pointed at a new
 temporary folder, so neither the music features nor the song's beats are cached):
 
 1. ``--repeats`` runs of the real command, ``dancekit dance SONG --model M --format F --quiet -o TMP``:
    the wall time from spawning the process to its exit (median, min, max), the child's CPU time
-   (user + system, from ``wait4``) and the 1-minute load average before each run (this 2-core machine is
+   (user + system: the change of ``getrusage(RUSAGE_CHILDREN)`` over the run) and the 1-minute load average before each run (this 2-core machine is
    shared: under load the wall time grows, the CPU time much less);
 2. one run of this file's ``--child`` mode, which does what ``dancekit dance`` does step by step and
    times each step: interpreter start-up (spawn to the first line), importing the CLI, loading the model,
