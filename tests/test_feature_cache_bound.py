@@ -27,21 +27,21 @@ def test_cache_stays_under_its_bound_and_keeps_the_recently_used(tmp_path, monke
     cache = tmp_path / "cache"
     songs = _songs(tmp_path, 4)
     first = extract_file(songs[0], fps=25, preset="music2dance", cache_dir=cache)
-    entry_size = next(cache.glob("*.npz")).stat().st_size
+    entry_size = next(cache.glob("*[0-9a-f].npz")).stat().st_size
     (cache / "notes.txt").write_text("not an entry")  # a stranger in the folder is never touched
     monkeypatch.setenv("DANCEKIT_CACHE_MAX_MB", str(2.5 * entry_size / (1 << 20)))  # room for two entries
     t = time.time() - 100
     for i, song in enumerate(songs[1:3], start=1):
         extract_file(song, fps=25, preset="music2dance", cache_dir=cache)
-        for k, p in enumerate(sorted(cache.glob("*.npz"), key=os.path.getmtime)):
+        for k, p in enumerate(sorted(cache.glob("*[0-9a-f].npz"), key=os.path.getmtime)):
             os.utime(p, (t + 10 * i + k, t + 10 * i + k))  # distinct mtimes, oldest first
-    assert len(list(cache.glob("*.npz"))) == 2  # song0 (least recently used) went when song2 came
+    assert len(list(cache.glob("*[0-9a-f].npz"))) == 2  # song0 (least recently used) went when song2 came
     again = extract_file(songs[1], fps=25, preset="music2dance", cache_dir=cache)  # a hit touches song1
     assert again.from_cache
     extract_file(songs[3], fps=25, preset="music2dance", cache_dir=cache)  # evicts song2, not song1
     assert extract_file(songs[1], fps=25, preset="music2dance", cache_dir=cache).from_cache
     assert not extract_file(songs[0], fps=25, preset="music2dance", cache_dir=cache).from_cache
-    assert sum(p.stat().st_size for p in cache.glob("*.npz")) <= 2.5 * entry_size
+    assert sum(p.stat().st_size for p in cache.glob("*[0-9a-f].npz")) <= 2.5 * entry_size
     assert (cache / "notes.txt").read_text() == "not an entry"
     np.testing.assert_array_equal(first.features, extract_file(songs[0], fps=25, preset="music2dance",
                                                                cache_dir=cache).features)

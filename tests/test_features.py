@@ -325,7 +325,7 @@ def test_cache_hit_returns_identical_arrays(demo_wav, tmp_path):
     cache = tmp_path / "cache"
     first = extract_file(demo_wav, fps=25, preset="revolution", cache_dir=cache)
     assert not first.from_cache
-    assert len(list(cache.glob("*.npz"))) == 1
+    assert len(list(cache.glob("*[0-9a-f].npz"))) == 1  # the features (and the song's beats, *.beats.npz)
     second = extract_file(demo_wav, fps=25, preset="revolution", cache_dir=cache)
     assert second.from_cache
     np.testing.assert_array_equal(second.features, first.features)
@@ -334,7 +334,26 @@ def test_cache_hit_returns_identical_arrays(demo_wav, tmp_path):
     # any parameter change misses the cache
     third = extract_file(demo_wav, fps=25, preset="revolution", start=1.0, cache_dir=cache)
     assert not third.from_cache and third.num_frames < first.num_frames
-    assert len(list(cache.glob("*.npz"))) == 2
+    assert len(list(cache.glob("*[0-9a-f].npz"))) == 2
+
+
+def test_extract_file_caches_the_song_beats_it_tracked(demo_wav, tmp_path):
+    """The features step leaves the song's beats (:func:`song_beats_file`, the beat-sync stage's input) in the
+    cache: the same beats as tracking them afresh, and the stage does not track them again."""
+    from dancekit.features import pulse
+
+    cache = tmp_path / "cache"
+    fs = extract_file(demo_wav, fps=25, preset="music2dance", start=1.0, cache_dir=cache)
+    entries = list(cache.glob("*.beats.npz"))
+    assert len(entries) == 1
+    fresh = pulse.song_beats_file(demo_wav, start=1.0, use_cache=False)
+    cached = pulse.song_beats_file(demo_wav, start=1.0, cache_dir=cache)
+    np.testing.assert_array_equal(cached.times, fresh.times)
+    np.testing.assert_array_equal(cached.times, fs.beat_times)
+    assert (cached.tempo, cached.clarity, cached.has_beat) == (fresh.tempo, fresh.clarity, fresh.has_beat)
+    # the dual preset tracks beats on the percussive part: it leaves no song-beats entry
+    extract_file(demo_wav, fps=25, preset="dual", cache_dir=tmp_path / "dual")
+    assert not list((tmp_path / "dual").glob("*.beats.npz"))
 
 
 def test_cache_key_follows_content(demo_wav, tmp_path):
@@ -348,7 +367,7 @@ def test_cache_key_follows_content(demo_wav, tmp_path):
 def test_corrupt_cache_entry_is_recomputed(demo_wav, tmp_path):
     cache = tmp_path / "cache"
     good = extract_file(demo_wav, fps=25, preset="music2dance", cache_dir=cache)
-    (entry,) = cache.glob("*.npz")
+    (entry,) = cache.glob("*[0-9a-f].npz")
     entry.write_bytes(b"not an npz")
     again = extract_file(demo_wav, fps=25, preset="music2dance", cache_dir=cache)
     assert not again.from_cache
@@ -362,7 +381,7 @@ def test_no_cache_writes_nothing(demo_wav, tmp_path, monkeypatch):
     fs = extract_file(demo_wav, fps=25, preset="music2dance", use_cache=False)
     assert not fs.from_cache and not (tmp_path / "root").exists()
     extract_file(demo_wav, fps=25, preset="music2dance")
-    assert len(list((tmp_path / "root" / "features").glob("*.npz"))) == 1
+    assert len(list((tmp_path / "root" / "features").glob("*[0-9a-f].npz"))) == 1
 
 
 def test_extract_file_errors_name_the_file(tmp_path):

@@ -207,3 +207,18 @@ def test_bad_shapes_are_refused(bad):
 
     with pytest.raises(ParameterError):
         lock_feet(bad, skeleton=SK, fps=FPS)
+
+
+def test_savgol_equals_scipy_interp_mode():
+    """The NumPy Savitzky-Golay filter (no scipy.signal import in a dance process) is scipy's, edges included."""
+    from scipy.signal import savgol_filter
+
+    from dancekit.motion.footlock import _savgol
+
+    rng = np.random.default_rng(3)
+    for T, window, order in [(100, 7, 3), (40, 21, 3), (21, 21, 3), (9, 5, 2), (60, 5, 3)]:
+        p = rng.normal(size=(T, 4, 3)).cumsum(axis=0)
+        np.testing.assert_allclose(_savgol(p, window, order), savgol_filter(p, window, order, axis=0, mode="interp"),
+                                   rtol=0, atol=1e-10)
+    p = rng.normal(size=(4, 2, 3))
+    np.testing.assert_array_equal(_savgol(p, 7, 3), p)  # a window longer than the dance: unfiltered

@@ -102,16 +102,25 @@ def validate_audio(y: np.ndarray, *, sr: int, path: str | os.PathLike | None = N
 def resample(y: np.ndarray, *, orig_sr: int, target_sr: int) -> np.ndarray:
     """Resample along the last axis with soxr (high quality); float32 out.
 
+    The same samples as ``librosa.resample(y, orig_sr=..., target_sr=..., res_type="soxr_hq")``: soxr's HQ
+    resampler on each channel, cut or zero-padded to ``ceil(n * target_sr / orig_sr)`` samples (soxr is
+    called directly: importing librosa costs seconds in a fresh process).
     Returns ``y`` itself (as float32) when the rates are equal.
     """
+    import soxr
+
     y = np.asarray(y, dtype=np.float32)
     if int(orig_sr) == int(target_sr):
         return y
-    import librosa
-
-    return librosa.resample(y, orig_sr=int(orig_sr), target_sr=int(target_sr), res_type="soxr_hq").astype(
-        np.float32, copy=False
-    )
+    n_out = int(np.ceil(y.shape[-1] * (float(target_sr) / int(orig_sr))))
+    if y.shape[-1] == 0:  # nothing to resample (e.g. an empty tail chunk)
+        return np.zeros(y.shape, dtype=np.float32)
+    rows = y.reshape(-1, y.shape[-1])
+    out = np.zeros((rows.shape[0], n_out), dtype=np.float32)
+    for i, row in enumerate(rows):
+        r = soxr.resample(row, int(orig_sr), int(target_sr), quality="soxr_hq")
+        out[i, : min(n_out, len(r))] = r[:n_out]
+    return out.reshape(y.shape[:-1] + (n_out,))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -89,6 +89,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "the model as trained), bf16, or int8 (int8 weights, dynamic activation quantisation; "
                         "several times faster for large models; see docs/BENCHMARKS.md for its accuracy budget)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--threads", type=int, default=1,
+                   help="CPU threads of the model (default 1: the embedded models are small and generate frame by "
+                        "frame, so a second thread costs more in synchronisation than it saves; more for "
+                        "paper-size checkpoints)")
     p.set_defaults(func=run)
 
 
@@ -106,10 +110,15 @@ def run(args: argparse.Namespace) -> int:
         raise DancekitError(f"audio file not found: {audio}")
     if args.fps is not None and not args.fps > 0:
         raise ParameterError(f"--fps must be positive, got {args.fps:g}")
+    if args.threads < 1:
+        raise ParameterError(f"--threads must be at least 1, got {args.threads}")
     clip = AudioClip(audio, args.start, args.end)
     options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
     pipe = load_pipeline(args.model, args.checkpoint, precision=args.precision)
+    import torch
+
+    torch.set_num_threads(args.threads)
     fix = None
     if args.foot_constraint is not None:
         from dancekit.pipelines.foot_constraint import load_foot_constraint

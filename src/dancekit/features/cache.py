@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import json
 import os
@@ -14,19 +15,21 @@ from dancekit._io import file_sha256
 from dancekit.audio.io import check_audio_path
 from dancekit.errors import DancekitError, ParameterError
 from dancekit.features.featureset import FeatureSet
-from dancekit.features.presets import BACKENDS, PRESETS, _check_choice, extract_path, feature_sr
+from dancekit.features.presets import BACKENDS, PRESETS, _check_choice, _extract_path, feature_sr
 
 __all__ = ["CACHE_MAX_BYTES", "FEATURES_VERSION", "cache_key", "cache_max_bytes", "default_cache_dir",
            "extract_file", "prune_cache"]
 
 #: Bump when feature values change, so stale cache entries are never read.
-FEATURES_VERSION = 3  # 2: FeatureSet.beat_strength; 3: streamed extraction (extract_path: chromagram in chunks, ~1e-6)
+FEATURES_VERSION = 3  # 2: FeatureSet.beat_strength; 3: streamed extraction (extract_path: chromagram in chunks,
+# ~1e-6) computed by features._dsp (NumPy) instead of librosa calls (same beats, tempo and downbeats; spectral
+# values equal to librosa's to float32 rounding, |diff| <= 6e-5: see docs/FEATURES.md)
 
 #: Default size bound of the feature cache folder in bytes (1 GiB: about twenty 20-minute songs'
 #: revolution features); ``DANCEKIT_CACHE_MAX_MB`` overrides it.
 CACHE_MAX_BYTES = 1 << 30
 
-_ENTRY = re.compile(r"[0-9a-f]{64}\.npz")
+_ENTRY = re.compile(r"[0-9a-f]{64}(?:\.beats)?\.npz")  # music features; a song's beats (features.pulse)
 
 
 def cache_max_bytes() -> int:
@@ -54,7 +57,7 @@ def prune_cache(folder: str | os.PathLike, *, max_bytes: int, keep: str | os.Pat
     """Delete the least recently used cache entries of ``folder`` until the entries total at most
     ``max_bytes`` bytes; ``keep`` (the entry just written) is never deleted.
 
-    Only files named like entries (64 hex digits + ``.npz``) are counted or deleted, so a cache folder
+    Only files named like entries (64 hex digits + ``.npz`` or ``.beats.npz``) are counted or deleted, so a cache folder
     pointed at a folder with other files never loses them. Entries are ordered by modification time;
     :func:`extract_file` touches an entry when it reads it, so this is least-recently-used order.
 
@@ -105,11 +108,9 @@ def cache_key(
     backend: str,
 ) -> str:
     """Hex key of one (song content, parameters, code version) combination."""
-    import librosa
-
     params = {
         "version": FEATURES_VERSION,
-        "librosa": librosa.__version__,
+        "librosa": _librosa_version(),
         "sha256": sha256,
         "fps": float(fps),
         "preset": preset,
@@ -119,6 +120,18 @@ def cache_key(
         "backend": backend,
     }
     return hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()
+
+
+@functools.lru_cache(maxsize=1)
+def _librosa_version() -> str:
+    """librosa's version from its metadata (the dual preset's HPSS still runs librosa); no import of librosa,
+    which costs half a second."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("librosa")
+    except PackageNotFoundError:
+        return "none"
 
 
 def extract_file(
@@ -178,11 +191,13 @@ def extract_file(
     path = Path(path)
     entry = None
     max_bytes = 0
+    sha = None
     if use_cache:
         max_bytes = cache_max_bytes()  # a bad DANCEKIT_CACHE_MAX_MB is an error before any work
         check_audio_path(path)
+        sha = file_sha256(path)
         key = cache_key(
-            sha256=file_sha256(path),
+            sha256=sha,
             fps=fps,
             preset=preset,
             hop_length=hop_length,
@@ -207,13 +222,20 @@ def extract_file(
             warnings.warn(f"feature cache disabled: cannot create {str(folder)!r} ({exc})", stacklevel=2)
             entry = None
 
-    fs = extract_path(path, fps=fps, preset=preset, hop_length=hop_length, backend=backend, start=start, end=end)
+    fs, env_fine = _extract_path(path, fps=fps, preset=preset, hop_length=hop_length, backend=backend, start=start,
+                                 end=end)
     if entry is not None:
         try:
             fs.save(entry)
             prune_cache(entry.parent, max_bytes=max_bytes, keep=entry)
         except (OSError, DancekitError) as exc:
             warnings.warn(f"could not write feature cache entry {str(entry)!r} ({exc})", stacklevel=2)
+        if env_fine is not None:  # the song's beats were tracked just now: the beat-sync stage reads them
+            from dancekit.features import pulse
+
+            beats_entry = pulse._beats_entry(path, start=start, end=end, cache_dir=entry.parent, sha256=sha)
+            if not beats_entry.is_file():
+                pulse._save_beats(beats_entry, pulse._beats_from_fine(env_fine, fs.tempo, fs.beat_times))
     return fs
 
 

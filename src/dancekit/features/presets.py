@@ -100,7 +100,6 @@ def _quiet_short_input(fn):
     return wrapper
 
 
-@_quiet_short_input
 def extract(
     y: np.ndarray, *, sr: int, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa"
 ) -> FeatureSet:
@@ -146,6 +145,16 @@ def extract(
     >>> fs.features.shape
     (251, 15)
     """
+    return _extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)[0]
+
+
+@_quiet_short_input
+def _extract(
+    y: np.ndarray, *, sr: int, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa"
+) -> tuple[FeatureSet, np.ndarray | None]:
+    """:func:`extract`, and the fine-grid onset envelope the beats were tracked on when that is the full mix's
+    (the ``librosa`` backend, presets other than ``dual``; else None): with the features' tempo and beats it
+    is the song's :class:`~dancekit.features.pulse.SongBeats`, which :func:`extract_file` caches too."""
     _check_choice("preset", preset, PRESETS)
     _check_choice("backend", backend, BACKENDS)
     fsr = feature_sr(fps=fps, hop_length=hop_length)
@@ -217,7 +226,7 @@ def extract(
     )
     assert features.shape == (T, PRESET_DIMS[preset])
     assert np.isfinite(features).all(), "non-finite feature values from finite audio"
-    return FeatureSet(
+    fs = FeatureSet(
         features=features,
         names=tuple(f"{name}:{d}" for name, d in blocks),
         beat_times=np.asarray(beat_times, dtype=np.float64),
@@ -228,6 +237,7 @@ def extract(
         downbeat_times=None if downbeat_times is None else np.asarray(downbeat_times, dtype=np.float64),
         beat_strength=strength,
     )
+    return fs, (env_fine if backend == "librosa" and preset != "dual" else None)
 
 
 class _Spool:
@@ -276,7 +286,6 @@ def _expected_samples(path, start: float | None, end: float | None, rate: int) -
     return int(np.ceil(max(0.0, b - a) * rate)) + 16
 
 
-@_quiet_short_input
 def extract_path(
     path, *, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa",
     start: float | None = None, end: float | None = None, chunk: int | None = None,
@@ -302,6 +311,17 @@ def extract_path(
     start, end : excerpt in seconds
     chunk : frames per chromagram / tempogram chunk (default :data:`dancekit.features.spectral.CHUNK_FRAMES`)
     """
+    return _extract_path(path, fps=fps, preset=preset, hop_length=hop_length, backend=backend, start=start,
+                         end=end, chunk=chunk)[0]
+
+
+@_quiet_short_input
+def _extract_path(
+    path, *, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa",
+    start: float | None = None, end: float | None = None, chunk: int | None = None,
+) -> tuple[FeatureSet, np.ndarray | None]:
+    """:func:`extract_path`, and the fine-grid onset envelope of the beats as :func:`_extract` returns it
+    (for :func:`dancekit.features.extract_file`'s cached song beats)."""
     from dancekit.audio.io import load, stream
 
     _check_choice("preset", preset, PRESETS)
@@ -309,7 +329,7 @@ def extract_path(
     fsr = feature_sr(fps=fps, hop_length=hop_length)
     if backend != "librosa" or preset == "dual":
         y, sr = load(path, start=start, end=end)
-        return extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)
+        return _extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)
     chunk = spectral.CHUNK_FRAMES if chunk is None else int(chunk)
     expected = _expected_samples(path, start, end, fsr)
     y_feat = _Spool()
@@ -360,7 +380,7 @@ def extract_path(
     if preset == "music2dance":
         features[:, at["downbeat"]] = rhythm.beat_onehot(beat_times=downbeat_times, fps=fps, n_frames=T)[:, None]
     assert np.isfinite(features).all(), "non-finite feature values from finite audio"
-    return FeatureSet(
+    fs = FeatureSet(
         features=features,
         names=tuple(f"{name}:{d}" for name, d in blocks),
         beat_times=np.asarray(beat_times, dtype=np.float64),
@@ -371,3 +391,4 @@ def extract_path(
         downbeat_times=None if downbeat_times is None else np.asarray(downbeat_times, dtype=np.float64),
         beat_strength=strength,
     )
+    return fs, env_fine

@@ -69,6 +69,36 @@ def song_beats(*, y: np.ndarray, sr: int, min_clarity: float = MIN_PULSE_CLARITY
     S_db = _fine_log_mel(_to_beat_sr(y, sr))
     env = _fine_onset(S_db)
     tempo, times = _beat_track_fine(S_db, env)
+    return _beats_from_fine(env, tempo, times, min_clarity=min_clarity, min_beats=min_beats)
+
+
+def _beats_entry(path, *, start: float | None, end: float | None, cache_dir, sha256: str | None = None):
+    """The cache file of a song's (excerpt's) :class:`SongBeats`, beside the music features."""
+    from pathlib import Path
+
+    from dancekit._io import file_sha256
+    from dancekit.features.cache import cache_key, default_cache_dir
+
+    key = cache_key(sha256=sha256 or file_sha256(Path(path)), fps=float(BEAT_SR) / BEAT_HOP, preset="song_beats",
+                    hop_length=BEAT_HOP, start=start, end=end, backend="librosa")
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    return folder / f"{key}.beats.npz"
+
+
+def _save_beats(entry, beats: SongBeats) -> None:
+    from dancekit._io import atomic_path
+
+    try:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(entry) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, tempo=beats.tempo, times=beats.times, clarity=beats.clarity, has_beat=beats.has_beat)
+    except (OSError, DancekitError):
+        pass  # caching is an optimisation only
+
+
+def _beats_from_fine(env: np.ndarray, tempo: float, times: np.ndarray, *, min_clarity: float = MIN_PULSE_CLARITY,
+                     min_beats: int = MIN_BEATS) -> SongBeats:
     clarity = pulse_clarity(envelope=env, tempo=tempo)
     return SongBeats(tempo=float(tempo), times=np.asarray(times, np.float64), clarity=float(clarity),
                      has_beat=bool(len(times) >= min_beats and clarity >= min_clarity))
@@ -78,21 +108,17 @@ def song_beats_file(path, *, start: float | None = None, end: float | None = Non
                     use_cache: bool = True) -> SongBeats:
     """:func:`song_beats` of an audio file (or its excerpt ``[start, end)`` s; times from ``start``), cached
     beside the music features (:func:`dancekit.features.default_cache_dir`, keyed on the file's content and
-    the excerpt): librosa's beat tracker is compiled on its first call in a process, seconds that a song
-    danced again should not pay."""
+    the excerpt), so that a song danced again does not track its beats again.
+    :func:`dancekit.features.extract_file` fills this entry as well (the beats it tracks for the features
+    are these beats), so the pipeline's beat-sync stage reads what the features step found."""
     from pathlib import Path
 
-    from dancekit._io import atomic_path, file_sha256
     from dancekit.audio.io import check_audio_path
-    from dancekit.features.cache import cache_key, default_cache_dir
 
     entry = None
     if use_cache:
         check_audio_path(Path(path))
-        key = cache_key(sha256=file_sha256(Path(path)), fps=float(BEAT_SR) / BEAT_HOP, preset="song_beats",
-                        hop_length=BEAT_HOP, start=start, end=end, backend="librosa")
-        folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-        entry = folder / f"{key}.beats.npz"
+        entry = _beats_entry(path, start=start, end=end, cache_dir=cache_dir)
         if entry.is_file():
             try:
                 with np.load(entry) as z:
@@ -102,13 +128,7 @@ def song_beats_file(path, *, start: float | None = None, end: float | None = Non
                 pass  # an unreadable entry is recomputed
     beats = _song_beats_streamed(path, start=start, end=end)
     if entry is not None:
-        try:
-            entry.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_path(entry) as tmp:
-                with open(tmp, "wb") as fh:
-                    np.savez(fh, tempo=beats.tempo, times=beats.times, clarity=beats.clarity, has_beat=beats.has_beat)
-        except (OSError, DancekitError):
-            pass  # caching is an optimisation only
+        _save_beats(entry, beats)
     return beats
 
 
@@ -130,6 +150,4 @@ def _song_beats_streamed(path, *, start: float | None, end: float | None, min_cl
     env = _fine_onset_chunked(S_db)
     tempo, times = _beat_track_fine(S_db, env)
     del S_db
-    clarity = pulse_clarity(envelope=env, tempo=tempo)
-    return SongBeats(tempo=float(tempo), times=np.asarray(times, np.float64), clarity=float(clarity),
-                     has_beat=bool(len(times) >= min_beats and clarity >= min_clarity))
+    return _beats_from_fine(env, tempo, times, min_clarity=min_clarity, min_beats=min_beats)

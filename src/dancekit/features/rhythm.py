@@ -21,6 +21,7 @@ import numpy as np
 
 from dancekit.audio.io import resample
 from dancekit.errors import ParameterError
+from dancekit.features import _dsp
 
 __all__ = ["BEAT_HOP", "BEAT_SR", "MUSIC_BEAT_STRENGTH", "beat_onehot", "beat_strength", "beat_track", "downbeats",
            "fold_meter"]
@@ -44,32 +45,27 @@ def _to_beat_sr(y: np.ndarray, sr: int) -> np.ndarray:
 
 
 def _fine_log_mel(y_fine: np.ndarray, n_mels: int = 128) -> np.ndarray:
-    import librosa
-
     from dancekit.features.spectral import mel_power
 
-    if len(y_fine) < _BEAT_NFFT // 2 + 1:  # shorter than half a frame: librosa's own (warned) padding path
-        M = librosa.feature.melspectrogram(y=y_fine, sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, n_mels=n_mels)
-    else:  # a few thousand frames at a time: no full-song complex STFT in memory
-        M = mel_power(y=y_fine, sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, n_mels=n_mels)
-    return librosa.power_to_db(M).astype(np.float32)
+    # a few thousand frames at a time: no full-song complex STFT in memory
+    M = mel_power(y=y_fine, sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, n_mels=n_mels)
+    return _dsp.power_to_db(M).astype(np.float32)
 
 
 def _onset_chunked(S_db: np.ndarray, *, hop_length: int, aggregate, chunk: int = 8192) -> np.ndarray:
-    """``librosa.onset.onset_strength(S=S_db, sr=BEAT_SR, hop_length=hop_length, n_fft=_BEAT_NFFT,
-    aggregate=aggregate)`` (centred, lag 1) computed ``chunk`` frames at a time: each value is the aggregated
-    positive difference of two neighbouring frames, so chunks overlapping by one frame give the same values
-    without the two full-size difference arrays (2 x 160 MB for an hour at the beat grid). float32 (T,)."""
-    import librosa
-
+    """``_dsp.onset_strength(S_db, n_fft=_BEAT_NFFT, hop_length=hop_length, aggregate=aggregate)`` (librosa's
+    centred envelope, lag 1) computed ``chunk`` frames at a time: each value is the aggregated positive
+    difference of two neighbouring frames, so chunks overlapping by one frame (``center=False``) give the
+    same values without the two full-size difference arrays (2 x 160 MB for an hour at the beat grid).
+    float32 (T,)."""
     T = S_db.shape[-1]
     raw = np.zeros(T, np.float32)  # raw[j]: frame j against frame j - 1
     for a in range(1, T, int(chunk)):
         b = min(T, a + int(chunk))
-        o = librosa.onset.onset_strength(S=S_db[:, a - 1: b], sr=BEAT_SR, hop_length=hop_length, n_fft=_BEAT_NFFT,
-                                         aggregate=aggregate, center=False)
+        o = _dsp.onset_strength(S_db[:, a - 1: b], n_fft=_BEAT_NFFT, hop_length=hop_length, aggregate=aggregate,
+                                center=False)
         raw[a:b] = o[1:]
-    pad = 1 + _BEAT_NFFT // (2 * hop_length)  # librosa's centring shift
+    pad = 1 + _BEAT_NFFT // (2 * hop_length)  # the centring shift
     env = np.zeros(T, np.float32)
     env[pad:] = raw[1: T - pad + 1]
     return env
@@ -81,17 +77,14 @@ def _fine_onset_chunked(S_db: np.ndarray, aggregate=np.median) -> np.ndarray:
 
 
 def _fine_onset(S_db: np.ndarray, aggregate=np.median) -> np.ndarray:
-    import librosa
-
-    return librosa.onset.onset_strength(
-        S=S_db, sr=BEAT_SR, hop_length=BEAT_HOP, n_fft=_BEAT_NFFT, aggregate=aggregate
-    ).astype(np.float32)
+    return _dsp.onset_strength(S_db, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, aggregate=aggregate).astype(np.float32)
 
 
 def beat_track(
     *, y: np.ndarray, sr: int, start_bpm: float = 120.0, tightness: float = 100.0
 ) -> tuple[float, np.ndarray]:
-    """Track beats on the fine grid (22050 Hz, hop 256) with librosa's dynamic-programming tracker.
+    """Track beats on the fine grid (22050 Hz, hop 256) with librosa's dynamic-programming tracker
+    (re-implemented in NumPy: :func:`dancekit.features._dsp.beat_track`).
 
     Parameters
     ----------
@@ -127,26 +120,18 @@ def _estimate_tempo(S_db: np.ndarray, env: np.ndarray, *, start_bpm: float) -> f
     refines it to twice the lag resolution (a 120 BPM click reads 120.2
     instead of 117.5 BPM).
     """
-    import librosa
-
-    env512 = _onset_chunked(S_db[:, ::2], hop_length=2 * BEAT_HOP, aggregate=np.mean)  # librosa's, in chunks
+    env512 = _onset_chunked(S_db[:, ::2], hop_length=2 * BEAT_HOP, aggregate=np.mean)  # in chunks
     if not np.any(env512 > 0):
         env512 = env[::2]
     from dancekit.features.spectral import tempogram_mean
 
-    # librosa.feature.tempo(onset_envelope=env512, ...), its mean tempogram summed in chunks (a whole-song
-    # tempogram at this rate is ~1 GB for an hour of music)
-    win = int(librosa.time_to_frames(8.0, sr=BEAT_SR, hop_length=2 * BEAT_HOP))  # librosa's ac_size 8 s
-    coarse = float(
-        np.atleast_1d(
-            librosa.feature.tempo(
-                tg=tempogram_mean(onset_envelope=env512, win_length=win), sr=BEAT_SR, hop_length=2 * BEAT_HOP,
-                start_bpm=start_bpm,
-            )
-        )[0]
-    )
+    # librosa.feature.tempo(onset_envelope=env512, ...) (_dsp.tempo), its mean tempogram summed in chunks (a
+    # whole-song tempogram at this rate is ~1 GB for an hour of music)
+    win = _dsp.tempo_win_length(sr=BEAT_SR, hop_length=2 * BEAT_HOP)  # librosa's ac_size 8 s
+    coarse = _dsp.tempo_from_tempogram(tempogram_mean(onset_envelope=env512, win_length=win), sr=BEAT_SR,
+                                       hop_length=2 * BEAT_HOP, start_bpm=start_bpm)
     frame_rate = BEAT_SR / BEAT_HOP
-    ac = librosa.autocorrelate(env.astype(np.float64))
+    ac = _dsp.autocorrelate(env.astype(np.float64))
     lags = np.arange(1, ac.size)
     bpm = 60.0 * frame_rate / lags
     prior = np.exp(-0.5 * ((np.log2(bpm) - np.log2(coarse)) / 0.1) ** 2)
@@ -162,23 +147,14 @@ def _beat_track_fine(
     which removes librosa's edge effect (a first or last beat up to ~0.1 s
     early when a beat falls within a few tenths of a second of either end).
     """
-    import librosa
-
     if not np.any(env > 0):
         return 0.0, np.zeros(0, dtype=np.float64)
     tempo = _estimate_tempo(S_db, env, start_bpm=start_bpm)
     pad = int(round(_EDGE_PAD_S * BEAT_SR / BEAT_HOP))
-    _, frames = librosa.beat.beat_track(
-        onset_envelope=np.pad(env, (pad, pad)),
-        sr=BEAT_SR,
-        hop_length=BEAT_HOP,
-        bpm=tempo,
-        tightness=tightness,
-        units="frames",
-    )
-    frames = np.asarray(frames, dtype=np.int64) - pad
+    frames = _dsp.beat_track(np.pad(env, (pad, pad)), bpm=tempo, frame_rate=float(BEAT_SR) / BEAT_HOP,
+                             tightness=tightness) - pad
     frames = frames[(frames >= 0) & (frames < env.shape[-1])]
-    times = librosa.frames_to_time(frames, sr=BEAT_SR, hop_length=BEAT_HOP).astype(np.float64)
+    times = (frames * BEAT_HOP).astype(int) / float(BEAT_SR)
     return tempo, times
 
 
@@ -303,14 +279,10 @@ def _zscore(x: np.ndarray) -> np.ndarray:
 
 def _beat_accents(S_db: np.ndarray, env: np.ndarray, beat_frames: np.ndarray) -> np.ndarray:
     """Accent per beat on the fine grid: z-scored onset, low-band onset, low-band energy and harmonic change."""
-    import librosa
-
     T = S_db.shape[1]
-    freqs = librosa.mel_frequencies(n_mels=S_db.shape[0], fmax=BEAT_SR / 2)
+    freqs = _dsp.mel_frequencies(S_db.shape[0], fmax=BEAT_SR / 2)
     low = freqs < 200.0
-    env_low = librosa.onset.onset_strength(
-        S=S_db[low], sr=BEAT_SR, hop_length=BEAT_HOP, n_fft=_BEAT_NFFT, aggregate=np.mean
-    )
+    env_low = _dsp.onset_strength(S_db[low], n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, aggregate=np.mean)
     # window around each beat: 2 frames before to 4 after (about -23 ms .. +46 ms)
     win = np.arange(-2, 5)
     idx = np.clip(beat_frames[:, None] + win[None, :], 0, T - 1)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from dancekit.errors import ParameterError
+from dancekit.features import _dsp
 
 __all__ = [
     "CQT_FMIN",
@@ -45,14 +46,12 @@ def _n_fft(n_fft: int | None, hop_length: int) -> int:
 
 def _fit(x: np.ndarray, size: int) -> np.ndarray:
     """Pad (edge) or trim the last axis to ``size`` frames (guards off-by-one framing)."""
-    import librosa
-
     if x.shape[-1] == size:
         return x
     assert abs(x.shape[-1] - size) <= 2, (x.shape, size)
     if x.shape[-1] > size:
         return x[..., :size]
-    return librosa.util.fix_length(x, size=size, axis=-1, mode="edge")
+    return np.pad(x, [(0, 0)] * (x.ndim - 1) + [(0, size - x.shape[-1])], mode="edge")
 
 
 #: STFT frames computed at a time by :func:`mel_power`: bounds the transient complex spectrogram
@@ -69,18 +68,16 @@ def mel_power(*, y: np.ndarray, sr: int, n_fft: int, hop_length: int, n_mels: in
     -------
     np.ndarray, float32, shape (n_mels, 1 + len(y) // hop_length)
     """
-    import librosa
-
     y = np.asarray(y, dtype=np.float32)
     pad = n_fft // 2
     yp = np.pad(y, pad, mode="constant")
     total = 1 + (len(yp) - n_fft) // hop_length if len(yp) >= n_fft else 0
-    basis = librosa.filters.mel(sr=sr, n_fft=n_fft, n_mels=n_mels).astype(np.float32)
+    basis = _dsp.mel_filters(sr=sr, n_fft=n_fft, n_mels=n_mels)
     out = np.empty((n_mels, total), dtype=np.float32)
     for f0 in range(0, total, _MEL_CHUNK):
         f1 = min(total, f0 + _MEL_CHUNK)
-        D = librosa.stft(yp[f0 * hop_length:(f1 - 1) * hop_length + n_fft], n_fft=n_fft, hop_length=hop_length,
-                         center=False)
+        D = _dsp.stft(yp[f0 * hop_length:(f1 - 1) * hop_length + n_fft], n_fft=n_fft, hop_length=hop_length,
+                      center=False)
         out[:, f0:f1] = basis @ (D.real**2 + D.imag**2)
     return out
 
@@ -94,16 +91,9 @@ def log_melspectrogram(
     -------
     np.ndarray, float32, shape (n_mels, 1 + len(y) // hop_length)
     """
-    import librosa
-
     n_fft = _n_fft(n_fft, hop_length)
-    if len(y) < n_fft // 2 + 1:  # shorter than half a frame: librosa's own (warned) padding path
-        M = librosa.feature.melspectrogram(
-            y=np.asarray(y, dtype=np.float32), sr=sr, n_fft=n_fft, hop_length=hop_length, n_mels=n_mels
-        )
-    else:
-        M = mel_power(y=y, sr=sr, n_fft=n_fft, hop_length=hop_length, n_mels=n_mels)
-    S = librosa.power_to_db(M).astype(np.float32)
+    M = mel_power(y=y, sr=sr, n_fft=n_fft, hop_length=hop_length, n_mels=n_mels)
+    S = _dsp.power_to_db(M).astype(np.float32)
     return _fit(S, n_frames(n_samples=len(y), hop_length=hop_length))
 
 
@@ -131,13 +121,11 @@ def mfcc(
     -------
     np.ndarray, float32, shape (n_mfcc, T)
     """
-    import librosa
-
     if S is None:
         if y is None:
             raise ParameterError("mfcc needs y or S")
         S = log_melspectrogram(y=y, sr=sr, hop_length=hop_length, n_fft=n_fft)
-    return librosa.feature.mfcc(S=S, n_mfcc=n_mfcc).astype(np.float32)
+    return _dsp.dct_ortho(S, n=n_mfcc)
 
 
 def mfcc_delta(*, mfcc: np.ndarray, width: int = 9) -> np.ndarray:
@@ -150,13 +138,11 @@ def mfcc_delta(*, mfcc: np.ndarray, width: int = 9) -> np.ndarray:
     -------
     np.ndarray, float32, same shape as ``mfcc`` (units: coefficient per frame)
     """
-    import librosa
-
     T = mfcc.shape[-1]
     w = min(int(width), T if T % 2 else T - 1)
     if w < 3:
         return np.zeros_like(mfcc, dtype=np.float32)
-    return librosa.feature.delta(mfcc, width=w, order=1, axis=-1).astype(np.float32)
+    return _dsp.delta(np.asarray(mfcc, dtype=np.float32), width=w)
 
 
 def onset_strength(
@@ -184,14 +170,12 @@ def onset_strength(
     -------
     np.ndarray, float32, shape (T,), >= 0 (dB per frame)
     """
-    import librosa
-
     n_fft = _n_fft(n_fft, hop_length)
     if S is None:
         if y is None:
             raise ParameterError("onset_strength needs y or S")
         S = log_melspectrogram(y=y, sr=sr, hop_length=hop_length, n_fft=n_fft)
-    env = librosa.onset.onset_strength(S=S, sr=sr, hop_length=hop_length, n_fft=n_fft, aggregate=aggregate)
+    env = _dsp.onset_strength(S, n_fft=n_fft, hop_length=hop_length, aggregate=aggregate)
     return np.maximum(env, 0.0).astype(np.float32)
 
 
@@ -208,10 +192,8 @@ def tempogram(
     -------
     np.ndarray, float32, shape (win_length, T)
     """
-    import librosa
-
     env = np.asarray(onset_envelope, dtype=np.float32)
-    tg = librosa.feature.tempogram(onset_envelope=env, sr=sr, hop_length=hop_length, win_length=win_length)
+    tg = _dsp.tempogram(env, win_length=win_length)
     return np.nan_to_num(_fit(tg, env.shape[-1]), nan=0.0).astype(np.float32)
 
 
@@ -230,33 +212,24 @@ def chroma_cqt(
 
     The constant-Q transform starts at C1 (32.7 Hz) and spans up to 7 octaves,
     fewer at low sample rates so that the top bin stays below Nyquist (6
-    octaves at ``sr = 15 * 512``). Tuning 0 (librosa 0.11's default: none is estimated). Each
+    octaves at ``sr = 15 * 512``). Tuning is A4 = 440 Hz (``librosa.cqt``'s default ``tuning=0``: none is
+    estimated). Each
     column is scaled to a maximum of 1 (all-zero for silence).
 
     Returns
     -------
     np.ndarray, float32, shape (n_chroma, 1 + len(y) // hop_length), values in [0, 1]
     """
-    import librosa
-
     y = np.asarray(y, dtype=np.float32)
     T = n_frames(n_samples=len(y), hop_length=hop_length)
     if not np.any(y):
         return np.zeros((n_chroma, T), dtype=np.float32)
     n_oct = _cqt_octaves(sr)
-    C = np.abs(
-        librosa.cqt(
-            y=y,
-            sr=sr,
-            hop_length=hop_length,
-            fmin=CQT_FMIN,
-            n_bins=n_oct * bins_per_octave,
-            bins_per_octave=bins_per_octave,
-        )
-    )
-    chroma = librosa.feature.chroma_cqt(
-        C=C, sr=sr, bins_per_octave=bins_per_octave, n_chroma=n_chroma, n_octaves=n_oct
-    )
+    if bins_per_octave % n_chroma:
+        raise ParameterError(f"bins_per_octave={bins_per_octave} must be a multiple of n_chroma={n_chroma}")
+    C = _dsp.cqt_magnitude(y, sr=sr, hop_length=hop_length, fmin=CQT_FMIN, n_bins=n_oct * bins_per_octave,
+                           bins_per_octave=bins_per_octave)
+    chroma = _dsp.chroma_from_cqt(C, bins_per_octave=bins_per_octave, n_chroma=n_chroma)
     return np.nan_to_num(_fit(chroma, T), nan=0.0).astype(np.float32)
 
 
@@ -298,10 +271,8 @@ class MelPowerStream:
     """
 
     def __init__(self, *, sr: int, n_fft: int, hop_length: int, n_mels: int = 128, expected_samples: int = 0):
-        import librosa
-
         self.n_fft, self.hop = int(n_fft), int(hop_length)
-        self.basis = librosa.filters.mel(sr=sr, n_fft=self.n_fft, n_mels=n_mels).astype(np.float32)
+        self.basis = _dsp.mel_filters(sr=sr, n_fft=self.n_fft, n_mels=n_mels)
         self.buf = np.zeros(self.n_fft // 2, np.float32)  # the centring pad of mel_power
         self.done = 0  # frames computed
         self.out = np.empty((n_mels, 1 + max(0, int(expected_samples)) // self.hop), np.float32)
@@ -311,9 +282,7 @@ class MelPowerStream:
         return (frames - 1) * self.hop + self.n_fft
 
     def _compute(self, frames: int) -> None:
-        import librosa
-
-        D = librosa.stft(self.buf[: self._need(frames)], n_fft=self.n_fft, hop_length=self.hop, center=False)
+        D = _dsp.stft(self.buf[: self._need(frames)], n_fft=self.n_fft, hop_length=self.hop, center=False)
         if self.done + frames > self.out.shape[1]:
             grown = np.empty((self.out.shape[0], max(self.done + frames, int(self.out.shape[1] * 1.25) + 1)),
                              np.float32)
@@ -372,8 +341,6 @@ def chroma_cqt_chunked(*, y, sr: int, hop_length: int = 512, n_chroma: int = 12,
     -------
     np.ndarray, float32, shape (1 + len(y) // hop_length, n_chroma) — frames first
     """
-    import librosa
-
     if callable(y):
         read, n = y, int(n_samples)
     else:
@@ -391,38 +358,35 @@ def chroma_cqt_chunked(*, y, sr: int, hop_length: int = 512, n_chroma: int = 12,
         f1 = min(T, f0 + int(chunk))
         a = max(0, f0 - margin)
         seg = read(a * hop_length, min(n, (f1 + margin) * hop_length))
-        C = np.abs(librosa.cqt(y=seg, sr=sr, hop_length=hop_length, fmin=CQT_FMIN, n_bins=n_oct * bins_per_octave,
-                               bins_per_octave=bins_per_octave))
+        C = _dsp.cqt_magnitude(seg, sr=sr, hop_length=hop_length, fmin=CQT_FMIN, n_bins=n_oct * bins_per_octave,
+                               bins_per_octave=bins_per_octave)
         C = _fit(C, n_frames(n_samples=len(seg), hop_length=hop_length))[:, f0 - a: f1 - a]
-        chroma = librosa.feature.chroma_cqt(C=C, sr=sr, bins_per_octave=bins_per_octave, n_chroma=n_chroma,
-                                            n_octaves=n_oct)
+        chroma = _dsp.chroma_from_cqt(C, bins_per_octave=bins_per_octave, n_chroma=n_chroma)
         out[f0:f1] = np.nan_to_num(chroma, nan=0.0).T
     return out
 
 
 def _tempogram_blocks(env: np.ndarray, *, win_length: int, chunk: int):
-    """librosa's autocorrelation tempogram of ``env`` (float64, ``norm=inf``), ``chunk`` frames at a time:
-    yields ``(f0, f1, tg (win_length, f1 - f0))``. Every frame is its own window of the (ramp-padded)
-    envelope, so the blocks are the columns of ``librosa.feature.tempogram(onset_envelope=env, ...)``."""
-    import librosa
-
+    """The autocorrelation tempogram of ``env`` (:func:`dancekit.features._dsp.tempogram`, librosa's: float64,
+    each column scaled to a maximum of 1), ``chunk`` frames at a time: yields ``(f0, f1, tg (win_length,
+    f1 - f0))``. Every frame is its own window of the (ramp-padded) envelope, so the blocks are the columns
+    of ``_dsp.tempogram(env, win_length=win_length)``."""
     env = np.asarray(env)
     n = env.shape[-1]
-    ac_window = librosa.filters.get_window("hann", win_length, fftbins=True)[:, None]
+    ac_window = _dsp.hann(win_length)[:, None]
     half = int(win_length // 2)
     padded = np.pad(env, (half, half), mode="linear_ramp", end_values=[0, 0])
     for f0 in range(0, n, int(chunk)):
         f1 = min(n, f0 + int(chunk))
-        frames = librosa.util.frame(padded[f0: f1 + win_length - 1], frame_length=win_length, hop_length=1)
-        yield f0, f1, librosa.util.normalize(librosa.autocorrelate(frames[:, : f1 - f0] * ac_window, axis=-2),
-                                             norm=np.inf, axis=-2)
+        frames = _dsp.frame(padded[f0: f1 + win_length - 1], frame_length=win_length, hop_length=1)
+        yield f0, f1, _dsp.normalize_max(_dsp.autocorrelate(frames[:, : f1 - f0] * ac_window, axis=-2), axis=-2)
 
 
 def tempogram_mean(*, onset_envelope: np.ndarray, win_length: int, chunk: int = 4 * CHUNK_FRAMES) -> np.ndarray:
     """The time average ``(win_length, 1)`` float64 of librosa's tempogram of ``onset_envelope`` (what
-    ``librosa.feature.tempo`` aggregates; pass it as ``tg=``), summed ``chunk`` frames at a time instead of
-    a whole-song ``(win_length, T)`` array and its complex FFT. One chunk: librosa's mean bit for bit; more:
-    the same sum in another order (float rounding)."""
+    ``librosa.feature.tempo`` aggregates; pass it to :func:`dancekit.features._dsp.tempo_from_tempogram`),
+    summed ``chunk`` frames at a time instead of a whole-song ``(win_length, T)`` array and its complex FFT.
+    One chunk: ``_dsp.tempo``'s mean bit for bit; more: the same sum in another order (float rounding)."""
     env = np.asarray(onset_envelope)
     total = np.zeros((win_length, 1), np.float64)
     for _, _, tg in _tempogram_blocks(env, win_length=win_length, chunk=chunk):

@@ -229,8 +229,8 @@ def kinematic_beats(
     -------
     (B,) float64 beat times in seconds, increasing (frame ``t`` is at ``t / fps``).
     """
-    from scipy.signal import argrelextrema
-
     speed = mean_joint_speed(positions, fps=fps, skeleton=skeleton, smooth=smooth)
-    idx = argrelextrema(speed, np.less)[0]
+    # strict local minima, ``scipy.signal.argrelextrema(speed, np.less)`` (not imported: scipy.signal pulls in
+    # scipy.stats, a second of a fresh process's start-up)
+    idx = np.flatnonzero((speed[1:-1] < speed[:-2]) & (speed[1:-1] < speed[2:])) + 1
     return idx.astype(np.float64) / float(fps)

@@ -460,11 +460,25 @@ def smoothing_window(positions: np.ndarray, *, skeleton: Skeleton, fps: float, t
 
 
 def _savgol(p: np.ndarray, window: int, order: int) -> np.ndarray:
-    from scipy.signal import savgol_filter
-
+    """Savitzky-Golay smoothing along axis 0: ``scipy.signal.savgol_filter(p, window, order, axis=0,
+    mode="interp")`` in NumPy (``scipy.signal`` imports ``scipy.stats``, a second of a ``dancekit dance``
+    process): each frame the value at its centre of the degree-``order`` least-squares polynomial through
+    the ``window`` frames around it; the first and last ``window // 2`` frames take the polynomial fitted to
+    the first / last window. Equal to scipy's to float rounding (``tests/test_footlock.py``). float64 out."""
+    p = np.asarray(p)
     if window <= order or window > len(p):
         return p.copy()
-    return savgol_filter(p, window, order, axis=0, mode="interp")
+    x = np.asarray(p, dtype=np.float64)
+    T, half = len(x), window // 2
+    t = np.arange(window, dtype=np.float64)
+    V = (t[:, None] - half) ** np.arange(order + 1)[None, :]  # (window, order + 1), centred on the middle frame
+    fit = V @ np.linalg.pinv(V)  # (window, window): the fitted values of a window from its samples
+    out = np.zeros_like(x)
+    for k, c in enumerate(fit[half]):
+        out[half:T - half] += c * x[k:T - 2 * half + k]
+    out[:half] = np.tensordot(fit[:half], x[:window], axes=1)
+    out[T - half:] = np.tensordot(fit[window - half:], x[T - window:], axes=1)
+    return out
 
 
 def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float) -> float:

@@ -8,9 +8,21 @@ quality, title), both validated when they are made. To write a dance to every fo
 once, see :func:`dancekit.export.export_motion`.
 """
 
-from dancekit.render.html import render_html, render_motion_html
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
 from dancekit.render.options import AudioClip, RenderOptions
-from dancekit.render.video import render_motion_mp4, render_mp4
+
+# the renderers import scipy.ndimage and PIL: loaded on first use, so that a dance written as npz or bvh
+# (and ``dancekit dance``'s start-up) does not pay for them
+_LAZY = {
+    "render_html": "dancekit.render.html",
+    "render_motion_html": "dancekit.render.html",
+    "render_mp4": "dancekit.render.video",
+    "render_motion_mp4": "dancekit.render.video",
+}
 
 __all__ = [
     "AudioClip",
@@ -20,3 +32,9 @@ __all__ = [
     "render_motion_mp4",
     "render_mp4",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'dancekit.render' has no attribute {name!r}")
