@@ -226,7 +226,15 @@ def _extract(
     )
     assert features.shape == (T, PRESET_DIMS[preset])
     assert np.isfinite(features).all(), "non-finite feature values from finite audio"
-    fs = FeatureSet(
+    fs = _feature_set(features, blocks=blocks, beat_times=beat_times, fps=fps, preset=preset, tempo=tempo,
+                      hop_length=hop_length, downbeat_times=downbeat_times, strength=strength)
+    return fs, (env_fine if backend == "librosa" and preset != "dual" else None)
+
+
+def _feature_set(features: np.ndarray, *, blocks, beat_times, fps: float, preset: str, tempo: float,
+                 hop_length: int, downbeat_times, strength: float) -> FeatureSet:
+    """The :class:`FeatureSet` of a preset's feature matrix (T, D) and its beat grid (times in seconds)."""
+    return FeatureSet(
         features=features,
         names=tuple(f"{name}:{d}" for name, d in blocks),
         beat_times=np.asarray(beat_times, dtype=np.float64),
@@ -237,7 +245,6 @@ def _extract(
         downbeat_times=None if downbeat_times is None else np.asarray(downbeat_times, dtype=np.float64),
         beat_strength=strength,
     )
-    return fs, (env_fine if backend == "librosa" and preset != "dual" else None)
 
 
 class _Spool:
@@ -380,15 +387,6 @@ def _extract_path(
     if preset == "music2dance":
         features[:, at["downbeat"]] = rhythm.beat_onehot(beat_times=downbeat_times, fps=fps, n_frames=T)[:, None]
     assert np.isfinite(features).all(), "non-finite feature values from finite audio"
-    fs = FeatureSet(
-        features=features,
-        names=tuple(f"{name}:{d}" for name, d in blocks),
-        beat_times=np.asarray(beat_times, dtype=np.float64),
-        fps=float(fps),
-        preset=preset,
-        tempo=float(tempo),
-        hop_length=int(hop_length),
-        downbeat_times=None if downbeat_times is None else np.asarray(downbeat_times, dtype=np.float64),
-        beat_strength=strength,
-    )
+    fs = _feature_set(features, blocks=blocks, beat_times=beat_times, fps=fps, preset=preset, tempo=tempo,
+                      hop_length=hop_length, downbeat_times=downbeat_times, strength=strength)
     return fs, env_fine
