@@ -351,6 +351,16 @@ def _validate_range(start: float | None, end: float | None) -> None:
         raise ParameterError(f"start must be before end, got start={start:g} s, end={end:g} s")
 
 
+def _open_soundfile(path: Path) -> sf.SoundFile | None:
+    """``path`` opened by libsndfile (its C library's notes kept off stderr), or None for a format it cannot
+    read (decoded by ffmpeg instead)."""
+    with _quiet_c_stderr():
+        try:
+            return sf.SoundFile(path)
+        except (sf.LibsndfileError, RuntimeError):
+            return None
+
+
 def load(
     path: str | os.PathLike,
     *,
@@ -404,11 +414,8 @@ def load(
     _validate_range(start, end)
     check_audio_path(path)
 
+    f = _open_soundfile(path)
     with _quiet_c_stderr():
-        try:
-            f = sf.SoundFile(path)
-        except (sf.LibsndfileError, RuntimeError):
-            f = None
         if f is not None:
             with f:
                 _check_truncated(path, f.format)
@@ -468,11 +475,7 @@ def stream(
         raise ParameterError(f"rates must be positive sample rates in Hz, got {rates!r}")
     _validate_range(start, end)
     check_audio_path(path)
-    with _quiet_c_stderr():
-        try:
-            f = sf.SoundFile(path)
-        except (sf.LibsndfileError, RuntimeError):
-            f = None
+    f = _open_soundfile(path)
     if f is None:
         y, native = load(path, start=start, end=end)
         yield [resample(y, orig_sr=native, target_sr=r) for r in rates]
