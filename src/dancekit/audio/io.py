@@ -250,18 +250,32 @@ def _quiet_c_stderr() -> Iterator[None]:
         os.close(saved)
 
 
-def _read_soundfile(
-    f: sf.SoundFile, path: Path, start: float | None, end: float | None, mono: bool
-) -> np.ndarray:
-    """Read [start, end) of an open SoundFile in blocks; (n,) if mono else (channels, n)."""
-    sr = f.samplerate
-    total = f.frames
+def _seek_range(f: sf.SoundFile, path: Path, start: float | None, end: float | None) -> int:
+    """Check ``[start, end)`` s against an open SoundFile's length, seek to ``start``; the frames to read."""
+    sr, total = f.samplerate, f.frames
     a = 0 if start is None else int(round(start * sr))
     b = total if end is None else min(total, int(round(end * sr)))
     _check_range(path, start, end, total / sr)
     if a > 0:
         f.seek(a)
-    want = max(0, b - a)
+    return max(0, b - a)
+
+
+def _check_decoded(f: sf.SoundFile, path: Path, *, got: int, want: int) -> None:
+    """Refuse a file that decoded to fewer frames than its header declares (an mp3's length is only an
+    estimate: a short mp3 that decoded at all is accepted)."""
+    if got < want and not (f.format in ("MP3", "MPEG") and got > 0):
+        raise AudioError(
+            f"audio file is truncated or corrupt: {str(path)!r} declares {f.frames} frames but only "
+            f"{f.frames - (want - got)} could be decoded"
+        )
+
+
+def _read_soundfile(
+    f: sf.SoundFile, path: Path, start: float | None, end: float | None, mono: bool
+) -> np.ndarray:
+    """Read [start, end) of an open SoundFile in blocks; (n,) if mono else (channels, n)."""
+    want = _seek_range(f, path, start, end)
     out = np.empty((want,) if mono else (f.channels, want), dtype=np.float32)  # filled in place: no 2nd copy
     got = 0
     while got < want:
@@ -274,11 +288,7 @@ def _read_soundfile(
         else:
             out[:, got:got + k] = block.T
         got += k
-    if got < want and not (f.format in ("MP3", "MPEG") and got > 0):  # an mp3's length is only an estimate
-        raise AudioError(
-            f"audio file is truncated or corrupt: {str(path)!r} declares {total} frames but only "
-            f"{total - (want - got)} could be decoded"
-        )
+    _check_decoded(f, path, got=got, want=want)
     return out[..., :got] if got < want else out
 
 
@@ -483,13 +493,8 @@ def stream(
     with f:
         with _quiet_c_stderr():
             _check_truncated(path, f.format)
-        native, total = f.samplerate, f.frames
-        a = 0 if start is None else int(round(start * native))
-        b = total if end is None else min(total, int(round(end * native)))
-        _check_range(path, start, end, total / native)
-        if a > 0:
-            f.seek(a)
-        want = max(0, b - a)
+        native = f.samplerate
+        want = _seek_range(f, path, start, end)
         streams = {r: soxr.ResampleStream(native, r, 1, dtype="float32", quality="HQ") for r in rates if r != native}
         counts = dict.fromkeys(rates, 0)
         got, flushed = 0, False
@@ -516,11 +521,7 @@ def stream(
             for r, o in zip(rates, out):
                 counts[r] += len(o)
             yield out
-        if got < want and not (f.format in ("MP3", "MPEG") and got > 0):  # an mp3's length is only an estimate
-            raise AudioError(
-                f"audio file is truncated or corrupt: {str(path)!r} declares {total} frames but only "
-                f"{total - (want - got)} could be decoded"
-            )
+        _check_decoded(f, path, got=got, want=want)
     if got == 0:
         raise AudioError(f"audio file {str(path)!r} holds no samples (zero-length audio)")
     if got < MIN_DURATION * native:
