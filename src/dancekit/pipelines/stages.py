@@ -175,7 +175,8 @@ def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
 def foot_lock(result: DanceResult) -> DanceResult:
     """The result with its planted feet pinned (:func:`dancekit.motion.footlock.lock_feet`: contacts from
     foot height and speed, the foot held where it was planted, the leg solved by two-bone IK, blended in
-    and out). Only the legs change; a motion with rotations has its leg rotations updated
+    and out), with the settings of :data:`FOOT_LOCK_BY_MODEL` for an embedded model (``result.model``).
+    Only the legs change; a motion with rotations has its leg rotations updated
     (:func:`~dancekit.motion.footlock.leg_rotations`). Skeletons without legs are returned unchanged."""
     from dancekit.motion.footlock import leg_chains, leg_rotations, lock_feet
 
