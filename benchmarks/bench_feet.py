@@ -67,15 +67,21 @@ def metrics(motion: Motion, beats: np.ndarray | None, real: dict | None) -> dict
     return row
 
 
-def variant(motion: Motion, name: str, audio, beats, **opts) -> Motion:
-    res = DanceResult(motion=motion, model="cached", seed=0)
+def model_folder(model: str) -> str:
+    """The embedded model's folder (so the stages pick its settings, ``stages.FOOT_LOCK_BY_MODEL``)."""
+    return str(Path(stages.__file__).resolve().parent.parent / "assets" / "models" / model)
+
+
+def variant(motion: Motion, name: str, audio, beats, model: str = "cached", **opts) -> Motion:
+    res = DanceResult(motion=motion, model=model_folder(model) if model != "cached" else model, seed=0)
     res = stages.clean_up(res)
     if name in ("after", "grid"):
         res = stages.smooth(res, target=opts.get("target"))
         if opts.get("lock", True):
             sk, fps = res.motion.skeleton, res.motion.fps
             contact = {k: v for k, v in opts.items() if k in ("height_on", "height_off", "speed_on", "speed_off",
-                                                             "min_contact_s", "max_drift_m")}
+                                                             "min_contact_s", "max_drift_m", "c1_blend",
+                                                             "min_hold_s")}
             if contact:
                 p = np.asarray(res.motion.to_positions(), np.float64)
                 locked = fl.lock_feet(p, skeleton=sk, fps=fps, **contact)
@@ -101,6 +107,7 @@ def main() -> None:
     ap.add_argument("--music", default="../shared/music")
     ap.add_argument("--models", nargs="+", default=["revolution", "music2dance", "dual"])
     ap.add_argument("--grid", action="store_true")
+    ap.add_argument("--today", action="store_true", help="also the foot lock as it was (offset blend, 0.12-s holds)")
     ap.add_argument("-o", "--out", required=True)
     args = ap.parse_args()
     if args.grid and args.split != "val":
@@ -141,6 +148,8 @@ def main() -> None:
                                  "speed_off": s_on + 0.4, "max_drift_m": drift})
     else:
         settings = [{"name": "before", "variant": "before"}, {"name": "after", "variant": "after"}]
+        if args.today:  # the stages as on main before the jitter work: the offset blend, 0.12-s holds
+            settings.insert(1, {"name": "today", "variant": "after", "c1_blend": False, "min_hold_s": 0.12})
 
     report = {"real": real_mean, "real_per_song": real, "models": {}}
     for model in args.models:
@@ -158,7 +167,7 @@ def main() -> None:
                 m = load(f, sk)
                 opts = {k: v for k, v in st.items() if k not in ("name", "variant")}
                 b = beats.get(song)
-                mm = variant(m, st["variant"], audio[song], b, **opts)
+                mm = variant(m, st["variant"], audio[song], b, model=model, **opts)
                 r = metrics(mm, None if b is None else b.times, real.get(song, real_mean))
                 rows.append(r)
                 per_song.setdefault(song, []).append(r)

@@ -222,3 +222,108 @@ def test_savgol_equals_scipy_interp_mode():
                                    rtol=0, atol=1e-10)
     p = rng.normal(size=(4, 2, 3))
     np.testing.assert_array_equal(_savgol(p, 7, 3), p)  # a window longer than the dance: unfiltered
+
+
+def test_position_blend_keeps_the_foot_velocity_continuous_at_a_hold():
+    """The foot glides at 1 cm a frame; held over frames 20-29. An offset blend starts the held foot at the
+    original's full speed (1 cm in the first frame out, a jump from rest); the position blend eases it in
+    and out: the first step is the smoothstep's first weight times the distance to cover."""
+    from dancekit.motion.footlock import _offsets, _smoothstep, _wanted
+
+    T, blend = 60, 8
+    orig = np.zeros((T, 1, 3))
+    orig[:, 0, 0] = np.arange(T, dtype=float)  # 1 cm / frame along x
+    held = np.zeros(T, bool)
+    held[20:30] = True
+    target = orig.copy()
+    target[20:30] = orig[20]
+    want, weight = _wanted(target, orig, held, blend)
+    step = np.diff(want[:, 0, 0])
+    np.testing.assert_array_equal(want[20:30], np.broadcast_to(orig[20], (10, 1, 3)))  # still in the hold
+    w1 = float(_smoothstep(np.array(1 / (blend + 1))))
+    # into the hold: from the frame before it (weight w1 on the original, 1 cm behind) -> w1 cm
+    assert step[19] == pytest.approx(w1 * 1.0)
+    # out of it: the original is 10 cm ahead after the first frame -> w1 * 10 cm, under half the glide speed
+    assert step[29] == pytest.approx(w1 * 10.0)
+    assert step[19] < 0.05 and step[29] < 0.5
+    # the hand-over ends on the original foot at its own speed, the weight 0 from there on
+    np.testing.assert_array_equal(want[:20 - blend], orig[:20 - blend])
+    np.testing.assert_array_equal(want[30 + blend:], orig[30 + blend:])
+    assert weight[25] == 1.0 and weight[0] == 0.0 and weight[-1] == 0.0
+    # the offset blend: the foot arrives at the hold at the original's full speed and stops dead
+    old = np.diff((orig + _offsets(target, orig, held, blend))[:, 0, 0])
+    assert old[19] == pytest.approx(1.0) and old[20] == 0.0
+
+
+def test_a_short_swing_between_holds_starts_and_ends_at_rest():
+    """Two holds 6 frames apart (a re-plant): the foot goes from one to the other with zero speed at both
+    ends, and keeps the original swing's lift in the middle (sin² weight, exactly at the centre)."""
+    from dancekit.motion.footlock import _smoothstep, _wanted
+
+    T = 40
+    orig = np.zeros((T, 1, 3))
+    orig[:, 0, 0] = np.arange(T, dtype=float)
+    lift = np.zeros(T)
+    lift[15:22] = np.sin(np.pi * np.arange(1, 8) / 8) * 4.0  # a 4-cm lift over the swing
+    orig[:, 0, 1] = lift
+    held = np.zeros(T, bool)
+    held[5:15] = held[22:32] = True
+    target = orig.copy()
+    target[5:15] = orig[5]
+    target[22:32] = orig[22]
+    want, _ = _wanted(target, orig, held, 8)
+    x = want[:, 0, 0]
+    first = float(_smoothstep(np.array(1 / 8))) * 17.0  # 7 swing frames: x = 1/8 .. 7/8 of the 17-cm step
+    assert x[15] - x[14] == pytest.approx(first) and x[22] - x[21] == pytest.approx(first)
+    assert first < 0.4 * 17.0 / 8  # leaves and arrives at under 0.4 of the mean swing speed (from rest)
+    assert np.all(np.diff(x[14:23]) >= 0)  # monotone: no foot going back
+    # the swing's centre (frame 18, x = 1/2) keeps the original lift exactly; elsewhere sin²-weighted
+    assert want[18, 0, 1] == pytest.approx(lift[18])
+    np.testing.assert_allclose(want[15:22, 0, 1], np.sin(np.pi * np.arange(1, 8) / 8) ** 2 * lift[15:22])
+
+
+def test_stops_shorter_than_the_minimum_hold_are_not_held():
+    _, _, p = _sliding_figure(T=60, speed_cm=0.2)
+    contacts = np.zeros((len(p), 2), bool)
+    contacts[10:16, 0] = True  # 6 frames = 0.24 s
+    contacts[30:50, 0] = True  # 20 frames
+    _, rep = lock_feet(p, skeleton=SK, fps=FPS, contacts=contacts, min_hold_s=0.32, return_report=True)
+    assert not rep.held[10:16, 0].any()
+    assert rep.held[30:50, 0].all()
+    _, rep = lock_feet(p, skeleton=SK, fps=FPS, contacts=contacts, min_hold_s=0.2, return_report=True)
+    assert rep.held[10:16, 0].all()
+
+
+def test_the_knee_meets_the_original_one_where_the_lock_ends():
+    """Feet turned 90° from the knees (the toe nudge then swivels the knee's plane by about 36°): the
+    former pole (nudge on wherever the leg changed) swung the knee back in one frame where the lock ended,
+    an 11-cm jump; with the nudge faded by the lock's weight the knee swivels over several frames."""
+    _, _, p = _sliding_figure(T=60, speed_cm=0.2)
+    hip, knee, ankle, below = leg_chains(SK)[0]
+    for j in below:  # toes turned a quarter about the vertical
+        d = p[:, j] - p[:, ankle]
+        p[:, j] = p[:, ankle] + np.stack([d[:, 2], d[:, 1], -d[:, 0]], axis=-1)
+    contacts = np.zeros((len(p), 2), bool)
+    contacts[10:30, 0] = True
+
+    def knee_steps(**kw):
+        out = lock_feet(p, skeleton=SK, fps=FPS, contacts=contacts, **kw)
+        return np.linalg.norm(np.diff(out[:, knee] - out[:, hip], axis=0), axis=-1), out
+
+    new, out = knee_steps()
+    old, _ = knee_steps(c1_blend=False)
+    assert old.max() > 10.0
+    assert new.max() < 0.4 * old.max()
+    np.testing.assert_array_equal(out[45:, knee], p[45:, knee])  # after the hand-over: the original knee
+
+
+def test_the_revolution_stage_uses_its_own_minimum_hold():
+    from pathlib import Path
+
+    import dancekit.pipelines.stages as stages
+
+    folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+    assert stages.foot_lock_options(str(folder / "revolution")) == {"min_hold_s": 0.4}
+    assert stages.foot_lock_options(str(folder / "music2dance")) == {}
+    assert stages.foot_lock_options("/somewhere/else/revolution") == {}  # a user's model: the defaults
+    assert stages.foot_lock_options(None) == {}

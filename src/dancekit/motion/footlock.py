@@ -14,7 +14,8 @@ function                       what
                                lengths kept, the knee bending toward its original side
 :func:`lock_feet`              the foot pinned at its contact position during every contact, the leg
                                solved by :func:`two_bone_ik`, offsets carried smoothly across the
-                               swing between contacts (no pop)
+                               swing between contacts (positions blended: the foot's velocity
+                               is continuous at every edge of a hold)
 :func:`leg_rotations`          the local rotations of a rotation-based motion updated for new leg
                                positions (twist kept)
 :func:`smooth_positions`       a Savitzky-Golay filter on the joint positions, its window chosen per
@@ -44,6 +45,9 @@ CONTACT_SPEED_ON = 0.5
 CONTACT_SPEED_OFF = 0.9
 MIN_CONTACT_S = 0.12
 BLEND_S = 0.32
+#: The shortest hold (s) by default: a foot stopped for less is not held. The pipeline stage sets it per
+#: embedded model (:data:`dancekit.pipelines.stages.FOOT_LOCK_BY_MODEL`, chosen on the validation songs).
+MIN_HOLD_S = 0.12
 #: A held foot is re-planted (a new hold begins after a short gap) once the original foot has moved this far
 #: from where it is held, or the leg could not reach it: generated dances glide with a foot near the floor
 #: for seconds, and holding it there would stretch the leg.
@@ -201,9 +205,11 @@ def _smoothstep(x: np.ndarray) -> np.ndarray:
 
 
 def _offsets(target: np.ndarray, original: np.ndarray, contact: np.ndarray, blend: int) -> np.ndarray:
-    """(T, K, 3) offsets: ``target - original`` in contacts; across a swing between two contacts a smoothstep
-    from the offset at the end of one to the offset at the start of the next (when the swing is shorter than
-    2 blends), else each decays to 0 over ``blend`` frames; 0 far from any contact."""
+    """(T, K, 3) offsets (the old, offset-space blend, kept for comparison: ``lock_feet(..., c1_blend=False)``):
+    ``target - original`` in contacts; across a swing between two contacts a smoothstep from the offset at
+    the end of one to the offset at the start of the next (when the swing is shorter than 2 blends), else
+    each decays to 0 over ``blend`` frames; 0 far from any contact. The foot's velocity jumps from 0 to the
+    original foot's at a hold's edges."""
     T = len(original)
     off = np.zeros_like(original)
     runs = _runs(contact)
@@ -234,6 +240,54 @@ def _offsets(target: np.ndarray, original: np.ndarray, contact: np.ndarray, blen
     return off
 
 
+def _wanted(target: np.ndarray, original: np.ndarray, held: np.ndarray, blend: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where the foot joints should be, ``(T, K, 3)``, and how much of the lock acts in each frame ``(T,)`` in
+    [0, 1], blending *positions* so the foot's velocity is continuous (C1) at every edge of a hold.
+
+    In a hold the foot is at ``target`` (still). Across a swing of at most ``2 * blend`` frames between two
+    holds it goes from the first hold's position to the second's along a smoothstep (zero velocity at both
+    ends), plus the original foot's own swing (its path minus the straight line between its end points,
+    e.g. the lift) weighted by ``sin²(π x)``, which is 0 with a zero slope at both ends. Elsewhere it is
+    handed from the held position to the original foot (and back) by a smoothstep over ``blend`` frames:
+    ``(1 - w) held + w original``, so it leaves a hold at rest and reaches the original foot at the original
+    foot's speed. Far from any hold it is the original foot (weight 0)."""
+    T = len(original)
+    want = original.copy()
+    weight = np.zeros(T)
+    runs = _runs(held)
+    if not runs:
+        return want, weight
+    for s, e in runs:
+        want[s : e + 1] = target[s : e + 1]
+        weight[s : e + 1] = 1.0
+
+    def hand_over(t: np.ndarray, held_at: int, w: np.ndarray) -> None:  # w: the original foot's weight
+        want[t] = (1 - w)[:, None, None] * target[held_at] + w[:, None, None] * original[t]
+        weight[t] = np.maximum(weight[t], 1 - w)
+
+    k = np.arange(1, blend + 1)
+    w = _smoothstep(k / (blend + 1))
+    s0, e_last = runs[0][0], runs[-1][1]
+    before, after = s0 - k, e_last + k
+    hand_over(before[before >= 0], s0, w[before >= 0])
+    hand_over(after[after < T], e_last, w[after < T])
+    for (_, e), (s, _) in zip(runs[:-1], runs[1:], strict=True):
+        gap = s - e - 1
+        if gap <= 0:
+            continue
+        t = np.arange(e + 1, s)
+        if gap <= 2 * blend:
+            x = ((t - e) / (gap + 1))[:, None, None]
+            line = (1 - x) * original[e] + x * original[s]
+            want[t] = (1 - _smoothstep(x)) * target[e] + _smoothstep(x) * target[s] \
+                + np.sin(np.pi * x) ** 2 * (original[t] - line)
+            weight[t] = 1.0
+        else:
+            hand_over(e + k, e, w)
+            hand_over(s - k, s, w)
+    return want, weight
+
+
 def _segments(p: np.ndarray, contact: np.ndarray, hip: int, foot: list[int], skeleton: Skeleton,
               max_drift_m: float, gap: int, min_len: int) -> list[tuple[int, int]]:
     """Holds [start, end] within the contacts: each holds the foot at its first frame's position while the
@@ -262,11 +316,12 @@ def _segments(p: np.ndarray, contact: np.ndarray, hip: int, foot: list[int], ske
 class FootLockReport:
     """What :func:`lock_feet` did: ``contacts`` ``(T, L)`` planted frames per leg, ``reach_error`` ``(T, L)``
     the ankle's distance from its target where the leg could not reach it, ``drop`` ``(T,)`` how far the
-    whole body was lowered (skeleton units)."""
+    whole body was lowered (skeleton units), ``held`` ``(T, L)`` the frames in which each foot is held still."""
 
     contacts: np.ndarray
     reach_error: np.ndarray
     drop: np.ndarray
+    held: np.ndarray | None = None
 
 
 def lock_feet(
@@ -280,6 +335,10 @@ def lock_feet(
     floor_on: bool = True,
     max_drop_m: float = MAX_DROP_M,
     reach_share: float = 0.97,
+    min_hold_s: float = MIN_HOLD_S,
+    c1_blend: bool = True,
+    pole_sigma: float = 0.08,
+    sink_sigma_s: float = 0.06,
     return_report: bool = False,
     **contact_options,
 ) -> np.ndarray | tuple[np.ndarray, FootLockReport]:
@@ -293,12 +352,18 @@ def lock_feet(
     foot is also put down: its lowest joint on the local floor (the lowest joint within ±1 s). Where a held
     foot would be farther from its hip than ``reach_share`` of thigh + shin, the whole body is lowered
     (rigidly, by at most ``max_drop_m``, smoothly over the blend: the pelvis sinks and the knees bend, as a
-    dancer's do) instead of stretching the leg straight. The knee bends toward its original side, nudged
-    toward the toes (so a nearly straight leg does not flip its knee). The leg is then solved
-    by :func:`two_bone_ik` (hip fixed, thigh and shin lengths kept, the knee on its original side), and the
-    foot bones hang from the new ankle with their own lengths. Between contacts the correction is carried
-    smoothly (:func:`_offsets`: a smoothstep across a short swing, a ``blend_s`` fade elsewhere), so the
-    foot never jumps. Joints that are not in a leg below the hip are untouched.
+    dancer's do) instead of stretching the leg straight; a free foot the lowered body would push through
+    the floor is lifted onto it (a landing softened by a ``sink_sigma_s`` Gaussian, never lower than the
+    floor). A stop shorter than ``min_hold_s`` is not held (a hold of a few frames is a stop-and-go of the
+    foot, jitter rather than a step). The leg is solved by :func:`two_bone_ik` (hip fixed, thigh and shin
+    lengths kept), the knee toward its original side nudged toward the toes where the lock acts (a nearly
+    straight leg's side is noise), the pole low-passed over time (Gaussian, ``pole_sigma`` seconds: a knee
+    that swivels about the hip-ankle axis from one frame to the next is a flip); the foot bones hang from
+    the new ankle with their own lengths. Between holds the foot's *position* is blended (:func:`_wanted`:
+    a smoothstep from one hold to the next across a short swing, a ``blend_s`` hand-over to and from the
+    original foot elsewhere), so its velocity is continuous at every edge of a hold (``c1_blend=False``: the
+    former offset blend, :func:`_offsets`, whose foot stops dead and starts at full speed). Joints that are
+    not in a leg below the hip are untouched.
     """
     fps = check_fps(fps)
     p = _check(positions, "lock_feet")
@@ -312,7 +377,7 @@ def lock_feet(
     blend = max(1, int(round(blend_s * fps)))
     gap = max(2, blend)
     floor = _local_floor(p, skeleton, fps, 2.0) / skeleton.unit_scale  # (T,) skeleton units
-    min_len = max(1, int(round(MIN_CONTACT_S * fps)))
+    min_len = max(1, int(round(min_hold_s * fps)))
     err = np.zeros((len(p), len(legs)))
     parents = list(skeleton.parents)
     up = np.zeros(3)
@@ -350,22 +415,42 @@ def lock_feet(
     for leg, (hip, knee, ankle, below) in enumerate(legs):
         foot = [ankle, *below]
         orig = p[:, foot]  # (T, F, 3), the body lowered
-        off = _offsets(targets[leg], orig, helds[leg], blend)
-        want = orig + off  # (T, F, 3) where the foot joints should be
+        if c1_blend:
+            want, weight = _wanted(targets[leg], orig, helds[leg], blend)
+        else:
+            want = orig + _offsets(targets[leg], orig, helds[leg], blend)
+            weight = np.ones(len(p))
         if drop.any():  # a lowered body must not push a free foot through the floor
             sink = np.maximum(floor - heights(want, skeleton).min(axis=1), 0.0) * (drop > 0)
-            want += sink[:, None, None] * up
-            off = want - orig
+            if sink_sigma_s > 0 and c1_blend and sink.any():  # a softer landing, never lower than the floor
+                from scipy.ndimage import gaussian_filter1d
+
+                sink = np.maximum(sink, gaussian_filter1d(sink, sigma=sink_sigma_s * fps, mode="nearest"))
+            want = want + sink[:, None, None] * up
+        off = want - orig
         changed = np.abs(off).max(axis=(1, 2)) > 0
         if not changed.any():
             continue
         t = np.flatnonzero(changed)
-        # the knee bends toward its own side, nudged toward the toes (a nearly straight leg's side is noise)
-        toe = want[t, -1] - want[t, 0]
+        # the knee bends toward its own side, nudged toward the toes (a nearly straight leg's side is noise
+        # and would flip); the nudge acts where the lock does (its weight, or the ankle moved by 2 cm or more)
+        # and fades with it; the original knee's side is low-passed over time (a swivel of the knee about the
+        # hip-ankle axis from one frame to the next is a flip, not a dance)
+        toe = want[:, -1] - want[:, 0]
         toe = toe - (toe @ up)[:, None] * up
         toe /= np.maximum(np.linalg.norm(toe, axis=-1, keepdims=True), 1e-12)
-        thigh = np.linalg.norm(p[t, knee] - p[t, hip], axis=-1, keepdims=True)
-        pole = (p[t, knee] - p[t, hip]) + 0.25 * thigh * toe
+        thigh = np.linalg.norm(p[:, knee] - p[:, hip], axis=-1, keepdims=True)
+        if c1_blend:
+            moved = np.linalg.norm(off[:, 0], axis=-1) * skeleton.unit_scale / 0.02
+            act = np.clip(np.maximum(weight, moved), 0.0, 1.0)
+            side = p[:, knee] - p[:, hip]
+            if pole_sigma > 0:
+                from scipy.ndimage import gaussian_filter1d
+
+                side = gaussian_filter1d(side, sigma=pole_sigma * fps, axis=0, mode="nearest")
+            pole = (side + 0.25 * thigh * act[:, None] * toe)[t]
+        else:
+            pole = ((p[:, knee] - p[:, hip]) + 0.25 * thigh * toe)[t]
         new_knee, new_ankle = two_bone_ik(p[t, hip], p[t, knee], p[t, ankle], want[t, 0], pole=pole)
         out[t, knee] = new_knee
         out[t, ankle] = new_ankle
@@ -379,7 +464,8 @@ def lock_feet(
             d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
             out[t, j] = out[t, q] + length * d
     if return_report:
-        return out, FootLockReport(contacts=contacts, reach_error=err, drop=drop)
+        held = np.stack(helds, axis=1) if helds else np.zeros((len(p), 0), dtype=bool)
+        return out, FootLockReport(contacts=contacts, reach_error=err, drop=drop, held=held)
     return out
 
 

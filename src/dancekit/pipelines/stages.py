@@ -31,7 +31,8 @@ import numpy as np
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock", "smooth", "song_beats_for"]
+__all__ = ["FOOT_LOCK_BY_MODEL", "NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock",
+           "foot_lock_options", "smooth", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
 #: jittery dance down to: about the 80th percentile of the real training dances' (0.055-0.28, median 0.065);
@@ -41,6 +42,12 @@ __all__ = ["NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "
 SMOOTH_TARGET = 0.09
 SMOOTH_TARGET_NOISY = 0.065
 NOISY_RATIO = 0.2
+#: Foot-lock settings per embedded model (the folder's name under ``dancekit/assets/models``; any other model
+#: gets :func:`~dancekit.motion.footlock.lock_feet`'s defaults), chosen on the validation songs
+#: (docs/STAGES.md): Dance Revolution's dances have many short stops near the floor; holding them for
+#: 0.12-0.4 s makes the foot stop and go (jitter) and plants its feet more often than the real dances'.
+#: music2dance's have few contacts, and its geometric FID rises without its short holds.
+FOOT_LOCK_BY_MODEL: dict[str, dict[str, float]] = {"revolution": {"min_hold_s": 0.4}}
 
 
 def _is_3d(motion: Motion) -> bool:
@@ -168,7 +175,8 @@ def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
 def foot_lock(result: DanceResult) -> DanceResult:
     """The result with its planted feet pinned (:func:`dancekit.motion.footlock.lock_feet`: contacts from
     foot height and speed, the foot held where it was planted, the leg solved by two-bone IK, blended in
-    and out). Only the legs change; a motion with rotations has its leg rotations updated
+    and out), with the settings of :data:`FOOT_LOCK_BY_MODEL` for an embedded model (``result.model``).
+    Only the legs change; a motion with rotations has its leg rotations updated
     (:func:`~dancekit.motion.footlock.leg_rotations`). Skeletons without legs are returned unchanged."""
     from dancekit.motion.footlock import leg_chains, leg_rotations, lock_feet
 
@@ -177,13 +185,29 @@ def foot_lock(result: DanceResult) -> DanceResult:
         return result
     sk, fps = motion.skeleton, motion.fps
     p = np.asarray(motion.to_positions(), np.float64)
-    locked = lock_feet(p, skeleton=sk, fps=fps)
+    locked = lock_feet(p, skeleton=sk, fps=fps, **foot_lock_options(result.model))
     rot = tr = None
     if motion.rotations is not None:
         rot = leg_rotations(motion.rotations, p, locked, skeleton=sk).astype(motion.rotations.dtype)
         tr = locked[:, sk.root].astype(np.float32)  # the body may have been lowered
     out = Motion(skeleton=sk, fps=fps, positions=locked.astype(np.float32), rotations=rot, root_translation=tr)
     return dataclasses.replace(result, motion=out)
+
+
+def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
+    """The :func:`~dancekit.motion.footlock.lock_feet` settings of :data:`FOOT_LOCK_BY_MODEL` for an embedded
+    model's folder (``DanceResult.model``); ``{}`` for any other folder."""
+    from pathlib import Path
+
+    if not model:
+        return {}
+    folder = Path(model)
+    embedded = Path(__file__).resolve().parent.parent / "assets" / "models"
+    try:
+        inside = folder.resolve().parent == embedded
+    except OSError:
+        return {}
+    return dict(FOOT_LOCK_BY_MODEL.get(folder.name, {})) if inside else {}
 
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
