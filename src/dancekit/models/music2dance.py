@@ -595,7 +595,7 @@ class NumpyWaveNet:
         bar = tqdm(total=T, disable=not progress, desc="dance", unit="frame")
         for t0 in range(0, T, self.CHUNK):
             t1 = min(T, t0 + self.CHUNK)
-            condb = (cond[:, t0:t1].cpu().numpy().astype(dt) + self.conv_b) * self.half  # (B, t1-t0, L, 2C)
+            condb = (cond[:, t0:t1].detach().cpu().numpy().astype(dt) + self.conv_b) * self.half  # (B, t1-t0, L, 2C)
             noise = None
             if ahead and temperature > 0:
                 noise = np.empty((t1 - t0, B, D), dt)
