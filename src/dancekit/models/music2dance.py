@@ -530,12 +530,19 @@ class NumpyWaveNet:
 
     The same products as :meth:`Music2DanceModel.step` (per block the taps of the dilated convolution as one
     ``(k·C, 2C)`` matrix, the residual 1x1, the skip 1x1s of all blocks as one product; the weights in the
-    model's float dtype), with fewer and cheaper operations per frame: each block's past inputs in a ring of
-    ``(k-1)·d`` arrays (no list shifting), preallocated tap and gated-output buffers, the dilated
-    convolution's bias added to the precomputed conditions once per chunk of frames, and the gate
-    ``tanh(f) · σ(g)`` as one ``tanh`` over both halves (``σ(g) = (1 + tanh(g/2)) / 2``, the ``g`` half of
-    the weights and conditions scaled by 1/2, which is exact). The output equals the torch step's to float
-    rounding (``tests/test_music2dance_fast.py``).
+    model's float dtype), with fewer and cheaper operations per frame (a NumPy call costs about a microsecond,
+    a torch call several; a frame is some 200 of them):
+
+    * taps without queues: block ``l`` (dilation ``d``) keeps ``(k-1)·d + 1`` tap buffers ``(B, k·C)`` used in
+      turn; its input at frame ``t`` is written into the buffer of frame ``t`` (last slot) and into those of
+      frames ``t + d, ..., t + (k-1)·d`` (earlier slots), so each frame's taps lie ready for one product;
+    * the gate ``tanh(f) · σ(g)`` as one ``tanh`` over both halves: ``σ(g) = (1 + tanh(g/2)) / 2``, with the
+      ``g`` half of the weights and conditions and the ``1/2`` of the gated output moved into the residual and
+      skip weights (scalings by powers of two: exact);
+    * the dilated convolution's bias added to the precomputed conditions once per chunk of frames; the last
+      block's residual (unused) not computed.
+
+    The output equals the torch step's to float rounding (``tests/test_music2dance_fast.py``).
 
     Sampling draws the same random numbers from the same generators in the same order as
     :func:`gmm_sample` frame by frame: with one mixture component (or temperature 0) no draw depends on the
@@ -554,10 +561,11 @@ class NumpyWaveNet:
         self.model = model
         dtype = next(model.parameters()).dtype
         self.dtype = np.float32 if dtype == torch.float32 else np.float64
+        self.model_dtype = dtype
         C = c.channels
 
-        def a(t: torch.Tensor) -> np.ndarray:
-            return np.array(t.detach().cpu().numpy(), dtype=self.dtype, order="C")
+        def a(t: torch.Tensor, scale: float = 1.0) -> np.ndarray:
+            return np.array(t.detach().cpu().numpy(), dtype=self.dtype, order="C") * self.dtype(scale)
 
         w = model._step_weights()
         self.half = np.ones(2 * C, dtype=self.dtype)
@@ -565,10 +573,25 @@ class NumpyWaveNet:
         self.in_w, self.in_b = a(w["in_w"]), a(w["in_b"])
         self.conv_w = [a(cw) * self.half for cw in w["conv_w"]]  # (k·C, 2C), oldest tap first
         self.conv_b = np.stack([a(b) for b in w["conv_b"]])  # (L, 2C)
-        self.res_w, self.res_b = [a(r) for r in w["res_w"]], [a(b) for b in w["res_b"]]
-        self.skip_w, self.skip_b = a(w["skip_w"]), a(w["skip_b"])
+        # the loop's gated output is 2·tanh(f)·σ(g) = tanh(f)·(1 + tanh(g/2)): its 1/2 goes into the 1x1s
+        self.res_w, self.res_b = [a(r, 0.5) for r in w["res_w"]], [a(b) for b in w["res_b"]]
+        self.skip_w, self.skip_b = a(w["skip_w"], 0.5), a(w["skip_b"])
         self.out1_w, self.out1_b = a(model.out1.weight[:, :, 0].T), a(model.out1.bias)
         self.out2_w, self.out2_b = a(model.out2.weight[:, :, 0].T), a(model.out2.bias)
+
+    def _tap_buffers(self, B: int) -> list[list[tuple[np.ndarray, np.ndarray, list[np.ndarray]]]]:
+        """Per block, per frame modulo ``(k-1)·d + 1``: (the taps ``(B, k·C)``, the view of the frame's own
+        input in them, the views where later frames read it)."""
+        c = self.config
+        C, k = c.channels, c.kernel
+        out = []
+        for d in c.dilations:
+            R = (k - 1) * d + 1
+            bufs = [np.zeros((B, k * C), self.dtype) for _ in range(R)]
+            out.append([(bufs[u], bufs[u][:, (k - 1) * C :],
+                         [bufs[(u + m * d) % R][:, (k - 1 - m) * C : (k - m) * C] for m in range(1, k)])
+                        for u in range(R)])
+        return out
 
     def generate(self, cond: torch.Tensor, first: torch.Tensor, *, temperature: float = 1.0,
                  generator: torch.Generator | list[torch.Generator] | None = None, noise_correlation: float = 0.0,
@@ -580,15 +603,16 @@ class NumpyWaveNet:
 
         c = self.config
         B, T, L = cond.shape[0], cond.shape[1], c.n_layers
-        C, k, N, D, P = c.channels, c.kernel, c.n_mixtures, c.gmm_dim, c.pose_dim
+        C, N, D, P = c.channels, c.n_mixtures, c.gmm_dim, c.pose_dim
         dt = self.dtype
         rho = float(noise_correlation)
         ahead = temperature <= 0 or N == 1  # the draws do not depend on the outputs: made per chunk
         sqrt_t = math.sqrt(temperature) if temperature > 0 else 0.0
-        rings = [[np.zeros((B, C), dt) for _ in range((k - 1) * d)] for d in c.dilations]
-        heads = [0] * L  # index of each ring's oldest input
-        taps = [np.zeros((B, k * C), dt) for _ in range(L)]
-        zs = np.zeros((B, L * C), dt)  # the gated outputs of all blocks, for the one skip product
+        taps = self._tap_buffers(B)
+        periods = [len(v) for v in taps]
+        layers = list(zip(range(L), taps, periods, self.conv_w, self.res_w, self.res_b))
+        zs = np.zeros((B, L * C), dt)  # the gated outputs of all blocks (times 2), for the one skip product
+        z_views = [zs[:, i * C : (i + 1) * C] for i in range(L)]
         y = np.zeros((T, B, P), dt)
         prev = np.array(first.detach().cpu().numpy(), dtype=dt)
         eps_t = None  # the correlated noise of the last frame (torch, as the torch loop computes it)
@@ -608,26 +632,26 @@ class NumpyWaveNet:
                         noise[j] = eta.numpy()
             for t in range(t0, t1):
                 cb = condb[:, t - t0]  # (B, L, 2C)
-                x = prev @ self.in_w
-                x += self.in_b
-                for i, d in enumerate(c.dilations):
-                    ring, head, tb = rings[i], heads[i], taps[i]
-                    n = len(ring)
-                    for j in range(k - 1):  # taps t - (k-1)d, ..., t - d, then t
-                        tb[:, j * C : (j + 1) * C] = ring[(head + j * d) % n]
-                    tb[:, (k - 1) * C :] = x
-                    ring[head] = x  # x is not changed in place below (x = x + ...)
-                    heads[i] = (head + 1) % n
-                    h = tb @ self.conv_w[i]
+                x_in = r = None  # the previous block's input and residual 1x1 output
+                for i, tap, R, conv_w, res_w, res_b in layers:
+                    tb, x, later = tap[t % R]
+                    if x_in is None:  # the input 1x1 of the previous frame
+                        np.matmul(prev, self.in_w, out=x)
+                        x += self.in_b
+                    else:  # the residual: the previous block's input plus its 1x1 output
+                        np.add(x_in, r, out=x)
+                    for view in later:
+                        view[...] = x
+                    h = tb @ conv_w
                     h += cb[:, i]
                     np.tanh(h, out=h)
                     gate = h[:, C:]
-                    gate *= 0.5
-                    gate += 0.5
-                    z = np.multiply(h[:, :C], gate, out=zs[:, i * C : (i + 1) * C])
-                    r = z @ self.res_w[i]
-                    r += self.res_b[i]
-                    x = x + r
+                    gate += 1.0
+                    z = np.multiply(h[:, :C], gate, out=z_views[i])
+                    if i < L - 1:
+                        r = z @ res_w
+                        r += res_b
+                        x_in = x
                 s = zs @ self.skip_w
                 s += self.skip_b
                 np.maximum(s, 0, out=s)
@@ -664,10 +688,6 @@ class NumpyWaveNet:
             bar.update(t1 - t0)
         bar.close()
         return np.ascontiguousarray(y.transpose(1, 0, 2))
-
-    @property
-    def model_dtype(self) -> torch.dtype:
-        return torch.float32 if self.dtype == np.float32 else torch.float64
 
 
 def shift_right(x: torch.Tensor, first: torch.Tensor | None = None) -> torch.Tensor:
