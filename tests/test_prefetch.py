@@ -34,7 +34,7 @@ def _python(code: str, cache: Path, **env) -> subprocess.CompletedProcess:
 
 CHILD = """
 import sys
-from dancekit.features.prefetch import prefetch_for_model
+from dancekit.pipelines.prefetch import prefetch_for_model
 from dancekit.features import extract_file
 pre = prefetch_for_model({song!r}, "music2dance")
 print("started", pre.started, "torch", "torch" in sys.modules)

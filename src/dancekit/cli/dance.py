@@ -98,7 +98,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dancekit.export import check_formats, check_output_folder
-    from dancekit.features.prefetch import prefetch_for_model
+    from dancekit.pipelines.prefetch import prefetch_for_model
     from dancekit.render import AudioClip, RenderOptions
 
     t0 = time.perf_counter()
