@@ -97,13 +97,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dancekit.export import check_formats, check_output_folder, export_motion
-    from dancekit.models.precision import check_precision
-    from dancekit.pipelines import load_pipeline
+    from dancekit.export import check_formats, check_output_folder
+    from dancekit.pipelines.prefetch import prefetch_for_model
     from dancekit.render import AudioClip, RenderOptions
 
     t0 = time.perf_counter()
-    check_precision(args.precision)
     formats = check_formats(args.format)
     audio = Path(args.audio)
     if not audio.exists():
@@ -115,6 +113,19 @@ def run(args: argparse.Namespace) -> int:
     clip = AudioClip(audio, args.start, args.end)
     options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
+    # the song's features computed in a second process while this one imports torch and loads the model
+    prefetch = prefetch_for_model(audio, args.checkpoint if args.checkpoint is not None else args.model,
+                                  start=args.start, end=args.end)
+    try:
+        return _dance(args, audio, clip, options, out, formats, prefetch, t0)
+    finally:
+        prefetch.cancel()
+
+
+def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
+    from dancekit.export import export_motion
+    from dancekit.pipelines import load_pipeline
+
     pipe = load_pipeline(args.model, args.checkpoint, precision=args.precision)
     import torch
 
@@ -129,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
                                                               ("smooth_on", args.smooth))}
     own = fix is None and all(v is None for v in extra.values())  # the pipeline runs the stages itself
     seeds = [args.seed] if args.seeds is None else args.seeds
+    prefetch.wait()
     results = pipe.dances(str(audio), seeds=seeds, start=args.start, end=args.end, genre=args.genre,
                           progress=not args.quiet,
                           **(stages_on if own else {"beat_sync": False, "cleanup": False}))

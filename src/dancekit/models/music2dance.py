@@ -29,7 +29,9 @@ Architecture (paper §4.4.2–4.4.3, supplement §1.2.1)
 
 Generation (:meth:`Music2DanceModel.generate`) is incremental: each WaveNet layer keeps a queue of its last
 ``dilation · (kernel - 1)`` inputs, so a new frame costs O(layers), not O(receptive field), and equals the
-full-sequence evaluation (``tests/test_music2dance.py``).
+full-sequence evaluation (``tests/test_music2dance.py``). The frame loop runs in NumPy
+(:class:`NumpyWaveNet`: the same products, a small NumPy operation costs about a microsecond where a torch
+call costs several, and a frame is some 250 of them); :meth:`Music2DanceModel.step` is the torch reference.
 
 The motion vector is the ``rotations_rootdelta`` representation (:mod:`dancekit.motion.root_delta`) with
 its columns normalised, except the contact flags, which stay 0/1 (the dataset builder and the pipeline
@@ -43,6 +45,7 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -475,7 +478,7 @@ class Music2DanceModel(nn.Module):
     def generate(self, music: torch.Tensor, genre: torch.Tensor | None = None, *, temperature: float = 1.0,
                  generator: torch.Generator | list[torch.Generator] | None = None, first: torch.Tensor | None = None,
                  progress: bool = False, fmap_window: int | None = None,
-                 noise_correlation: float = 0.0, genre_scale: float = 1.0) -> torch.Tensor:
+                 noise_correlation: float = 0.0, genre_scale: float = 1.0, reference: bool = False) -> torch.Tensor:
         """A dance ``(B, T, P)`` for ``music (B, T, D_m)``, frame by frame, sampling the mixture.
 
         ``noise_correlation`` ρ in [0, 1): the standard normal draw of each frame is ``ε_t = ρ ε_{t-1} +
@@ -486,18 +489,30 @@ class Music2DanceModel(nn.Module):
         see :meth:`music_condition` (the pipeline passes the training window); ``generator``: one, or one
         per row (:func:`gmm_sample`: a batch of seeds, each row the dance of its seed alone); ``genre_scale``:
         guidance of the dance type (:meth:`guided_genre_vector`; 1: as trained). Call in eval mode.
+
+        The WaveNet's frames are computed by :class:`NumpyWaveNet` (on the CPU, in the model's float
+        dtype; the same dance as the torch :meth:`step` to float rounding, from the same random draws);
+        ``reference=True``, a reduced-precision copy (``fast_step``, :mod:`dancekit.models.precision`), the
+        LSTM baseline or another device run the torch loop.
         """
         from tqdm import tqdm
 
         B, T = music.shape[:2]
         cond, g = self._conditions(music, genre, window=fmap_window, genre_scale=genre_scale)
-        state = self.init_state(B, device=music.device, dtype=music.dtype)
         if not 0.0 <= noise_correlation < 1.0:
             raise ParameterError(f"noise_correlation must be in [0, 1), got {noise_correlation!r}")
         x = first if first is not None else music.new_zeros(B, self.config.pose_dim)
-        w = self._step_weights() if self.config.generator == "wavenet" else None
-        step = getattr(self, "fast_step", None) or self.step  # reduced precision: models/precision.py
         rho, eps = float(noise_correlation), None
+        fast_step = getattr(self, "fast_step", None)  # reduced precision: models/precision.py
+        p = next(self.parameters())
+        if (not reference and fast_step is None and self.config.generator == "wavenet" and p.device.type == "cpu"
+                and music.dtype == p.dtype and p.dtype in (torch.float32, torch.float64)):
+            out = NumpyWaveNet(self).generate(cond, x, temperature=temperature, generator=generator,
+                                              noise_correlation=rho, progress=progress)
+            return torch.from_numpy(out)
+        state = self.init_state(B, device=music.device, dtype=music.dtype)
+        w = self._step_weights() if self.config.generator == "wavenet" else None
+        step = fast_step or self.step
         frames = []
         for t in tqdm(range(T), disable=not progress, desc="dance", unit="frame"):
             if rho > 0 and temperature > 0:
@@ -508,6 +523,171 @@ class Music2DanceModel(nn.Module):
                              noise=eps)
             frames.append(x)
         return torch.stack(frames, dim=1)
+
+
+class NumpyWaveNet:
+    """The WaveNet's generation loop (:meth:`Music2DanceModel.generate`) in NumPy, for inference on the CPU.
+
+    The same products as :meth:`Music2DanceModel.step` (per block the taps of the dilated convolution as one
+    ``(k·C, 2C)`` matrix, the residual 1x1, the skip 1x1s of all blocks as one product; the weights in the
+    model's float dtype), with fewer and cheaper operations per frame (a NumPy call costs about a microsecond,
+    a torch call several; a frame is some 200 of them):
+
+    * taps without queues: block ``l`` (dilation ``d``) keeps ``(k-1)·d + 1`` tap buffers ``(B, k·C)`` used in
+      turn; its input at frame ``t`` is written into the buffer of frame ``t`` (last slot) and into those of
+      frames ``t + d, ..., t + (k-1)·d`` (earlier slots), so each frame's taps lie ready for one product;
+    * the gate ``tanh(f) · σ(g)`` as one ``tanh`` over both halves: ``σ(g) = (1 + tanh(g/2)) / 2``, with the
+      ``g`` half of the weights and conditions and the ``1/2`` of the gated output moved into the residual and
+      skip weights (scalings by powers of two: exact);
+    * the dilated convolution's bias added to the precomputed conditions once per chunk of frames; the last
+      block's residual (unused) not computed.
+
+    The output equals the torch step's to float rounding (``tests/test_music2dance_fast.py``).
+
+    Sampling draws the same random numbers from the same generators in the same order as
+    :func:`gmm_sample` frame by frame: with one mixture component (or temperature 0) no draw depends on the
+    model's output, so a chunk's standard normal draws (and their correlation over frames) are made ahead,
+    one torch call per frame as the torch loop makes them; with several components the choice of a
+    component depends on the output, and each frame samples with :meth:`Music2DanceModel.predict`.
+    """
+
+    #: frames whose conditions and noise are prepared at once (memory O(chunk), not O(song))
+    CHUNK = 512
+
+    def __init__(self, model: Music2DanceModel):
+        c = self.config = model.config
+        if c.generator != "wavenet":
+            raise ParameterError("NumpyWaveNet runs the WaveNet generator only")
+        self.model = model
+        dtype = next(model.parameters()).dtype
+        self.dtype = np.float32 if dtype == torch.float32 else np.float64
+        self.model_dtype = dtype
+        C = c.channels
+
+        def a(t: torch.Tensor, scale: float = 1.0) -> np.ndarray:
+            return np.array(t.detach().cpu().numpy(), dtype=self.dtype, order="C") * self.dtype(scale)
+
+        w = model._step_weights()
+        self.half = np.ones(2 * C, dtype=self.dtype)
+        self.half[C:] = 0.5  # σ(g) = (1 + tanh(g / 2)) / 2
+        self.in_w, self.in_b = a(w["in_w"]), a(w["in_b"])
+        self.conv_w = [a(cw) * self.half for cw in w["conv_w"]]  # (k·C, 2C), oldest tap first
+        self.conv_b = np.stack([a(b) for b in w["conv_b"]])  # (L, 2C)
+        # the loop's gated output is 2·tanh(f)·σ(g) = tanh(f)·(1 + tanh(g/2)): its 1/2 goes into the 1x1s
+        self.res_w, self.res_b = [a(r, 0.5) for r in w["res_w"]], [a(b) for b in w["res_b"]]
+        self.skip_w, self.skip_b = a(w["skip_w"], 0.5), a(w["skip_b"])
+        self.out1_w, self.out1_b = a(model.out1.weight[:, :, 0].T), a(model.out1.bias)
+        self.out2_w, self.out2_b = a(model.out2.weight[:, :, 0].T), a(model.out2.bias)
+
+    def _tap_buffers(self, B: int) -> list[list[tuple[np.ndarray, np.ndarray, list[np.ndarray]]]]:
+        """Per block, per frame modulo ``(k-1)·d + 1``: (the taps ``(B, k·C)``, the view of the frame's own
+        input in them, the views where later frames read it)."""
+        c = self.config
+        C, k = c.channels, c.kernel
+        out = []
+        for d in c.dilations:
+            R = (k - 1) * d + 1
+            bufs = [np.zeros((B, k * C), self.dtype) for _ in range(R)]
+            out.append([(bufs[u], bufs[u][:, (k - 1) * C :],
+                         [bufs[(u + m * d) % R][:, (k - 1 - m) * C : (k - m) * C] for m in range(1, k)])
+                        for u in range(R)])
+        return out
+
+    def generate(self, cond: torch.Tensor, first: torch.Tensor, *, temperature: float = 1.0,
+                 generator: torch.Generator | list[torch.Generator] | None = None, noise_correlation: float = 0.0,
+                 progress: bool = False) -> np.ndarray:
+        """The dance ``(B, T, P)`` (the model's dtype) for the per-block conditions ``cond (B, T, L, 2C)``
+        (:meth:`Music2DanceModel._conditions`) from the input ``first (B, P)`` of frame 0; sampling as
+        :meth:`Music2DanceModel.generate`."""
+        from tqdm import tqdm
+
+        c = self.config
+        B, T, L = cond.shape[0], cond.shape[1], c.n_layers
+        C, N, D, P = c.channels, c.n_mixtures, c.gmm_dim, c.pose_dim
+        dt = self.dtype
+        rho = float(noise_correlation)
+        ahead = temperature <= 0 or N == 1  # the draws do not depend on the outputs: made per chunk
+        sqrt_t = math.sqrt(temperature) if temperature > 0 else 0.0
+        taps = self._tap_buffers(B)
+        periods = [len(v) for v in taps]
+        layers = list(zip(range(L), taps, periods, self.conv_w, self.res_w, self.res_b))
+        zs = np.zeros((B, L * C), dt)  # the gated outputs of all blocks (times 2), for the one skip product
+        z_views = [zs[:, i * C : (i + 1) * C] for i in range(L)]
+        y = np.zeros((T, B, P), dt)
+        prev = np.array(first.detach().cpu().numpy(), dtype=dt)
+        eps_t = None  # the correlated noise of the last frame (torch, as the torch loop computes it)
+        bar = tqdm(total=T, disable=not progress, desc="dance", unit="frame")
+        for t0 in range(0, T, self.CHUNK):
+            t1 = min(T, t0 + self.CHUNK)
+            condb = (cond[:, t0:t1].detach().cpu().numpy().astype(dt) + self.conv_b) * self.half  # (B, t1-t0, L, 2C)
+            noise = None
+            if ahead and temperature > 0:
+                noise = np.empty((t1 - t0, B, D), dt)
+                for j in range(t1 - t0):
+                    eta = standard_normal((B, D), generator=generator, dtype=self.model_dtype)
+                    if rho > 0:
+                        eps_t = eta if eps_t is None else rho * eps_t + math.sqrt(1 - rho * rho) * eta
+                        noise[j] = eps_t.numpy()
+                    else:
+                        noise[j] = eta.numpy()
+            for t in range(t0, t1):
+                cb = condb[:, t - t0]  # (B, L, 2C)
+                x_in = r = None  # the previous block's input and residual 1x1 output
+                for i, tap, R, conv_w, res_w, res_b in layers:
+                    tb, x, later = tap[t % R]
+                    if x_in is None:  # the input 1x1 of the previous frame
+                        np.matmul(prev, self.in_w, out=x)
+                        x += self.in_b
+                    else:  # the residual: the previous block's input plus its 1x1 output
+                        np.add(x_in, r, out=x)
+                    for view in later:
+                        view[...] = x
+                    h = tb @ conv_w
+                    h += cb[:, i]
+                    np.tanh(h, out=h)
+                    gate = h[:, C:]
+                    gate += 1.0
+                    z = np.multiply(h[:, :C], gate, out=z_views[i])
+                    if i < L - 1:
+                        r = z @ res_w
+                        r += res_b
+                        x_in = x
+                s = zs @ self.skip_w
+                s += self.skip_b
+                np.maximum(s, 0, out=s)
+                o = s @ self.out1_w
+                o += self.out1_b
+                np.maximum(o, 0, out=o)
+                params = o @ self.out2_w
+                params += self.out2_b
+                frame = y[t]
+                if ahead:
+                    if N == 1:
+                        mu = params[:, 1 : 1 + D]
+                    else:  # temperature 0: the mean of the most likely component
+                        mus = params[:, N : N + N * D].reshape(B, N, D)
+                        mu = mus[np.arange(B), params[:, :N].argmax(-1)]
+                    if temperature > 0:  # m + exp(log_var / 2) · √t · ε, log_var clamped as split_params does
+                        std = params[:, 1 + D : 1 + 2 * D]
+                        np.maximum(std, c.min_log_var, out=std)
+                        std *= 0.5
+                        np.exp(std, out=std)
+                        std *= sqrt_t
+                        std *= noise[t - t0]
+                        np.add(mu, std, out=frame[:, :D])
+                    else:
+                        frame[:, :D] = mu
+                    frame[:, D:] = params[:, N + 2 * N * D :] > 0
+                else:  # several components, sampled: the torch sampling frame by frame, draws in its order
+                    if rho > 0:
+                        eta = standard_normal((B, D), generator=generator, dtype=self.model_dtype)
+                        eps_t = eta if eps_t is None else rho * eps_t + math.sqrt(1 - rho * rho) * eta
+                    frame[:] = self.model.predict(torch.from_numpy(params), temperature=temperature,
+                                                  generator=generator, noise=eps_t).numpy()
+                prev = frame
+            bar.update(t1 - t0)
+        bar.close()
+        return np.ascontiguousarray(y.transpose(1, 0, 2))
 
 
 def shift_right(x: torch.Tensor, first: torch.Tensor | None = None) -> torch.Tensor:
