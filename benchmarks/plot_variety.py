@@ -49,19 +49,29 @@ def _dashed(draw, a, b, colour, dash=6):
         draw.line([(x1 + (x2 - x1) * t0, y1 + (y2 - y1) * t0), (x1 + (x2 - x1) * t1, y1 + (y2 - y1) * t1)], fill=colour)
 
 
+def _label(row: dict) -> str:
+    """A row's point label: its spec, and for rows of another checkpoint or of the model without its genre
+    models (``tune_variety.py --model / --genre-models off``) the checkpoint's last folder name / "alone"."""
+    tag = [] if row.get("model", "default") == "default" else [str(row["model"]).rstrip("/").split("/")[-1]]
+    if row.get("genre_models") == "off":
+        tag.append("alone")
+    return " ".join([row["spec"], *tag])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--rows", nargs="+", required=True)
     ap.add_argument("--chosen", default=None)
     ap.add_argument("--report", action="append", default=[], help="LABEL=report.json")
     ap.add_argument("--fid-max", type=float, default=130.0, help="right end of the FID_k axis (beyond: clipped)")
+    ap.add_argument("--right-title", default="test songs, 5 seeds: two seeds (thick) vs half of two songs (thin)")
     ap.add_argument("-o", "--out", required=True)
     args = ap.parse_args()
     rows = {}
     for path in args.rows:
         for line in open(path):
             row = json.loads(line)
-            rows[row["spec"]] = row
+            rows[_label(row)] = row
     img = Image.new("RGB", (2 * W, H), "white")
     draw = ImageDraw.Draw(img)
     mm_max = max(50.0, max(r["style_multimodality"] for r in rows.values()) * 1.1)
@@ -77,10 +87,10 @@ def main() -> None:
         c = (200, 40, 40) if spec == args.chosen else (40, 90, 200)
         draw.ellipse([x - 4, y - 4, x + 4, y + 4], fill=c)
         draw.text((x + 5, y - 12), spec + (" >" if r["fid_k"] > args.fid_max else ""), fill=c)
-    reports = [(item.split("=", 1)[0], json.load(open(item.split("=", 1)[1]))["seed_distance"]) for item in args.report]
+    reports = [(item.rsplit("=", 1)[0], json.load(open(item.rsplit("=", 1)[1]))["seed_distance"]) for item in args.report]
     t_max = max(len(sd["seed_cm"]) for _, sd in reports)
     y_max = max(max(sd["seed_cm"] + sd["song_cm"]) for _, sd in reports) * 1.05
-    to_px = _axes(draw, W, "test songs, 5 seeds: two seeds (thick) vs half of two songs (thin)", "second of the song",
+    to_px = _axes(draw, W, args.right_title, "second of the song",
                   "cm", (0.0, float(t_max)), (0.0, y_max))
     for k, (label, sd) in enumerate(reports):
         c = COLOURS[k % len(COLOURS)]

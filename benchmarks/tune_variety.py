@@ -6,7 +6,10 @@ one batch (one generator per row: the same draws as one call per seed), and the 
 ``evaluate_dirs``: FID_k / FID_g, multimodality (style features) and the seed-to-seed distance.
 
     PYTHONPATH=src python benchmarks/tune_variety.py --data data/tang2018 --seeds 5 -o runs/tune_variety \\
-        --grid "2:0.5:0" "4:1:0" "3:0:0.5" ...      # phrase_s:state_noise:latent_noise[:dance_latent]
+        --grid "2:0.5:0" "4:1:0" "3:0:0.5" ...      # phrase_s:state_noise:latent_noise[:dance_latent[:style[:share]]]
+
+``--model FOLDER`` tunes another checkpoint than the embedded default (e.g. a fine-tuned candidate with a style
+latent, ``style_dim > 0``: the 5th and 6th grid fields are the style temperature and its per-dance share).
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from dancekit.pipelines.base import DanceResult, clean_motion
 from dancekit.pipelines.stages import finish
 
 
-def dance_batch(pipe, path, *, seeds, start, end, variety):
+def dance_batch(pipe, path, *, seeds, start, end, variety, stages=True):
     """The seeds' dances of one song, as ``pipe(path, seed=k)`` with ``pipe.variety = variety``."""
     probs = pipe.read_genre(path, start=start, end=end)
     genre = max(probs, key=probs.get) if probs else None
@@ -43,7 +46,7 @@ def dance_batch(pipe, path, *, seeds, start, end, variety):
                                             p.representation))
         res = DanceResult(motion=motion, model=pipe.folder, seed=int(seed), genre_requested="auto", genre=genre,
                           genre_probs=probs, danced_by=p.folder)
-        out.append(finish(res, path, start=start, end=end))
+        out.append(finish(res, path, start=start, end=end, beat_sync_on=stages, cleanup_on=stages))
     return out
 
 
@@ -54,18 +57,26 @@ def main() -> None:
     ap.add_argument("--split", default="val")
     ap.add_argument("-o", "--out", required=True)
     ap.add_argument("--clip", type=float, default=None, help="dance only the first CLIP seconds (openings)")
-    ap.add_argument("--grid", nargs="+", default=["0:0:0"], help="phrase_s:state_noise:latent_noise[:dance_latent]")
+    ap.add_argument("--grid", nargs="+", default=["0:0:0"],
+                    help="phrase_s:state_noise:latent_noise[:dance_latent[:style[:style_share]]]")
+    ap.add_argument("--stages", choices=("on", "off"), default="on",
+                    help="off: the model's raw dances (no clean-up, smoothing, foot lock, beat sync)")
+    ap.add_argument("--genre-models", choices=("on", "off"), default="on",
+                    help="off: the model itself dances every song (not its genre models)")
+    ap.add_argument("--model", default=None, help="checkpoint folder or embedded name (default: the default model)")
     args = ap.parse_args()
     if args.split == "test":
         raise SystemExit("tune on the validation songs; score the test split with dancekit evaluate")
     data = PreparedData(args.data)
-    pipe = load_pipeline()
+    pipe = load_pipeline(args.model) if args.model else load_pipeline()
+    if args.genre_models == "off":
+        pipe.genre_models = {}
     out = Path(args.out)
     rows = []
     for spec in args.grid:
-        phrase_s, a, sigma, tau = ([float(v) for v in spec.split(":")] + [0.0])[:4]
+        phrase_s, a, sigma, tau, style, share = ([float(v) for v in spec.split(":")] + [0.0] * 3)[:6]
         variety = SeedVariety(phrase=int(round(phrase_s * pipe.fps)), state_noise=a, latent_noise=sigma,
-                              dance_latent=tau)
+                              dance_latent=tau, style=style, style_share=share)
         pred = out / spec.replace(":", "_") / "pred"
         pred.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
@@ -73,7 +84,7 @@ def main() -> None:
             ref = data.audio(name)
             end = ref.end if args.clip is None else (ref.start or 0.0) + args.clip
             for k, res in enumerate(dance_batch(pipe, ref.path, seeds=range(args.seeds), start=ref.start,
-                                                end=end, variety=variety)):
+                                                end=end, variety=variety, stages=args.stages == "on")):
                 write_motion(pred / f"{name}{SAMPLE_SEP}{k}.npz", res.motion)
         gen_s = time.perf_counter() - t0
         rep = evaluate_dirs(pred, args.data, data=args.data, split=args.split)
@@ -81,7 +92,7 @@ def main() -> None:
         sd = rep["seed_distance"]
         n = min(len(sd["seed_cm"]), len(sd["song_cm"]))
         ratio = np.asarray(sd["seed_cm"][:n]) / np.maximum(np.asarray(sd["song_cm"][:n]), 1e-9)
-        row = {"spec": spec, "fid_k": rep["metrics"]["fid_k"] if "metrics" in rep else rep.get("fid_k"),
+        row = {"spec": spec, "model": args.model or "default", "stages": args.stages, "genre_models": args.genre_models, "fid_k": rep["metrics"]["fid_k"] if "metrics" in rep else rep.get("fid_k"),
                "gen_s": round(gen_s, 1)}
         flat = rep.get("metrics", rep)
         for key in ("fid_k", "fid_g", "style_multimodality", "style_diversity", "style_fid", "style_acc",

@@ -143,6 +143,44 @@ def test_prepared_tang2018_floor_and_splits(prepared_tang2018):
         assert data.motion(name).rotations is not None
 
 
+def test_mirror_and_heading_augmentations_are_the_moved_dance_re_encoded(rng):
+    """Derived independently: the window of the mirrored / turned world positions, encoded again."""
+    from dancekit.data.windows import augment_positions3d
+
+    m = _random_motion(rng)
+    x = encode_motion(m, "positions3d")
+    np.testing.assert_allclose(augment_positions3d(x, skeleton=m.skeleton, mirror=True),
+                               encode_motion(m.mirror(), "positions3d"), atol=1e-4)
+    theta = 0.7
+    pos = m.to_positions().astype(np.float64)
+    c, s = np.cos(theta), np.sin(theta)  # y up: turn x, z about the y axis (the code's h0 = x, h1 = z)
+    turned = pos.copy()
+    turned[..., 0], turned[..., 2] = c * pos[..., 0] - s * pos[..., 2], s * pos[..., 0] + c * pos[..., 2]
+    np.testing.assert_allclose(augment_positions3d(x, skeleton=m.skeleton, heading=theta),
+                               encode_motion(Motion(m.skeleton, m.fps, turned.astype(np.float32)), "positions3d"),
+                               atol=1e-4)
+
+
+def test_window_dataset_augmentations_are_seeded_and_keep_the_window(prepared_tang2018):
+    data = prepared_tang2018
+    plain = WindowDataset(data, "train", preset="music2dance", window=100, stride=200)
+    aug = WindowDataset(data, "train", preset="music2dance", window=100, stride=200, stats=plain.stats,
+                        mirror=0.5, heading=True, tempo=0.05)
+    again = WindowDataset(data, "train", preset="music2dance", window=100, stride=200, stats=plain.stats,
+                          mirror=0.5, heading=True, tempo=0.05)
+    for k in (0, 5):
+        a, b, p = aug[k], again[k], plain[k]
+        assert a["dance"].shape == (100, 72) and a["music"].shape == (100, 15)
+        torch.testing.assert_close(a["dance"], b["dance"])  # a pure function of (seed, epoch, item)
+        assert not torch.allclose(a["dance"], p["dance"])
+        # the music is only resampled in time (within ±5 %): it stays close to the plain window's
+        assert float((a["music"] - p["music"]).abs().mean()) < float((a["music"] - plain[k + 1]["music"]).abs().mean())
+    aug.set_epoch(1)
+    assert not torch.allclose(aug[0]["dance"], again[0]["dance"])
+    with pytest.raises(ParameterError, match="positions3d"):
+        WindowDataset(data, "train", preset="music2dance", window=100, representation="rot6d", mirror=0.5)
+
+
 def test_window_dataset_shapes_and_train_only_stats(prepared_tang2018):
     data = prepared_tang2018
     train = WindowDataset(data, "train", preset="music2dance", window=100, stride=200)

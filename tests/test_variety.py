@@ -123,3 +123,67 @@ def test_checkpoint_setting_is_read_and_checked():
         variety_from_meta({"sampling": {"phrase_s": 3.0, "state_noise": 2.0}}, 25.0, folder="ckpt")
     with pytest.raises(CheckpointError, match="must be an object"):
         variety_from_meta({"sampling": 3}, 25.0, folder="ckpt")
+
+
+# ---- the learned style latent (style_dim > 0, a CVAE per segment) -------------------------------------------
+
+
+def style_model(*, zero_proj: bool = False) -> RevolutionModel:
+    torch.manual_seed(0)
+    model = RevolutionModel(RevolutionConfig(music_dim=D, pose_dim=P, d_model=16, n_heads=2, d_ff=32, window=6,
+                                             decoder_hidden=24, dropout=0.0, style_dim=4, style_segment=10))
+    if not zero_proj:
+        torch.nn.init.normal_(model.style_proj.weight)
+    return model.eval()
+
+
+def test_a_style_latent_model_starts_out_as_the_model_without():
+    """The projection is zero-initialised: fine-tuning from a model without the latent starts from its dances."""
+    model = style_model(zero_proj=True)
+    plain = RevolutionModel(RevolutionConfig(**{**model.config.__dict__, "style_dim": 0})).eval()
+    plain.load_state_dict({k: v for k, v in model.state_dict().items() if not k.startswith("style_")})
+    v = SeedVariety(style=1.0, style_share=0.5)
+    torch.testing.assert_close(model.generate(music(), generator=gen(1), variety=v),
+                               plain.generate(music(), generator=gen(1)), rtol=0, atol=0)
+
+
+def test_the_style_latent_is_drawn_per_seed_and_reproducible():
+    model = style_model()
+    v = SeedVariety(style=1.0, style_share=0.5)
+    assert v.active
+    assert seed_gap(model, SeedVariety()) < seed_gap(model, v)
+    assert seed_gap(model, v, frames=slice(N - 10, None)) > 1e-2  # apart to the end
+    a = model.generate(music(), generator=gen(4), variety=v)
+    torch.testing.assert_close(model.generate(music(), generator=gen(4), variety=v, chunk=33), a,
+                               rtol=1e-5, atol=1e-5)
+    batch = model.generate(music(), generator=[gen(4), gen(5)], variety=v)
+    torch.testing.assert_close(batch[:1], a, rtol=1e-4, atol=1e-5)
+
+
+def test_the_style_path_interpolates_between_segment_centres():
+    model = style_model()
+    knots = torch.tensor([[[0.0], [10.0], [20.0]]])  # centres of 10-frame segments: 4.5, 14.5, 24.5
+    w = model.style_path(knots, 30)[0, :, 0]
+    assert float(w[0]) == 0.0 and float(w[4]) == 0.0  # constant before the first centre
+    assert abs(float(w[9]) - 4.5) < 1e-5 and abs(float(w[14]) - 9.5) < 1e-5
+    assert float(w[29]) == 20.0  # constant after the last
+
+
+def test_the_style_posterior_has_one_knot_per_segment_and_the_loss_a_kl_term():
+    model = style_model().train()
+    dance = torch.randn(2, 25, P)
+    mu, logvar = model.style_knots(dance)
+    assert mu.shape == logvar.shape == (2, 3, 4)
+    # the last (5-frame) segment's knot depends on its own frames only
+    other = dance.clone()
+    other[:, :20] += 1.0
+    torch.testing.assert_close(model.style_knots(other)[0][:, 2], mu[:, 2])
+    x = torch.randn(2, 25, D)
+    _, with_kl = model(x, dance, generator=gen(0))
+    model.config.style_beta = 0.0
+    _, without = model(x, dance, generator=gen(0))
+    assert with_kl.item() > without.item()  # the KL term is added (at least the free bits)
+    with pytest.raises(ParameterError, match="style_share"):
+        SeedVariety(style=1.0, style_share=1.5)
+    assert variety_from_meta({"sampling": {"style": 0.8, "style_share": 0.5}}, 25.0) == \
+        SeedVariety(style=0.8, style_share=0.5)

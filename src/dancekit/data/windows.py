@@ -33,6 +33,42 @@ def compute_stats(data: PreparedData, *, preset: str, representation: str = "pos
     return NormStats.compute([m for m, _ in pairs], [d for _, d in pairs])
 
 
+def _resample(x: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Rows of ``x (T, F)`` linearly interpolated at fractional frame ``times (L,)`` (0 ≤ times ≤ T − 1)."""
+    i0 = np.floor(times).astype(int)
+    i1 = np.minimum(i0 + 1, len(x) - 1)
+    f = (times - i0)[:, None]
+    return ((1 - f) * x[i0] + f * x[i1]).astype(np.float32)
+
+
+def augment_positions3d(dance: np.ndarray, *, skeleton, mirror: bool = False, heading: float = 0.0) -> np.ndarray:
+    """A ``positions3d`` window ``(L, 3J + 3)`` (unnormalised) mirrored and/or turned about the up axis.
+
+    ``mirror``: the world x coordinate negated and left/right joints swapped (the skeleton's mirror
+    permutation), as :meth:`dancekit.motion.Motion.mirror`. ``heading``: a rotation by this angle (radians)
+    about the up axis of the root-relative joints and of the root's horizontal velocity (root height unchanged).
+    Both are exact for this representation: the mirrored / turned dance re-encoded gives the same array.
+    """
+    J = skeleton.num_joints
+    up = skeleton.up_index
+    h0, h1 = (a for a in range(3) if a != up)
+    out = np.array(dance, dtype=np.float64)
+    local = out[:, : 3 * J].reshape(len(out), J, 3)
+    vel = out[:, 3 * J : 3 * J + 2]  # (L, 2): velocity along h0, h1
+    if mirror:
+        local[..., 0] = -local[..., 0]
+        local[:] = local[:, skeleton.mirror_permutation()]
+        if 0 in (h0, h1):
+            vel[:, (h0, h1).index(0)] *= -1.0
+    if heading:
+        c, s_ = np.cos(heading), np.sin(heading)
+        a, b = local[..., h0].copy(), local[..., h1].copy()
+        local[..., h0], local[..., h1] = c * a - s_ * b, s_ * a + c * b
+        a, b = vel[:, 0].copy(), vel[:, 1].copy()
+        vel[:, 0], vel[:, 1] = c * a - s_ * b, s_ * a + c * b
+    return out.astype(np.float32)
+
+
 class WindowDataset(Dataset):
     """Windows of ``window`` frames from every dance of ``split``.
 
@@ -57,6 +93,12 @@ class WindowDataset(Dataset):
 
     ``genres`` keeps only the dances of these genres (names as in ``data.genres``), e.g. to
     fine-tune a genre-specific model; the normalisation statistics stay those of the whole split.
+
+    Augmentations true to dance (``positions3d`` only; issue 15), drawn per item from
+    ``np.random.default_rng([seed, epoch, k, 1])`` like the offsets: ``mirror`` the probability of the
+    left–right mirror image (:func:`augment_positions3d`), ``heading=True`` a uniform random turn of the whole
+    dance about the up axis, ``tempo`` t a joint tempo change of music and motion by a factor r ∈ [1 − t, 1 + t]
+    (both resampled linearly at r frames per frame, the root's per-frame velocity scaled by r).
     """
 
     def __init__(
@@ -74,7 +116,16 @@ class WindowDataset(Dataset):
         balance_genres: bool = False,
         max_repeat: int = 8,
         genres: Sequence[str] | None = None,
+        mirror: float = 0.0,
+        heading: bool = False,
+        tempo: float = 0.0,
     ):
+        if not 0.0 <= mirror <= 1.0 or not 0.0 <= tempo < 0.5:
+            raise ParameterError(f"mirror must be in [0, 1] and tempo in [0, 0.5), got {mirror!r}, {tempo!r}")
+        if (mirror or heading or tempo) and representation != "positions3d":
+            raise ParameterError(f"the mirror / heading / tempo augmentations need positions3d, got {representation!r}")
+        self.mirror, self.heading, self.tempo = float(mirror), bool(heading), float(tempo)
+        self.skeleton = data.skeleton
         if window < 2:
             raise ParameterError(f"window must be at least 2 frames, got {window}")
         self.data, self.split, self.preset, self.window = data, split, preset, int(window)
@@ -143,10 +194,32 @@ class WindowDataset(Dataset):
         if self.random_offset:
             T = len(self.music[i])
             s = min(s + self.offset(k % len(self.index)), T - self.window)  # k % n: a negative index too
-        sl = slice(s, s + self.window)
+        if self.mirror or self.heading or self.tempo:
+            music, dance = self._augmented(i, s, k % len(self.index))
+        else:
+            music, dance = self.music[i][s : s + self.window], self.dance[i][s : s + self.window]
         return {
-            "music": torch.from_numpy(self.music[i][sl]),
-            "dance": torch.from_numpy(self.dance[i][sl]),
+            "music": torch.from_numpy(music),
+            "dance": torch.from_numpy(dance),
             "genre": torch.tensor(self.genres[i], dtype=torch.int64),
             "index": torch.tensor(i, dtype=torch.int64),
         }
+
+    def _augmented(self, i: int, s: int, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Window ``k`` (dance ``i`` from frame ``s``) under its draw of the augmentations, normalised."""
+        rng = np.random.default_rng([self.seed, self.epoch, int(k), 1])
+        r = 1.0 + rng.uniform(-self.tempo, self.tempo) if self.tempo else 1.0
+        flip = bool(rng.random() < self.mirror) if self.mirror else False
+        turn = float(rng.uniform(0.0, 2.0 * np.pi)) if self.heading else 0.0
+        T, L = len(self.music[i]), self.window
+        if (L - 1) * r > T - 1:
+            r = (T - 1) / (L - 1)
+        s = min(s, int(np.floor(T - 1 - (L - 1) * r)))
+        times = s + np.arange(L) * r
+        music = _resample(self.music[i], times) if r != 1.0 else self.music[i][s : s + L]
+        raw = self.stats.denormalize_dance(self.dance[i][int(np.floor(times[0])) : int(np.ceil(times[-1])) + 1])
+        dance = _resample(raw, times - np.floor(times[0])) if r != 1.0 else raw[:L]
+        J = self.skeleton.num_joints
+        dance[:, 3 * J : 3 * J + 2] *= r  # per-frame root displacement at r source frames per frame
+        dance = augment_positions3d(dance, skeleton=self.skeleton, mirror=flip, heading=turn)
+        return np.ascontiguousarray(music, np.float32), self.stats.normalize_dance(dance).astype(np.float32)

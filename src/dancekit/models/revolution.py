@@ -81,6 +81,10 @@ class RevolutionConfig:
     baseline: bool = False  # the paper's LSTM baseline (encoder="lstm", teacher forcing)
     encoder_chunk: int = 1024  # frames per encoder chunk in `generate` (bounds memory on long songs)
     n_genres: int = 0  # > 0: a learned dance-genre embedding added to the music latents (index n_genres = "auto")
+    style_dim: int = 0  # > 0: a learned latent per segment (CVAE), sampled per seed at inference (issue 15)
+    style_segment: int = 75  # frames per style-latent segment (3 s at 25 fps)
+    style_beta: float = 0.02  # weight of the KL term (mean nats per latent dimension) in the training loss
+    style_free_bits: float = 0.1  # KL per dimension below this many nats is not penalised (keeps the latent used)
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_genres, int) or self.n_genres < 0:
@@ -90,6 +94,13 @@ class RevolutionConfig:
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
                 raise ParameterError(f"RevolutionConfig.{name} must be a positive integer, got {value!r}")
+        if not isinstance(self.style_dim, int) or isinstance(self.style_dim, bool) or self.style_dim < 0:
+            raise ParameterError(f"RevolutionConfig.style_dim must be a non-negative integer, got {self.style_dim!r}")
+        if not isinstance(self.style_segment, int) or isinstance(self.style_segment, bool) or self.style_segment < 2:
+            raise ParameterError(f"RevolutionConfig.style_segment must be an integer >= 2, got {self.style_segment!r}")
+        if not self.style_beta >= 0 or not self.style_free_bits >= 0:
+            raise ParameterError("RevolutionConfig.style_beta and style_free_bits must be >= 0, got "
+                                 f"{self.style_beta!r}, {self.style_free_bits!r}")
         if not isinstance(self.window, int) or self.window < 0:
             raise ParameterError(f"RevolutionConfig.window must be a non-negative integer, got {self.window!r}")
         if self.encoder not in ENCODERS:
@@ -143,6 +154,12 @@ class SeedVariety:
     * ``dance_latent`` τ ≥ 0: one more offset ``τ·s·v`` (v ~ N(0, I), one per dance) added to every z_t:
       a character that holds through the whole dance (with any ``phrase``, 0 included).
 
+    * ``style`` t ≥ 0 (models with ``style_dim > 0`` only): the learned per-segment latent w is drawn from
+      its prior at temperature t, one knot per ``style_segment`` frames, linearly interpolated as in
+      training; ``style_share`` ρ ∈ [0, 1] of its variance is one draw per dance (the knots are
+      ``t·(√ρ·v + √(1 − ρ)·e_s)``): a character that holds through the dance. With ``style`` 0 the
+      latent is 0 (the prior's mean).
+
     All draws come after the initial state's from the same generator(s), for the whole song at once, so a
     seed still fully determines the dance (independent of the encoder chunking). ``SeedVariety()`` (all
     zero) is the paper's decoding: no draw beyond the initial state.
@@ -152,8 +169,14 @@ class SeedVariety:
     state_noise: float = 0.0
     latent_noise: float = 0.0
     dance_latent: float = 0.0
+    style: float = 0.0
+    style_share: float = 0.0
 
     def __post_init__(self) -> None:
+        if not self.style >= 0.0:
+            raise ParameterError(f"SeedVariety.style must be >= 0, got {self.style!r}")
+        if not 0.0 <= self.style_share <= 1.0:
+            raise ParameterError(f"SeedVariety.style_share must be in [0, 1], got {self.style_share!r}")
         if not isinstance(self.phrase, int) or isinstance(self.phrase, bool) or self.phrase < 0:
             raise ParameterError(f"SeedVariety.phrase must be a non-negative integer (frames), got {self.phrase!r}")
         if not 0.0 <= self.state_noise <= 1.0:
@@ -165,7 +188,8 @@ class SeedVariety:
 
     @property
     def active(self) -> bool:
-        return self.phrase > 0 and (self.state_noise > 0 or self.latent_noise > 0) or self.dance_latent > 0
+        return (self.phrase > 0 and (self.state_noise > 0 or self.latent_noise > 0) or self.dance_latent > 0
+                or self.style > 0)
 
 
 def _randn(shape: tuple[int, ...], generators: list[torch.Generator | None], axis: int) -> torch.Tensor:
@@ -475,6 +499,15 @@ class RevolutionModel(nn.Module):
             # model fine-tuned with it starts out as the unconditioned model.
             self.genre_embedding = nn.Embedding(c.n_genres + 1, c.d_model)
             nn.init.zeros_(self.genre_embedding.weight)
+        if c.style_dim:
+            # a CVAE-style latent per segment of style_segment frames (an extension, issue 15): the posterior
+            # reads the target dance of a segment (training), the prior is N(0, I) (inference, drawn per seed);
+            # w(t), interpolated between the segments' centres, is projected and added to every z_t.
+            # The projection is zero-initialised, so a model fine-tuned with it starts out as the model without.
+            self.style_posterior = nn.Sequential(nn.Linear(c.pose_dim, 128), nn.GELU())
+            self.style_stats = nn.Linear(128, 2 * c.style_dim)
+            self.style_proj = nn.Linear(c.style_dim, c.d_model, bias=False)
+            nn.init.zeros_(self.style_proj.weight)
 
     def _condition(self, z: torch.Tensor, genre: torch.Tensor | None) -> torch.Tensor:
         """Latents (B, n, d) plus the genre embedding; ``genre`` (B,) int64 indices, None or -1 = auto."""
@@ -491,6 +524,36 @@ class RevolutionModel(nn.Module):
             raise ParameterError(f"genre indices must be in [0, {c.n_genres}) or -1 (auto), got {genre.tolist()}")
         genre = torch.where(genre < 0, torch.full_like(genre, c.n_genres), genre)
         return z + self.genre_embedding(genre)[:, None, :]  # (B, n, d)
+
+    # ---- style latent (style_dim > 0) -------------------------------------------------------------
+
+    def style_knots(self, dance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Posterior of the style latent: normalised poses (B, n, P) → (mean, log-variance), each
+        (B, ceil(n / style_segment), style_dim), one per segment (the last may be shorter)."""
+        c = self.config
+        B, n, _ = dance.shape
+        S = c.style_segment
+        m = -(-n // S)
+        h = self.style_posterior(dance)  # (B, n, 128)
+        pad = m * S - n
+        h = F.pad(h, (0, 0, 0, pad)).view(B, m, S, -1).sum(2)  # (B, m, 128)
+        count = torch.full((m,), float(S), device=dance.device)
+        count[-1] = S - pad
+        stats = self.style_stats(h / count[None, :, None])  # (B, m, 2k)
+        return stats[..., : c.style_dim], stats[..., c.style_dim :].clamp(-8.0, 4.0)
+
+    def style_path(self, knots: torch.Tensor, n: int) -> torch.Tensor:
+        """Knots (B, m, k) at the segments' centres → w(t) (B, n, k), linear between centres, constant
+        before the first and after the last."""
+        S = self.config.style_segment
+        m = knots.shape[1]
+        centres = torch.arange(m, device=knots.device, dtype=torch.float32) * S + (S - 1) / 2.0
+        t = torch.arange(n, device=knots.device, dtype=torch.float32)
+        pos = ((t - centres[0]) / S).clamp(0.0, float(m - 1))  # (n,) in knot units
+        i0 = pos.floor().long().clamp(max=m - 1)
+        i1 = (i0 + 1).clamp(max=m - 1)
+        f = (pos - i0.float())[None, :, None]
+        return (1 - f) * knots[:, i0] + f * knots[:, i1]
 
     # ---- encoder ---------------------------------------------------------------------------------
 
@@ -561,6 +624,12 @@ class RevolutionModel(nn.Module):
             out["latent"] = out["latent"] + v if "latent" in out else v.expand(batch, n, c.d_model)
         if "latent" in out:
             out["latent"] = out["latent"] * scale
+        if variety.style > 0 and c.style_dim:
+            m = -(-n // c.style_segment)
+            e = _randn((batch, m, c.style_dim), gens, axis=0).to(device)  # per segment
+            v = _randn((batch, 1, c.style_dim), gens, axis=0).to(device)  # per dance
+            rho = variety.style_share
+            out["style"] = variety.style * (math.sqrt(rho) * v + math.sqrt(1.0 - rho) * e)  # (B, m, k)
         return out
 
     def _decoder_input(self, prev: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
@@ -611,6 +680,15 @@ class RevolutionModel(nn.Module):
             raise ParameterError(
                 f"dance must have shape ({B}, {n}, {self.config.pose_dim}) to match music, got {tuple(dance.shape)}"
             )
+        kl = None
+        if self.config.style_dim:
+            mu, logvar = self.style_knots(dance)  # (B, m, k)
+            eps = torch.randn(mu.shape, generator=generator, device=generator.device if generator is not None
+                              else "cpu").to(mu.device) if self.training else torch.zeros_like(mu)
+            w = mu + torch.exp(0.5 * logvar) * eps
+            z = z + self.style_proj(self.style_path(w, n))
+            kl_dim = 0.5 * (mu.pow(2) + logvar.exp() - 1.0 - logvar).mean(dim=(0, 1))  # (k,) nats per dimension
+            kl = kl_dim.clamp(min=self.config.style_free_bits).mean()
         given = torch.cat([y0, dance[:, :-1]], dim=1)  # (B, n, P): y_0, y_1, ..., y_{n-1}
         outputs: list[torch.Tensor] = []
         for a, b, is_given in _runs(auto_condition_mask(n, p=schedule_p, q=schedule_q)):
@@ -620,7 +698,10 @@ class RevolutionModel(nn.Module):
                 y, _, state = self._autoregress(z[:, a:b], outputs[-1][:, -1:], state)
             outputs.append(y)
         pred = torch.cat(outputs, dim=1)  # (B, n, P)
-        return pred, F.l1_loss(pred, dance)
+        loss = F.l1_loss(pred, dance)
+        if kl is not None:
+            loss = loss + self.config.style_beta * kl
+        return pred, loss
 
     def _autoregress(self, z: torch.Tensor, prev: torch.Tensor, state):
         """Generate ``L = z.shape[1]`` frames from the input pose ``prev (B, 1, P)``, one step at a time.
@@ -725,6 +806,8 @@ class RevolutionModel(nn.Module):
                                             scale=z.std(dim=1, keepdim=True, correction=0))
                 if "latent" in noise:
                     z = z + noise["latent"]
+                if "style" in noise:
+                    z = z + self.style_proj(self.style_path(noise["style"], n))
                 for a0, b0 in _phrases(0, n, variety.phrase) if variety.phrase else [(0, n)]:
                     state = _perturb_state(state, noise, a0, variety)
                     y, prev, state = self._autoregress(z[:, a0:b0], prev, state)

@@ -349,7 +349,7 @@ class RevolutionPipeline:
 
 def variety_from_meta(meta: dict[str, Any], fps: float, *, folder: str = "?") -> SeedVariety:
     """The checkpoint's seed variety: ``meta["sampling"]`` with ``phrase_s`` (seconds, converted to frames at
-    ``fps``), ``state_noise``, ``latent_noise`` and ``dance_latent``; no such entry: the paper's decoding (``SeedVariety()``)."""
+    ``fps``), ``state_noise``, ``latent_noise``, ``dance_latent``, ``style`` and ``style_share``; no such entry: the paper's decoding (``SeedVariety()``)."""
     spec = meta.get("sampling") or {}
     if not isinstance(spec, dict):
         raise CheckpointError(f"checkpoint {folder}: config.json 'sampling' must be an object, got {spec!r}")
@@ -357,6 +357,8 @@ def variety_from_meta(meta: dict[str, Any], fps: float, *, folder: str = "?") ->
         return SeedVariety(phrase=int(round(float(spec.get("phrase_s", 0.0)) * fps)),
                            state_noise=float(spec.get("state_noise", 0.0)),
                            latent_noise=float(spec.get("latent_noise", 0.0)),
-                           dance_latent=float(spec.get("dance_latent", 0.0)))
+                           dance_latent=float(spec.get("dance_latent", 0.0)),
+                           style=float(spec.get("style", 0.0)),
+                           style_share=float(spec.get("style_share", 0.0)))
     except (TypeError, ValueError, ParameterError) as exc:
         raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None

@@ -20,11 +20,13 @@ from dancekit.training.config import TrainConfig
 def music_dance_windows(data: PreparedData, config: TrainConfig, stats: NormStats, *,
                         preset: str) -> tuple[WindowDataset, WindowDataset]:
     """Paired (music, dance) windows of ``config.seq_len`` frames (:class:`~dancekit.data.WindowDataset`):
-    the training split with random offsets and genre balance as configured, the validation split without."""
+    the training split with random offsets, genre balance and augmentations (mirror, heading, tempo) as
+    configured, the validation split without."""
     common = dict(preset=preset, window=config.seq_len, stride=config.stride, stats=stats,
                   representation=config.representation, genres=config.genres)
     train_set = WindowDataset(data, "train", random_offset=config.random_offset, seed=config.seed,
-                              balance_genres=config.balance_genres, **common)
+                              balance_genres=config.balance_genres, mirror=config.augment_mirror,
+                              heading=config.augment_heading, tempo=config.augment_tempo, **common)
     val_set = WindowDataset(data, "val", **common)
     return train_set, val_set
 

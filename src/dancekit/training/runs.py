@@ -257,7 +257,7 @@ def assemble_run(
     model = model_cls(model_config)
     if init_state is not None:
         missing, unexpected = model.load_state_dict(init_state, strict=False)
-        new = [k for k in missing if not k.startswith("genre_embedding.")]
+        new = [k for k in missing if not k.startswith(("genre_embedding.", "style_"))]  # new modules, zero-initialised where they enter
         if new or unexpected:
             raise CheckpointError(f"--init {init} does not fit this configuration: missing {new}, "
                                   f"unexpected {list(unexpected)}")
