@@ -15,7 +15,6 @@ FID_g of all the model's dances of the split against the training dances (10-s s
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 from pathlib import Path

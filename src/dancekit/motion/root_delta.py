@@ -279,7 +279,6 @@ def rootdelta_positions(x: torch.Tensor, skeleton: Skeleton, *, joints: tuple[in
     lay = rootdelta_layout(skeleton)
     if x.shape[-1] != lay.dim or x.dim() < 2:
         raise ParameterError(f"rotations_rootdelta features must have shape (..., T, {lay.dim}), got {tuple(x.shape)}")
-    lead, T = x.shape[:-2], x.shape[-2]
     zero = torch.zeros_like(x[..., :1, 0])
     heading = torch.cumsum(torch.cat([zero, x[..., 1:, 3]], -1), -1)  # (..., T)
     c, s = torch.cos(heading[..., :-1]), torch.sin(heading[..., :-1])  # R_Y(previous heading)

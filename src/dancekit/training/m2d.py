@@ -241,12 +241,13 @@ def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
     (``noise_std``). Validation draws from the trainer's fixed-seed generator, so validation losses compare.
 
     Contacts: with ``contact_speed > 0`` the contact columns given to the model are detected on the
-    corrupted dance (toe ≤ 5 cm over the running floor, slower than ``contact_speed`` m/s: what the pipeline
-    detects on a generated dance) and the contact-velocity term uses those of the clean dance; with 0 the
-    representation's own contact columns serve both. The contact-velocity term is
+    corrupted dance (toe ≤ 5 cm over the running floor, slower than ``contact_speed`` m/s: the contacts of
+    :func:`dancekit.metrics.foot_skating`, which the pipeline detects on a generated dance, whose sliding feet
+    are faster than a planted foot), else the representation's own. The contact-velocity term is
     :func:`~dancekit.models.foot_constraint.contact_velocity_loss` of the corrected dance's toes in world
     coordinates (differentiable forward kinematics, :func:`~dancekit.motion.root_delta.rootdelta_positions`;
-    the batch's ``dance_mean`` / ``dance_std`` denormalise) on the clean dance's contacts.
+    the batch's ``dance_mean`` / ``dance_std`` denormalise) on the clean dance's own contact columns (planted
+    toes: slower than 30 cm/s, :data:`~dancekit.motion.root_delta.CONTACT_SPEED_CM_S`).
 
     Logs ``mse`` (the corrected lower body), ``mse_input`` (the corrupted one), ``contact_v2`` and, in
     validation, ``contact_v2_input`` ((m/s)² of the toes on contacts, corrected and corrupted).
@@ -271,21 +272,20 @@ def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
     else:
         drift = unit_smooth_noise(x[..., lower].shape, c.glide_sigma, generator=g, dtype=x.dtype).to(x)
         corrupted[..., lower] = x[..., lower] + slide * c.glide_amp * drift
-        with torch.no_grad():  # the toe end effectors of the drifted rotations (root-relative, heading frame)
-            still = denorm(corrupted)
-            still[..., [lower[0], lower[2], lower[3]]] = 0.0  # no path: heading 0, root over the origin
-            rel = rootdelta_positions(still, sk, joints=(sk.index("left_toe"), sk.index("right_toe")))
-            rel[..., 1] = rel[..., 1] - still[..., lower[1], None]  # minus the root height t_y
+    target_contacts = x[..., contact_cols]  # the representation's own: planted (slower than 30 cm/s)
+    if c.corruption == "glide" or c.contact_speed > 0:
+        with torch.no_grad():  # one forward kinematics of the corrupted dance: its toes and feet
             full = denorm(corrupted)
-            full[..., toe_cols] = rel.flatten(-2).to(x)
-            corrupted[..., toe_cols] = norm(full)[..., toe_cols]
-    target_contacts = x[..., contact_cols]
-    if c.contact_speed > 0:
-        with torch.no_grad():
-            target_contacts = detect_contacts(rootdelta_positions(denorm(x), sk, joints=feet), toes, **detect)
-            full = denorm(corrupted)
-            full[..., contact_cols] = detect_contacts(rootdelta_positions(full, sk, joints=feet), toes, **detect)
-            corrupted[..., contact_cols] = norm(full)[..., contact_cols]
+            p = rootdelta_positions(full, sk, joints=(sk.root,) + feet)  # (B, T, 1 + F, 3) window frame
+            if c.corruption == "glide":  # toe end effectors of the drifted rotations: root-relative, heading frame
+                heading = torch.cumsum(torch.cat([torch.zeros_like(full[:, :1, 3]), full[:, 1:, 3]], 1), 1)
+                rel = p[:, :, [1 + t for t in toes]] - p[:, :, :1]  # (B, T, 2, 3)
+                cs, sn = torch.cos(heading)[..., None], torch.sin(heading)[..., None]
+                rel = torch.stack([cs * rel[..., 0] - sn * rel[..., 2], rel[..., 1], sn * rel[..., 0] + cs * rel[..., 2]], -1)
+                full[..., toe_cols] = rel.flatten(-2)
+            if c.contact_speed > 0:  # what the pipeline detects on a generated dance
+                full[..., contact_cols] = detect_contacts(p[:, :, 1:], toes, **detect)
+            corrupted[..., toe_cols + contact_cols] = norm(full)[..., toe_cols + contact_cols]
     out = model(corrupted)
     pred = out[..., lower]  # (B, T, lower)
     target = x[..., lower]
