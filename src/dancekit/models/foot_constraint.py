@@ -17,11 +17,17 @@ Architecture
     The paper's baseline (Table 2, ``arch="lstm"``): one fully connected layer, an LSTM, one fully connected
     layer, predicting the same increment.
 Training (``dancekit.training.m2d.foot_constraint_step``)
-    Ground-truth windows with simulated foot sliding: the lower body and toe columns are smoothed with a
-    Gaussian (``smooth_sigma`` frames) and get Gaussian noise (``noise_std``); the target is the clean lower
-    body. A share ``clean_share`` of the windows is left clean (the identity is their target), so that the
-    model learns to leave clean feet alone. Loss: MSE + ``smooth_weight`` (0.1) x the mean squared second
-    difference (acceleration) of the corrected lower body.
+    Ground-truth windows with simulated foot sliding; the target is the clean lower body. ``corruption=
+    "glide"`` (default): a slow drift on every lower-body column (``glide_amp`` x unit-std noise smoothed over
+    ``glide_sigma`` frames), the toes recomputed by forward kinematics, as the generated dances slide
+    (``benchmarks/fcm_sliding.py``); ``"paper"``: Gaussian smoothing (``smooth_sigma``) + noise (``noise_std``).
+    A share ``clean_share`` of the windows is left clean (the identity is their target). Loss: MSE +
+    ``smooth_weight`` (0.1) x the mean squared second difference of the corrected lower body +
+    ``contact_weight`` x :func:`contact_velocity_loss` of its toes (world, differentiable FK) on the clean
+    dance's planted frames. With ``contact_speed > 0`` the model's contact inputs are
+    :func:`detect_contacts` (< 5 cm, slower than ``contact_speed`` m/s), in training and in the pipeline.
+    Checkpoints written before these settings existed record ``corruption="paper"``, ``contact_weight=0``,
+    ``contact_speed=0`` in their config.json.
 """
 
 from __future__ import annotations
