@@ -80,20 +80,23 @@ def test_gaussian_smooth_keeps_constants_and_lowers_noise(rng):
     assert gaussian_smooth(x, 2.0).std() < 0.5 * x.std()
 
 
-def test_objective_corrupts_the_lower_body_and_the_model_can_undo_it():
+@pytest.mark.parametrize("corruption", ["glide", "paper"])
+def test_objective_corrupts_the_lower_body_and_the_model_can_undo_it(corruption):
     from dancekit.training import StepContext, TrainConfig
     from dancekit.training.m2d import foot_constraint_step
 
     t = torch.linspace(0, 6, 48, dtype=torch.float64)
     x = torch.sin(t[None, :, None] * torch.linspace(0.5, 3, 155, dtype=torch.float64)).repeat(2, 1, 1)
     ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0), config=TrainConfig())
-    identity = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0)).double()
+    kw = dict(clean_share=0.0, contact_weight=0.0, corruption=corruption)  # the MSE alone (contacts: below)
+    identity = FootConstraintModel(FootConstraintConfig(channels=8, **kw)).double()
     loss, logs = foot_constraint_step(identity, {"dance": x}, ctx)
     assert logs["mse_input"] > 0.005 and logs["mse"] == pytest.approx(logs["mse_input"])  # identity: no fix
-    model = FootConstraintModel(FootConstraintConfig(channels=16, clean_share=0.0)).double()
+    model = FootConstraintModel(FootConstraintConfig(channels=16, **kw)).double()
     opt = torch.optim.Adam(model.parameters(), lr=3e-3)
     first = None
     for _ in range(60):
+        ctx.generator.manual_seed(0)  # the same corruption every step: the model can learn to undo it
         loss, logs = foot_constraint_step(model, {"dance": x}, ctx)
         first = first if first is not None else logs["mse"]
         opt.zero_grad()
@@ -190,3 +193,71 @@ def test_dance_cli_foot_constraint_option(tmp_path, capsys):
     assert main(["dance", str(song), "-o", str(out), "--checkpoint", str(dancer), "--foot-constraint", str(dancer)]) != 0
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "not a Foot Constraint Model" in err and not out.exists()
+
+
+def _toes_moving(v_m_s: float, T: int = 26, fps: float = 25.0) -> torch.Tensor:
+    """Two toes ``(1, T, 2, 3)`` (metres): the left one still, the right one moving along x at ``v_m_s``."""
+    toes = torch.zeros(1, T, 2, 3, dtype=torch.float64)
+    toes[0, :, 1, 0] = v_m_s * torch.arange(T, dtype=torch.float64) / fps
+    return toes
+
+
+def test_contact_velocity_loss_known_answers():
+    from dancekit.models.foot_constraint import contact_velocity_loss
+
+    on = torch.ones(1, 26, 2, dtype=torch.float64)
+    assert float(contact_velocity_loss(_toes_moving(0.0), on, fps=25.0)) == 0.0  # planted feet cost nothing
+    # the right toe glides at 0.5 m/s through its contact, the left stands: mean over both toes' steps 0.25 / 2
+    assert float(contact_velocity_loss(_toes_moving(0.5), on, fps=25.0)) == pytest.approx(0.125, rel=1e-12)
+    right = on.clone()
+    right[..., 0] = 0.0  # only the moving toe in contact: exactly v² = 0.25 (m/s)²
+    assert float(contact_velocity_loss(_toes_moving(0.5), right, fps=25.0)) == pytest.approx(0.25, rel=1e-12)
+    assert float(contact_velocity_loss(_toes_moving(0.5), torch.zeros_like(on), fps=25.0)) == 0.0  # no contact
+    # a step counts only when the toe is in contact at both ends: contact on frames 0-9 → steps 0→1 ... 8→9
+    part = torch.zeros_like(on)
+    part[0, :10, 1] = 1.0
+    toes = _toes_moving(0.5)
+    toes[0, 10:, 1, 0] += 1.0  # a jump on leaving the contact (step 9→10): not a contact step
+    assert float(contact_velocity_loss(toes, part, fps=25.0)) == pytest.approx(0.25, rel=1e-12)
+
+
+def test_contact_velocity_loss_pulls_a_gliding_foot_to_a_stop():
+    from dancekit.models.foot_constraint import contact_velocity_loss
+
+    toes = _toes_moving(0.5).requires_grad_(True)
+    contact_velocity_loss(toes, torch.ones(1, 26, 2, dtype=torch.float64), fps=25.0).backward()
+    g = toes.grad[0, :, 1, 0]
+    assert g[0] < 0 < g[-1] and toes.grad[0, :, 0].abs().max() == 0  # first frame forward, last back; still toe: 0
+
+
+def test_detect_contacts_reads_height_and_speed():
+    from dancekit.models.foot_constraint import detect_contacts
+
+    T, fps = 50, 25.0
+    feet = torch.zeros(T, 2, 3, dtype=torch.float64)  # left toe, right toe (skeleton units: cm)
+    feet[:, 1, 0] = 200.0 * torch.arange(T, dtype=torch.float64) / fps  # right toe: 2 m/s along the floor
+    c = detect_contacts(feet, (0, 1), fps=fps, unit_scale=0.01, speed_m_s=1.0)
+    assert c.shape == (T, 2) and c[:, 0].min() == 1 and c[:, 1].max() == 0
+    assert detect_contacts(feet, (0, 1), fps=fps, unit_scale=0.01, speed_m_s=3.0)[:, 1].min() == 1
+    feet[:, 0, 1] = 10.0  # left toe 10 cm above the right one (the floor): not in contact
+    assert detect_contacts(feet, (0, 1), fps=fps, unit_scale=0.01, speed_m_s=3.0)[:, 0].max() == 0
+
+
+def test_rootdelta_positions_is_decode_rootdelta_in_torch(rng):
+    from dancekit.motion.root_delta import decode_rootdelta, rootdelta_positions
+
+    T = 30
+    x = rng.normal(size=(T, 155))
+    x[:, [0, 2]] *= 3.0  # steps of a few cm
+    x[:, 1] += 90.0
+    want = decode_rootdelta(x, SK, 25.0).to_positions()
+    got = rootdelta_positions(torch.from_numpy(x), SK)
+    np.testing.assert_allclose(got.numpy(), want, atol=1e-9)
+    toes = (SK.index("left_toe"), SK.index("right_toe"))
+    np.testing.assert_allclose(rootdelta_positions(torch.from_numpy(x)[None], SK, joints=toes)[0].numpy(),
+                               want[:, list(toes)], atol=1e-9)
+    xt = torch.from_numpy(x).requires_grad_(True)
+    rootdelta_positions(xt, SK, joints=toes).sum().backward()
+    lower = set(lower_body_cols(SK))
+    upper = [i for i in range(6, 155) if i not in lower]
+    assert xt.grad[:, upper].abs().max() == 0 and xt.grad[:, sorted(lower)].abs().max() > 0  # only the legs move toes

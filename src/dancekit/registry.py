@@ -219,5 +219,5 @@ register(Family(
     # supplement §1.3: 480-frame windows, stride 3, Adam at 5e-4 (here 240-frame windows, stride 30)
     train_defaults={"representation": "rotations_rootdelta", "seq_len": 240, "stride": 30, "lr": 5e-4,
                     "warmup_steps": 20},
-    data_fields=("pose_dim", "lower_idx", "foot_idx", "contact_idx"),
+    data_fields=("pose_dim", "lower_idx", "foot_idx", "contact_idx", "fps", "skeleton"),
 ))

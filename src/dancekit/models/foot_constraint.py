@@ -17,11 +17,17 @@ Architecture
     The paper's baseline (Table 2, ``arch="lstm"``): one fully connected layer, an LSTM, one fully connected
     layer, predicting the same increment.
 Training (``dancekit.training.m2d.foot_constraint_step``)
-    Ground-truth windows with simulated foot sliding: the lower body and toe columns are smoothed with a
-    Gaussian (``smooth_sigma`` frames) and get Gaussian noise (``noise_std``); the target is the clean lower
-    body. A share ``clean_share`` of the windows is left clean (the identity is their target), so that the
-    model learns to leave clean feet alone. Loss: MSE + ``smooth_weight`` (0.1) x the mean squared second
-    difference (acceleration) of the corrected lower body.
+    Ground-truth windows with simulated foot sliding; the target is the clean lower body. ``corruption=
+    "glide"`` (default): a slow drift on every lower-body column (``glide_amp`` x unit-std noise smoothed over
+    ``glide_sigma`` frames), the toes recomputed by forward kinematics, as the generated dances slide
+    (``benchmarks/fcm_sliding.py``); ``"paper"``: Gaussian smoothing (``smooth_sigma``) + noise (``noise_std``).
+    A share ``clean_share`` of the windows is left clean (the identity is their target). Loss: MSE +
+    ``smooth_weight`` (0.1) x the mean squared second difference of the corrected lower body +
+    ``contact_weight`` x :func:`contact_velocity_loss` of its toes (world, differentiable FK) on the clean
+    dance's planted frames. With ``contact_speed > 0`` the model's contact inputs are
+    :func:`detect_contacts` (< 5 cm, slower than ``contact_speed`` m/s), in training and in the pipeline.
+    Checkpoints written before these settings existed record ``corruption="paper"``, ``contact_weight=0``,
+    ``contact_speed=0`` in their config.json.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from torch import nn
 from dancekit.errors import ParameterError
 
 ARCHS = ("conv", "lstm")
+CORRUPTIONS = ("glide", "paper")
 
 
 def _tang2018_columns() -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
@@ -66,6 +73,14 @@ class FootConstraintConfig:
     smooth_weight: float = 0.1  # the smoothness loss factor
     clean_share: float = 0.5  # share of training windows without simulated sliding (identity target)
     keep_root_path: bool = True  # no increment for the root's Δt_x, Δt_z, Δr_y (lower_idx[0], [2], [3])
+    corruption: str = "glide"  # glide (slow drifts of the lower body, as generated dances slide) | paper
+    glide_amp: float = 0.3  # glide: std of the drift added to each lower-body column (normalised units) ...
+    glide_sigma: float = 6.0  # ... Gaussian-smoothed white noise of this correlation (frames)
+    contact_weight: float = 1.0  # weight of the contact-velocity loss ((m/s)² of the toes on target contacts)
+    contact_speed: float = 1.0  # contact: toe ≤ 5 cm over the running floor and slower than this (m/s); 0: the
+    #                             representation's own contact columns (30 cm/s) are the input and the target
+    fps: float = 25.0  # frame rate of the training data (the contact velocities)
+    skeleton: str = "tang2018"  # the skeleton of the differentiable forward kinematics (the contact loss)
 
     def __post_init__(self) -> None:
         if not self.lower_idx and not self.foot_idx and not self.contact_idx:
@@ -88,8 +103,14 @@ class FootConstraintConfig:
             raise ParameterError(f"FootConstraintConfig.clean_share must be in [0, 1], got {self.clean_share!r}")
         if self.keep_root_path and len(self.lower_idx) < 4:
             raise ParameterError("FootConstraintConfig.keep_root_path needs lower_idx to start with the root's 6 columns")
-        if min(self.noise_std, self.smooth_sigma, self.smooth_weight) < 0:
-            raise ParameterError("FootConstraintConfig.noise_std, smooth_sigma and smooth_weight must be >= 0")
+        if min(self.noise_std, self.smooth_sigma, self.smooth_weight, self.glide_amp, self.glide_sigma,
+               self.contact_weight, self.contact_speed) < 0:
+            raise ParameterError("FootConstraintConfig: noise_std, smooth_sigma, smooth_weight, glide_amp, glide_sigma, "
+                                 "contact_weight and contact_speed must be >= 0")
+        if self.corruption not in CORRUPTIONS:
+            raise ParameterError(f"FootConstraintConfig.corruption must be one of {CORRUPTIONS}, got {self.corruption!r}")
+        if not self.fps > 0:
+            raise ParameterError(f"FootConstraintConfig.fps must be positive, got {self.fps!r}")
 
     @property
     def in_dim(self) -> int:
@@ -166,3 +187,57 @@ def gaussian_smooth(x: torch.Tensor, sigma: float) -> torch.Tensor:
     w = (w / w.sum()).expand(x.shape[-1], 1, -1)  # (C, 1, 2r+1)
     h = F.pad(x.transpose(1, 2), (r, r), mode="replicate")
     return F.conv1d(h, w, groups=x.shape[-1]).transpose(1, 2)
+
+
+def unit_smooth_noise(shape: tuple[int, ...], sigma: float, *, generator: torch.Generator | None = None,
+                      dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """Gaussian white noise ``shape = (B, T, C)`` smoothed along time with a Gaussian of ``sigma`` frames and
+    rescaled to unit standard deviation: a slow random drift whose correlation time is ``sigma`` frames."""
+    g = generator
+    noise = torch.randn(shape, generator=g, device=None if g is None else g.device).to(dtype)
+    if sigma <= 0:
+        return noise
+    r = max(1, int(round(3 * sigma)))
+    t = torch.arange(-r, r + 1, dtype=torch.float64)
+    w = torch.exp(-0.5 * (t / sigma) ** 2)
+    w = w / w.sum()
+    return gaussian_smooth(noise, sigma) / float(w.pow(2).sum().sqrt())
+
+
+def _time_gradient(p: torch.Tensor) -> torch.Tensor:
+    """``np.gradient`` along axis -3 of ``p (..., T, F, 3)`` (central differences, one-sided at the ends)."""
+    if p.shape[-3] < 2:
+        return torch.zeros_like(p)
+    first, last = p[..., 1:2, :, :] - p[..., :1, :, :], p[..., -1:, :, :] - p[..., -2:-1, :, :]
+    mid = 0.5 * (p[..., 2:, :, :] - p[..., :-2, :, :])
+    return torch.cat([first, mid, last], -3)
+
+
+def detect_contacts(feet: torch.Tensor, toes: tuple[int, int], *, fps: float, up: int = 1, unit_scale: float = 0.01,
+                    height_m: float = 0.05, speed_m_s: float = 1.0) -> torch.Tensor:
+    """Contact flags ``(..., T, 2)`` (0/1, float) of the two toes: within ``height_m`` of the running floor and
+    slower than ``speed_m_s`` (3D, central differences), as :func:`dancekit.metrics.foot_skating` defines a
+    contact.
+
+    ``feet (..., T, F, 3)``: world positions (skeleton units) of the foot joints, ``toes`` the indices of the
+    left and right toe among them; the floor is the lowest foot joint's running minimum over ±1 s.
+    """
+    h = feet[..., up] * unit_scale  # (..., T, F) metres
+    lowest = h.min(-1).values  # (..., T)
+    r = max(1, int(round(fps)))
+    flat = -lowest.reshape(-1, 1, lowest.shape[-1])
+    floor = -F.max_pool1d(flat, 2 * r + 1, stride=1, padding=r).reshape(lowest.shape)  # running minimum
+    speed = _time_gradient(feet).norm(dim=-1) * fps * unit_scale  # (..., T, F) m/s
+    t = list(toes)
+    return ((h[..., t] - floor[..., None] <= height_m) & (speed[..., t] < speed_m_s)).to(feet.dtype)
+
+
+def contact_velocity_loss(toes: torch.Tensor, contacts: torch.Tensor, *, fps: float) -> torch.Tensor:
+    """Mean squared velocity (m/s)² of the toes ``(..., T, 2, 3)`` (metres) over the steps ``t → t+1`` on which
+    the toe is in contact at both ends (``contacts (..., T, 2)``, 0/1); 0 without such a step.
+
+    A planted foot that stays put costs nothing; a foot gliding at ``v`` m/s through a contact costs ``v²``.
+    """
+    v = (toes[..., 1:, :, :] - toes[..., :-1, :, :]) * fps  # (..., T-1, 2, 3)
+    both = contacts[..., 1:, :] * contacts[..., :-1, :]  # (..., T-1, 2)
+    return (both * v.pow(2).sum(-1)).sum() / both.sum().clamp_min(1.0)

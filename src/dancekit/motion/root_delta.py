@@ -60,6 +60,7 @@ __all__ = [
     "RootDeltaLayout",
     "decode_rootdelta",
     "encode_rootdelta",
+    "rootdelta_positions",
     "foot_contacts",
     "lower_body_cols",
     "rootdelta_layout",
@@ -264,3 +265,57 @@ def decode_rootdelta(x: np.ndarray, skeleton: Skeleton, fps: float, *,
     R[:, list(lay.rot_joints)] = rotation_6d_to_matrix(torch.from_numpy(x[:, 6 : 6 + 6 * K].reshape(T, K, 6))).numpy()
     pos = rig_forward_kinematics(torch.from_numpy(R), torch.from_numpy(tr), skeleton).numpy()
     return Motion(skeleton=skeleton, fps=float(fps), positions=pos, rotations=R, root_translation=tr)
+
+
+def rootdelta_positions(x: torch.Tensor, skeleton: Skeleton, *, joints: tuple[int, ...] | None = None) -> torch.Tensor:
+    """Differentiable :func:`decode_rootdelta` in torch: joint positions ``(..., T, len(joints), 3)`` of
+    (denormalised) ``rotations_rootdelta`` features ``x (..., T, P)``, in skeleton units.
+
+    Each sequence starts at the horizontal origin facing +z (``origin = (0, 0, 0)``); the positions equal
+    :func:`decode_rootdelta`'s. ``joints``: skeleton joint indices (default all J). Only the rotations on the
+    paths from the root to ``joints`` matter (the toes: the root's six columns and the legs'
+    :func:`lower_body_cols`).
+    """
+    lay = rootdelta_layout(skeleton)
+    if x.shape[-1] != lay.dim or x.dim() < 2:
+        raise ParameterError(f"rotations_rootdelta features must have shape (..., T, {lay.dim}), got {tuple(x.shape)}")
+    zero = torch.zeros_like(x[..., :1, 0])
+    heading = torch.cumsum(torch.cat([zero, x[..., 1:, 3]], -1), -1)  # (..., T)
+    c, s = torch.cos(heading[..., :-1]), torch.sin(heading[..., :-1])  # R_Y(previous heading)
+    dx, dz = x[..., 1:, 0], x[..., 1:, 2]
+    wx = torch.cumsum(torch.cat([zero, c * dx + s * dz], -1), -1)
+    wz = torch.cumsum(torch.cat([zero, -s * dx + c * dz], -1), -1)
+    tr = torch.stack([wx, x[..., 1], wz], -1)  # (..., T, 3)
+    rig = skeleton.rig()
+    want = list(range(skeleton.num_joints)) if joints is None else [int(j) for j in joints]
+    chain: list[int] = []  # the rig joints from the root to every wanted joint, parents first
+    for j in want:
+        path = []
+        while j >= 0 and j not in chain and j not in path:
+            path.append(j)
+            j = rig.parents[j]
+        chain.extend(reversed(path))
+    chain.sort(key=lambda j: _depth(rig.parents, j))
+    rot = {j: k for k, j in enumerate(lay.rot_joints)}
+    need = [j for j in chain if j in rot]
+    mats = dict(zip(need, rotation_6d_to_matrix(torch.stack([x[..., 6 + 6 * rot[j]: 12 + 6 * rot[j]] for j in need], -2))
+                    .unbind(-3), strict=True)) if need else {}
+    offsets = torch.tensor(np.array(rig.offsets), dtype=x.dtype, device=x.device)
+    glob: dict[int, torch.Tensor] = {}
+    pos: dict[int, torch.Tensor] = {}
+    for j in chain:
+        p = rig.parents[j]
+        if p < 0:
+            glob[j] = euler_angles_to_matrix(torch.stack([heading, x[..., 4], x[..., 5]], -1), "YXZ")
+            pos[j] = tr
+            continue
+        pos[j] = pos[p] + (glob[p] @ offsets[j, :, None])[..., 0]
+        glob[j] = glob[p] @ mats[j] if j in mats else glob[p]
+    return torch.stack([pos[j] for j in want], -2)
+
+
+def _depth(parents, j: int) -> int:
+    d = 0
+    while parents[j] >= 0:
+        j, d = parents[j], d + 1
+    return d

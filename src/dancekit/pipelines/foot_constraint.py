@@ -25,9 +25,9 @@ import torch
 from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
 from dancekit.checkpoints.hub import read_meta
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.models.foot_constraint import FootConstraintModel
+from dancekit.models.foot_constraint import FootConstraintModel, detect_contacts
 from dancekit.motion import Motion, Skeleton
-from dancekit.motion.root_delta import decode_rootdelta, encode_rootdelta
+from dancekit.motion.root_delta import decode_rootdelta, encode_rootdelta, rootdelta_positions
 
 #: the model whose ``"foot_constraint"`` component is the default foot model
 DEFAULT_FOOT_HOST = "music2dance"
@@ -80,6 +80,15 @@ class FootConstraintPipeline:
         stats = NormStats.from_arrays(arrays, source=str(folder))
         return cls(model, meta=meta, stats=stats, folder=str(Path(folder)))
 
+    def contacts(self, x: np.ndarray) -> np.ndarray:
+        """Toe contacts ``(T, 2)`` of ``rotations_rootdelta`` features ``x (T, P)`` as the model was trained
+        with: within 5 cm of the running floor and slower than ``config.contact_speed`` m/s."""
+        sk, c = self.skeleton, self.model.config
+        feet = tuple(sk.index(n) for n in sk.feet)
+        toes = (feet.index(sk.index("left_toe")), feet.index(sk.index("right_toe")))
+        p = rootdelta_positions(torch.from_numpy(x), sk, joints=feet)
+        return detect_contacts(p, toes, fps=c.fps, unit_scale=sk.unit_scale, speed_m_s=c.contact_speed).numpy()
+
     @torch.no_grad()
     def __call__(self, motion: Motion) -> Motion:
         """The motion with its lower body corrected (rotations on the rig, FK positions, same fps and start).
@@ -95,6 +104,9 @@ class FootConstraintPipeline:
             raise ParameterError(f"this Foot Constraint Model was trained on the {self.skeleton.name!r} skeleton, "
                                  f"the motion is on {motion.skeleton.name!r}")
         x = encode_rootdelta(motion)  # (T, P) float64
+        c = self.model.config
+        if c.contact_speed > 0:  # the contacts the model was trained with (see foot_constraint_step)
+            x[:, list(c.contact_idx)] = self.contacts(x)
         z = torch.from_numpy(self.stats.normalize_dance(x))[None]  # (1, T, P)
         y = self.model(z.to(next(self.model.parameters()).device))[0].cpu().numpy()
         fixed = self.stats.denormalize_dance(y).astype(np.float64)

@@ -72,6 +72,24 @@ class Music2DanceWindows(Dataset):
         return item
 
 
+class FootConstraintWindows(Music2DanceWindows):
+    """:class:`Music2DanceWindows` whose items also carry the dance statistics ``"dance_mean"`` and
+    ``"dance_std"`` ``(P,)``, so that the objective can denormalise for its forward kinematics; ``fps`` and
+    ``skeleton`` (its name): the data's frame rate and skeleton (model-config fields)."""
+
+    def __init__(self, windows: WindowDataset, n_genres: int, stats: NormStats):
+        n = len(windows)
+        super().__init__(windows, np.ones(n, np.float32), n_genres, np.zeros(n, np.int64))
+        self.fps, self.skeleton = float(windows.data.fps), windows.data.skeleton.name
+        self.dance_mean = torch.as_tensor(np.asarray(stats.dance_mean, np.float32))
+        self.dance_std = torch.as_tensor(np.asarray(stats.dance_std, np.float32))
+
+    def __getitem__(self, k: int) -> dict[str, torch.Tensor]:
+        item = super().__getitem__(k)
+        item["dance_mean"], item["dance_std"] = self.dance_mean, self.dance_std
+        return item
+
+
 def _window_features(data: PreparedData, windows: WindowDataset) -> np.ndarray:
     """Clustering features ``(N, F)``: joint positions relative to the root in its heading frame."""
     feats, cache = [], {}
@@ -145,7 +163,7 @@ def foot_constraint_windows(data: PreparedData, config: TrainConfig, stats: Norm
     """(train, val) ground-truth windows for the Foot Constraint Model (as :func:`music2dance_windows`,
     without clustering; the music is not used)."""
     train, val = _rootdelta_windows(data, config, stats, preset=preset)
-    return _plain(train, len(data.genres)), _plain(val, len(data.genres))
+    return tuple(FootConstraintWindows(w, len(data.genres), stats) for w in (train, val))  # type: ignore[return-value]
 
 
 def load_fmap(model: Music2DanceModel, folder: str) -> None:
@@ -197,28 +215,92 @@ def music2dance_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
     return loss, logs
 
 
+def _kinematics(c, batch: Mapping[str, torch.Tensor], x: torch.Tensor):
+    """(skeleton, denormalise, feet joints, index of the toes among them) for the contact terms."""
+    from dancekit.motion import get_skeleton
+
+    sk = get_skeleton(c.skeleton)
+    mean = batch["dance_mean"][0].to(x) if "dance_mean" in batch else torch.zeros(x.shape[-1]).to(x)
+    std = batch["dance_std"][0].to(x) if "dance_std" in batch else torch.ones(x.shape[-1]).to(x)
+    feet = tuple(sk.index(n) for n in sk.feet)
+    toes = (feet.index(sk.index("left_toe")), feet.index(sk.index("right_toe")))
+    return sk, (lambda z: z * std + mean), (lambda z: (z - mean) / std), feet, toes
+
+
 def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
                          ctx: StepContext) -> tuple[torch.Tensor, dict[str, float]]:
-    """MSE + ``smooth_weight`` x acceleration² of the Foot Constraint Model correcting simulated foot sliding.
+    """MSE + ``smooth_weight`` x acceleration² + ``contact_weight`` x contact velocity² of the Foot Constraint
+    Model correcting simulated foot sliding.
 
-    The lower-body and toe columns of the ground-truth windows are smoothed (Gaussian, ``smooth_sigma``
-    frames) and get Gaussian noise (``noise_std``; validation draws it from the trainer's fixed-seed
-    generator, so validation losses compare), except in a share ``clean_share`` of the windows, which stay
-    clean; the target is the clean lower body. Logs ``mse`` (the
-    corrected lower body) and ``mse_input`` (the corrupted one: what the model starts from).
+    Corruption (in a share ``1 - clean_share`` of the windows; the rest stay clean and their target is the
+    identity): ``corruption="glide"`` adds a slow drift to every lower-body column, the root's path included
+    (``glide_amp`` x unit-std Gaussian noise smoothed over ``glide_sigma`` frames, normalised units: what the
+    generated dances' sliding looks like, ``benchmarks/fcm_sliding.py``), and recomputes the toe end effectors
+    from the drifted rotations (forward kinematics), so the input is a consistent dance whose feet slide;
+    ``"paper"``: the lower-body and toe columns Gaussian-smoothed (``smooth_sigma``) plus white noise
+    (``noise_std``). Validation draws from the trainer's fixed-seed generator, so validation losses compare.
+
+    Contacts: with ``contact_speed > 0`` the contact columns given to the model are detected on the
+    corrupted dance (toe ≤ 5 cm over the running floor, slower than ``contact_speed`` m/s: the contacts of
+    :func:`dancekit.metrics.foot_skating`, which the pipeline detects on a generated dance, whose sliding feet
+    are faster than a planted foot), else the representation's own. The contact-velocity term is
+    :func:`~dancekit.models.foot_constraint.contact_velocity_loss` of the corrected dance's toes in world
+    coordinates (differentiable forward kinematics, :func:`~dancekit.motion.root_delta.rootdelta_positions`;
+    the batch's ``dance_mean`` / ``dance_std`` denormalise) on the clean dance's own contact columns (planted
+    toes: slower than 30 cm/s, :data:`~dancekit.motion.root_delta.CONTACT_SPEED_CM_S`).
+
+    Logs ``mse`` (the corrected lower body), ``mse_input`` (the corrupted one), ``contact_v2`` and, in
+    validation, ``contact_v2_input`` ((m/s)² of the toes on contacts, corrected and corrupted).
     """
+    from dancekit.models.foot_constraint import contact_velocity_loss, detect_contacts, unit_smooth_noise
+    from dancekit.motion.root_delta import rootdelta_positions
+
     c = model.config
     x = batch["dance"]
-    lower, cols = list(c.lower_idx), list(c.lower_idx) + list(c.foot_idx)
+    lower, toe_cols, contact_cols = list(c.lower_idx), list(c.foot_idx), list(c.contact_idx)
     g = ctx.generator
-    noise = torch.randn(x[..., cols].shape, generator=g, device=g.device).to(x)
     slide = (torch.rand(x.shape[0], generator=g, device=g.device) >= c.clean_share).to(x)[:, None, None]  # (B,1,1)
     corrupted = x.clone()
-    sliding = gaussian_smooth(x[..., cols], c.smooth_sigma) + c.noise_std * noise
-    corrupted[..., cols] = slide * sliding + (1 - slide) * x[..., cols]
-    pred = model(corrupted)[..., lower]  # (B, T, lower)
+    sk, denorm, norm, feet, toes = _kinematics(c, batch, x)
+    scale = sk.unit_scale
+    detect = dict(fps=c.fps, unit_scale=scale, speed_m_s=c.contact_speed)
+    if c.corruption == "paper":
+        cols = lower + toe_cols
+        noise = torch.randn(x[..., cols].shape, generator=g, device=g.device).to(x)
+        sliding = gaussian_smooth(x[..., cols], c.smooth_sigma) + c.noise_std * noise
+        corrupted[..., cols] = slide * sliding + (1 - slide) * x[..., cols]
+    else:
+        drift = unit_smooth_noise(x[..., lower].shape, c.glide_sigma, generator=g, dtype=x.dtype).to(x)
+        corrupted[..., lower] = x[..., lower] + slide * c.glide_amp * drift
+    target_contacts = x[..., contact_cols]  # the representation's own: planted (slower than 30 cm/s)
+    if c.corruption == "glide" or c.contact_speed > 0:
+        with torch.no_grad():  # one forward kinematics of the corrupted dance: its toes and feet
+            full = denorm(corrupted)
+            p = rootdelta_positions(full, sk, joints=(sk.root,) + feet)  # (B, T, 1 + F, 3) window frame
+            if c.corruption == "glide":  # toe end effectors of the drifted rotations: root-relative, heading frame
+                heading = torch.cumsum(torch.cat([torch.zeros_like(full[:, :1, 3]), full[:, 1:, 3]], 1), 1)
+                rel = p[:, :, [1 + t for t in toes]] - p[:, :, :1]  # (B, T, 2, 3)
+                cs, sn = torch.cos(heading)[..., None], torch.sin(heading)[..., None]
+                rel = torch.stack([cs * rel[..., 0] - sn * rel[..., 2], rel[..., 1], sn * rel[..., 0] + cs * rel[..., 2]], -1)
+                full[..., toe_cols] = rel.flatten(-2)
+            if c.contact_speed > 0:  # what the pipeline detects on a generated dance
+                full[..., contact_cols] = detect_contacts(p[:, :, 1:], toes, **detect)
+            corrupted[..., toe_cols + contact_cols] = norm(full)[..., toe_cols + contact_cols]
+    out = model(corrupted)
+    pred = out[..., lower]  # (B, T, lower)
     target = x[..., lower]
     mse = F.mse_loss(pred, target)
     accel = pred[:, 2:] - 2 * pred[:, 1:-1] + pred[:, :-2]
     loss = mse + c.smooth_weight * accel.pow(2).mean()
-    return loss, {"mse": float(mse.detach()), "mse_input": float(F.mse_loss(corrupted[..., lower], target))}
+    logs = {"mse": float(mse.detach()), "mse_input": float(F.mse_loss(corrupted[..., lower], target))}
+    if c.contact_weight > 0 or not ctx.training:  # validation logs it for every model
+        toe_joints = (sk.index("left_toe"), sk.index("right_toe"))
+        v2 = contact_velocity_loss(rootdelta_positions(denorm(out), sk, joints=toe_joints) * scale,
+                                   target_contacts, fps=c.fps)
+        loss = loss + c.contact_weight * v2
+        logs["contact_v2"] = float(v2.detach())
+        if not ctx.training:
+            with torch.no_grad():
+                logs["contact_v2_input"] = float(contact_velocity_loss(
+                    rootdelta_positions(denorm(corrupted), sk, joints=toe_joints) * scale, target_contacts, fps=c.fps))
+    return loss, logs
