@@ -5,7 +5,7 @@
 
 For every model, song and seed, G_M→D's raw output is generated once (``DualModel.generate_dance`` on the song's
 features, start pose from the pool with the seed); every filter is then applied to it (``boxN``: the N-frame
-moving average, ``bwF``: the zero-phase Butterworth low-pass at F Hz, ``none``), and the dance goes through the
+moving average, ``bwF``: the zero-phase Butterworth low-pass at F Hz, ``none``; ``default``: the checkpoint's own setting), and the dance goes through the
 default stages of ``dancekit dance`` (clean-up, smoothing, foot lock, beat sync: ``stages.finish``). Per dance:
 stillness share, smoothed energy and jitter as ratios to the song's real dance, planted-foot share, foot
 skating, mean jerk, FD-free. Also the raw output's motion power per frequency band against the real dance's
@@ -45,7 +45,10 @@ def band_power(p: np.ndarray, sk, fps: float) -> np.ndarray:
     return np.array([power[(f >= a) & (f < b)].sum() / len(v) for a, b in zip(BANDS[:-1], BANDS[1:])])
 
 
-def apply_filter(y: np.ndarray, name: str, fps: float) -> np.ndarray:
+def apply_filter(y: np.ndarray, name: str, pipe: DualPipeline) -> np.ndarray:
+    fps = pipe.fps
+    if name == "default":  # the checkpoint's own setting, as `dancekit dance` uses it
+        return pipe.output_filter(y)
     if name == "none":
         return y
     if name.startswith("box"):
@@ -98,7 +101,7 @@ def main() -> None:
             rows = []
             for n in names:
                 for k, seed in enumerate(args.seeds):
-                    y = apply_filter(raw[n][k], filt, fps)
+                    y = apply_filter(raw[n][k], filt, pipe)
                     motion = decode_motion(pipe.stats.denormalize_dance(y), sk, fps, "rot6d")
                     res = DanceResult(motion=motion, model=str(model), seed=seed)
                     res = stages.finish(res, audio[n][0], start=audio[n][1], end=audio[n][2],
