@@ -8,7 +8,7 @@ features, start pose from the pool with the seed); every filter is then applied 
 moving average, ``bwF``: the zero-phase Butterworth low-pass at F Hz, ``none``; ``default``: the checkpoint's own setting), and the dance goes through the
 default stages of ``dancekit dance`` (clean-up, smoothing, foot lock, beat sync: ``stages.finish``). Per dance:
 stillness share, smoothed energy and jitter as ratios to the song's real dance, planted-foot share, foot
-skating, mean jerk, FD-free. Also the raw output's motion power per frequency band against the real dance's
+skating and mean jerk. Also the raw output's motion power per frequency band against the real dance's
 (``--bands``). Writes ``OUT/decoding.json`` and prints one line per (model, filter) with the per-song worst
 values. Choices are made on ``--split val``; ``--split test`` scores final candidates.
 """
