@@ -542,6 +542,55 @@ def test_moving_average_known_answer():
         moving_average(y, 0)
 
 
+def test_lowpass_known_answers():
+    """The zero-phase Butterworth low-pass: a constant is kept, a sinusoid keeps 1 / (1 + (f / fc)^8) of its
+    amplitude (order 4, run forwards and backwards: the squared magnitude response), ½ at the cut-off, with
+    no phase shift; short inputs and bad cut-offs."""
+    from dancekit.errors import ParameterError
+    from dancekit.pipelines.dual import lowpass
+
+    fps, fc = 25.0, 1.5
+    t = np.arange(2000) / fps
+    np.testing.assert_allclose(lowpass(np.full((50, 3), 2.5), cutoff_hz=fc, fps=fps), 2.5, atol=1e-9)
+    for f in (0.5, 1.5, 3.0):
+        y = np.sin(2 * np.pi * f * t)[:, None]
+        out = lowpass(y, cutoff_hz=fc, fps=fps)[500:-500, 0]  # away from the ends
+        gain = 1.0 / (1.0 + (f / fc) ** 8)
+        np.testing.assert_allclose(out, gain * y[500:-500, 0], atol=2e-3)
+    # a sinusoid below the cut-off plus flicker above it: the flicker is gone, the motion stays
+    y = np.sin(2 * np.pi * 0.5 * t) + 0.3 * np.sin(2 * np.pi * 8.0 * t)
+    np.testing.assert_allclose(lowpass(y[:, None], cutoff_hz=fc, fps=fps)[500:-500, 0],
+                               np.sin(2 * np.pi * 0.5 * t)[500:-500], atol=2e-3)
+    assert lowpass(np.ones((1, 4)), cutoff_hz=fc, fps=fps).shape == (1, 4)
+    assert lowpass(np.ones((5, 4), np.float32), cutoff_hz=fc, fps=fps).dtype == np.float32
+    for bad in (0.0, -1.0, 12.5, 20.0):
+        with pytest.raises(ParameterError, match="lowpass_hz"):
+            lowpass(np.ones((10, 2)), cutoff_hz=bad, fps=fps)
+
+
+def test_dance_pipeline_lowpass_setting(tiny_checkpoint, tmp_path):
+    """A checkpoint's ``lowpass_hz`` replaces the moving average; explicit arguments override it."""
+    import json
+    import shutil
+
+    from dancekit.errors import ParameterError
+    from dancekit.pipelines.dual import DualPipeline, lowpass, moving_average
+
+    folder = tmp_path / "lowpassed"
+    shutil.copytree(tiny_checkpoint, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**meta, "smooth_frames": 5, "lowpass_hz": 2.0}))
+    pipe = DualPipeline.from_pretrained(folder)
+    assert pipe.lowpass_hz == 2.0 and DualPipeline.from_pretrained(tiny_checkpoint).lowpass_hz is None
+    y = np.random.default_rng(0).normal(size=(60, 4))
+    np.testing.assert_allclose(pipe.output_filter(y), lowpass(y, cutoff_hz=2.0, fps=pipe.fps))
+    np.testing.assert_allclose(pipe.output_filter(y, smooth_frames=3), moving_average(y, 3))
+    np.testing.assert_allclose(pipe.output_filter(y, lowpass_hz=1.0), lowpass(y, cutoff_hz=1.0, fps=pipe.fps))
+    np.testing.assert_allclose(DualPipeline.from_pretrained(tiny_checkpoint).output_filter(y), y)
+    with pytest.raises(ParameterError, match="not both"):
+        pipe.output_filter(y, smooth_frames=3, lowpass_hz=1.0)
+
+
 def test_dance_pipeline_smoothing_setting(tiny_checkpoint, tmp_path):
     import json
     import shutil

@@ -58,6 +58,8 @@ class DualPipeline:
         self.preset = str(meta.get("preset", "dual"))
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         self.smooth_frames = int(meta.get("smooth_frames", 1))  # the checkpoint's sampling setting
+        lp = meta.get("lowpass_hz")  # the checkpoint's low-pass cut-off (Hz); when set, used instead of smooth_frames
+        self.lowpass_hz = None if lp is None else float(lp)
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu", precision: str = "fp32") -> DualPipeline:
@@ -91,8 +93,8 @@ class DualPipeline:
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
                  end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
-                 smooth_frames: int | None = None, progress: bool = False, beat_sync: bool = True,
-                 cleanup: bool = True) -> DanceResult:
+                 smooth_frames: int | None = None, lowpass_hz: float | None = None, progress: bool = False,
+                 beat_sync: bool = True, cleanup: bool = True) -> DanceResult:
         """A dance for the song (excerpt ``[start, end)`` s), one frame per feature frame.
 
         ``beat_sync``, ``cleanup``: the shared pipeline stages (:mod:`dancekit.pipelines.stages`).
@@ -102,15 +104,19 @@ class DualPipeline:
         ``smooth_frames``: a centred moving average of that many frames over G_M→D's output (translation and
         6D columns; the 6D are re-orthonormalised when decoded), 1 = none; default: the checkpoint's
         ``smooth_frames`` (chosen on the validation songs, docs/DUAL.md), else 1.
+        ``lowpass_hz``: instead of the moving average, a zero-phase 4th-order Butterworth low-pass with this
+        cut-off (Hz, :func:`lowpass`) over G_M→D's output; default: the checkpoint's ``lowpass_hz``. Giving
+        ``smooth_frames`` alone uses the moving average; giving both is an error.
         """
         return self.dances(audio_path, seeds=[seed], start=start, end=end, genre=genre, start_pose=start_pose,
-                           smooth_frames=smooth_frames, progress=progress, beat_sync=beat_sync, cleanup=cleanup)[0]
+                           smooth_frames=smooth_frames, lowpass_hz=lowpass_hz, progress=progress,
+                           beat_sync=beat_sync, cleanup=cleanup)[0]
 
     @torch.no_grad()
     def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
                end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
-               smooth_frames: int | None = None, progress: bool = False, beat_sync: bool = True,
-               cleanup: bool = True) -> list[DanceResult]:
+               smooth_frames: int | None = None, lowpass_hz: float | None = None, progress: bool = False,
+               beat_sync: bool = True, cleanup: bool = True) -> list[DanceResult]:
         """One dance per seed for the song, generated as one batch (the features and the song's beats once,
         G_M→D on all start poses together, the stages per dance): ``dances(song, seeds=[0, 1])[k]`` is
         ``pipe(song, seed=[0, 1][k])`` to float rounding. Arguments as :meth:`__call__` (a ``start_pose``
@@ -121,11 +127,10 @@ class DualPipeline:
         feats = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
         s = torch.stack([self.start_pose(start_pose, seed) for seed in seeds])  # (B, P)
         y = self.model.generate_dance(feats.expand(len(seeds), -1, -1), start=s).cpu().numpy()  # (B, T, P)
-        frames = self.smooth_frames if smooth_frames is None else int(smooth_frames)
         results, beats = [], None
         for k, seed in enumerate(seeds):
-            motion = decode_motion(self.stats.denormalize_dance(moving_average(y[k], frames)), self.skeleton,
-                                   self.fps, "rot6d")
+            motion = decode_motion(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
+                                   self.skeleton, self.fps, "rot6d")
             result = DanceResult(motion=motion, model=self.folder, seed=seed,
                                  genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
             result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
@@ -135,6 +140,18 @@ class DualPipeline:
             results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
                                   cleanup_on=cleanup, beats=beats))
         return results
+
+    def output_filter(self, y: np.ndarray, smooth_frames: int | None = None,
+                      lowpass_hz: float | None = None) -> np.ndarray:
+        """G_M→D's output ``y (T, P)`` (normalised rot6d) filtered over time as the arguments or the checkpoint's
+        settings say: the Butterworth low-pass when a cut-off applies, else the moving average."""
+        if smooth_frames is not None and lowpass_hz is not None:
+            raise ParameterError("give smooth_frames or lowpass_hz, not both")
+        if lowpass_hz is None and smooth_frames is None:
+            lowpass_hz = self.lowpass_hz
+        if lowpass_hz is not None:
+            return lowpass(y, cutoff_hz=lowpass_hz, fps=self.fps)
+        return moving_average(y, self.smooth_frames if smooth_frames is None else int(smooth_frames))
 
 
 @dataclass
@@ -233,6 +250,25 @@ def moving_average(y: np.ndarray, frames: int) -> np.ndarray:
     idx = np.arange(len(y))
     lo, hi = np.clip(idx - a, 0, len(y)), np.clip(idx + b + 1, 0, len(y))
     return ((c[hi] - c[lo]) / (hi - lo)[:, None]).astype(y.dtype)
+
+
+def lowpass(y: np.ndarray, *, cutoff_hz: float, fps: float, order: int = 4) -> np.ndarray:
+    """Zero-phase Butterworth low-pass over time of ``y (T, P)`` sampled at ``fps``: ``order`` poles, run
+    forwards and backwards (:func:`scipy.signal.sosfiltfilt`), so a sinusoid of frequency f keeps the
+    amplitude ``1 / (1 + (f / cutoff_hz) ** (2 * order))`` (½ at the cut-off) and no phase shift; a constant
+    stays constant. Odd padding at the ends (shortened for short inputs); fewer than 2 frames are returned as
+    they are. Unlike a moving average it has no side lobes: it keeps the motion below the cut-off and removes
+    the flicker above it (docs/DUAL.md)."""
+    if not (isinstance(cutoff_hz, (int, float)) and 0 < cutoff_hz < fps / 2):
+        raise ParameterError(f"lowpass_hz must be between 0 and the Nyquist frequency {fps / 2:g} Hz, got {cutoff_hz!r}")
+    y = np.asarray(y)
+    if len(y) < 2:
+        return y
+    from scipy.signal import butter, sosfiltfilt
+
+    sos = butter(int(order), float(cutoff_hz), fs=float(fps), output="sos")
+    padlen = min(3 * (2 * len(sos) + 1), len(y) - 1)
+    return sosfiltfilt(sos, np.asarray(y, np.float64), axis=0, padlen=padlen).astype(y.dtype)
 
 
 def on_model_skeleton(motion: Motion, skeleton: Skeleton) -> Motion:

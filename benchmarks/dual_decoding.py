@@ -1,0 +1,147 @@
+"""G_M→D's output filter and checkpoint, per song, with the default stages (issue 14's motion points).
+
+    PYTHONPATH=src:benchmarks python benchmarks/dual_decoding.py --data data/tang2018 --split val \
+        --models dual runs/ft/checkpoints/step_0000100 ... --filters box13 bw1.0 bw1.5 bw2.0 --seeds 0 1 -o runs/dd_val
+
+For every model, song and seed, G_M→D's raw output is generated once (``DualModel.generate_dance`` on the song's
+features, start pose from the pool with the seed); every filter is then applied to it (``boxN``: the N-frame
+moving average, ``bwF``: the zero-phase Butterworth low-pass at F Hz, ``none``; ``default``: the checkpoint's own setting), and the dance goes through the
+default stages of ``dancekit dance`` (clean-up, smoothing, foot lock, beat sync: ``stages.finish``). Per dance:
+stillness share, smoothed energy and jitter as ratios to the song's real dance, planted-foot share, foot
+skating and mean jerk. Also the raw output's motion power per frequency band against the real dance's
+(``--bands``). Writes ``OUT/decoding.json`` and prints one line per (model, filter) with the per-song worst
+values. Choices are made on ``--split val``; ``--split test`` scores final candidates.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import bench_stages  # benchmarks/ is on the path
+import numpy as np
+import torch
+
+from dancekit.data import PreparedData
+from dancekit.metrics import smoothed_energy, stillness_share
+from dancekit.metrics.stability import body_relative, jitter, to_metres
+from dancekit.motion.representations import decode_motion
+from dancekit.pipelines import stages
+from dancekit.pipelines.base import DanceResult
+from dancekit.pipelines.dual import DualPipeline, lowpass, moving_average
+
+BANDS = (0.0, 0.5, 1.0, 2.0, 3.0, 6.0, 12.5)
+
+
+def band_power(p: np.ndarray, sk, fps: float) -> np.ndarray:
+    """Power of the body-relative joint velocities (m²/s²) in each of BANDS (Hz), per frame."""
+    q = body_relative(to_metres(p, sk), sk)
+    v = np.diff(q, axis=0).reshape(len(q) - 1, -1) * fps
+    v = v - v.mean(0)
+    power = np.abs(np.fft.rfft(v, axis=0)) ** 2 / len(v)
+    f = np.fft.rfftfreq(len(v), 1 / fps)
+    return np.array([power[(f >= a) & (f < b)].sum() / len(v) for a, b in zip(BANDS[:-1], BANDS[1:])])
+
+
+def apply_filter(y: np.ndarray, name: str, pipe: DualPipeline) -> np.ndarray:
+    fps = pipe.fps
+    if name == "default":  # the checkpoint's own setting, as `dancekit dance` uses it
+        return pipe.output_filter(y)
+    if name == "none":
+        return y
+    if name.startswith("box"):
+        return moving_average(y, int(name[3:]))
+    if name.startswith("bw"):
+        return lowpass(y, cutoff_hz=float(name[2:]), fps=fps)
+    raise SystemExit(f"unknown filter {name!r}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--data", required=True)
+    ap.add_argument("--split", default="val", choices=("val", "test"))
+    ap.add_argument("--models", nargs="+", default=["dual"])
+    ap.add_argument("--filters", nargs="+", default=["box13", "bw1.5"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0])
+    ap.add_argument("--no-beat-sync", action="store_true")
+    ap.add_argument("-o", "--out", required=True)
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    data = PreparedData(args.data)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    names = data.names(args.split)
+    real, feats, beats, audio = {}, {}, {}, {}
+    first = DualPipeline.from_pretrained(args.models[0])
+    for n in names:
+        m = data.motion(n)
+        p = np.asarray(m.to_positions(), np.float64)
+        real[n] = {"energy": smoothed_energy(p, fps=m.fps, skeleton=m.skeleton),
+                   "jitter": jitter(p, fps=m.fps, skeleton=m.skeleton)["speed_residual"],
+                   "bands": band_power(p, m.skeleton, m.fps),
+                   **bench_stages.physical(p, m.skeleton, m.fps)}
+        a = data.audio(n)
+        audio[n] = (str(a.path), a.start, a.end)
+        feats[n] = first.features(a.path, start=a.start, end=a.end)  # same preset / stats for every dual model
+        beats[n] = None if args.no_beat_sync else stages.song_beats_for(a.path, start=a.start, end=a.end)
+    results = []
+    for model in args.models:
+        pipe = DualPipeline.from_pretrained(model)
+        sk, fps = pipe.skeleton, pipe.fps
+        raw = {}
+        t0 = time.process_time()
+        for n in names:
+            s = torch.stack([pipe.start_pose(None, seed) for seed in args.seeds])
+            f = torch.from_numpy(feats[n])[None].expand(len(args.seeds), -1, -1)
+            raw[n] = pipe.model.generate_dance(f, start=s).cpu().numpy()
+        gen_cpu = time.process_time() - t0
+        for filt in args.filters:
+            rows = []
+            for n in names:
+                for k, seed in enumerate(args.seeds):
+                    y = apply_filter(raw[n][k], filt, pipe)
+                    motion = decode_motion(pipe.stats.denormalize_dance(y), sk, fps, "rot6d")
+                    res = DanceResult(motion=motion, model=str(model), seed=seed)
+                    res = stages.finish(res, audio[n][0], start=audio[n][1], end=audio[n][2],
+                                        beat_sync_on=not args.no_beat_sync, beats=beats[n])
+                    p = np.asarray(res.motion.to_positions(), np.float64)
+                    row = {"song": n, "seed": seed,
+                           "stillness": stillness_share(p, fps=fps, skeleton=sk),
+                           "energy_ratio": smoothed_energy(p, fps=fps, skeleton=sk) / real[n]["energy"],
+                           "jitter_ratio": jitter(p, fps=fps, skeleton=sk)["speed_residual"] / real[n]["jitter"],
+                           **bench_stages.dance_row(res.motion, None)}
+                    if filt == args.filters[0]:
+                        raw_p = np.asarray(decode_motion(pipe.stats.denormalize_dance(raw[n][k]), sk, fps,
+                                                         "rot6d").to_positions(), np.float64)
+                        row["raw_band_ratio"] = (band_power(raw_p, sk, fps) / real[n]["bands"]).tolist()
+                    rows.append(row)
+            per_song = {n: {key: float(np.mean([r[key] for r in rows if r["song"] == n]))
+                            for key in ("stillness", "energy_ratio", "jitter_ratio", "planted_foot_share")}
+                        for n in names}
+            summary = {
+                "model": str(model), "filter": filt, "gen_cpu_s": gen_cpu,
+                "stillness_max": max(v["stillness"] for v in per_song.values()),
+                "energy_min": min(v["energy_ratio"] for v in per_song.values()),
+                "energy_mean": float(np.mean([v["energy_ratio"] for v in per_song.values()])),
+                "jitter_max": max(v["jitter_ratio"] for v in per_song.values()),
+                "jitter_mean": float(np.mean([v["jitter_ratio"] for v in per_song.values()])),
+                "planted": float(np.mean([r["planted_foot_share"] for r in rows])),
+                "skating": float(np.mean([r["foot_skating"] for r in rows])),
+                "jerk": float(np.mean([r["jerk"] for r in rows])),
+                "real_planted": float(np.mean([real[n]["planted_foot_share"] for n in names])),
+                "per_song": per_song, "rows": rows,
+            }
+            results.append(summary)
+            print(f"{model} {filt}: stillness max {summary['stillness_max']:.3f} | energy min {summary['energy_min']:.2f} "
+                  f"mean {summary['energy_mean']:.2f} | jitter max {summary['jitter_max']:.2f} mean "
+                  f"{summary['jitter_mean']:.2f} | planted {summary['planted']:.3f} (real {summary['real_planted']:.3f}) "
+                  f"skating {summary['skating']:.3f} jerk {summary['jerk']:.1f} | per song e/j "
+                  + " ".join(f"{n[6:]}:{v['energy_ratio']:.2f}/{v['jitter_ratio']:.2f}" for n, v in per_song.items()),
+                  flush=True)
+            (out / "decoding.json").write_text(json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()
