@@ -113,13 +113,13 @@ class LSTMStack:
 
     Layer ``l`` computes its gates as one product ``[W_ih | W_hh] [x; h_l] + b_ih + b_hh`` (gate rows
     reordered to ``[i, f, o, g]``, :func:`_gate_order`, so that the sigmoid gates are one kernel); for int8
-    the first layer keeps two products (its input, e.g. a normalised pose, and ``h`` in [-1, 1] get their own
-    activation scales). ``first_input`` selects the first ``first_input`` columns of layer 0's input weights
+    the first layer's input product (its input, e.g. a normalised pose, is narrow and has another range than
+    ``h`` in [-1, 1]) stays float32 and only ``W_hh h`` is int8. ``first_input`` selects the first ``first_input`` columns of layer 0's input weights
     (the rest, e.g. a music term, is added by the caller as ``extra0``, rows in the stack's order:
     :meth:`order_rows`).
 
-    :meth:`step_` runs one frame in preallocated buffers (:meth:`buffers`): per layer one product (two for
-    int8's first layer), one copy of the gates into a persistent buffer whose gate views are made once, six
+    :meth:`step_` runs one frame in preallocated buffers (:meth:`buffers`): per layer one product (for
+    int8's first layer one int8 product and one float32 ``addmm`` into the gates), one copy of the gates into a persistent buffer whose gate views are made once, six
     element-wise kernels in place and one copy of ``h``; no ``torch.cat``, no slicing and no state
     allocation per frame (at batch 1 and paper size every dispatch costs a few µs against ~0.3 ms of
     product per layer).
@@ -131,7 +131,7 @@ class LSTMStack:
         self.hidden = H = lstm.hidden_size
         self.order = _gate_order(H)
         self.inputs: list[int] = []  # width of each layer's input x
-        self.layers: list[tuple[_Linear, _Linear | None]] = []
+        self.layers: list[tuple[_Linear, torch.Tensor | None]] = []  # (gates product, float32 input map (in, 4H))
         for layer in range(lstm.num_layers):
             w_ih = getattr(lstm, f"weight_ih_l{layer}")[self.order]
             w_hh = getattr(lstm, f"weight_hh_l{layer}")[self.order]
@@ -140,7 +140,9 @@ class LSTMStack:
                 w_ih = w_ih[:, :first_input]
             self.inputs.append(w_ih.shape[1])
             if layer == 0 and precision == "int8":
-                self.layers.append((_Linear(w_ih, b, precision), _Linear(w_hh, None, precision)))
+                # the input (e.g. a normalised pose, a few dozen columns) stays float32, one small addmm: in the
+                # int8 product its range would coarsen h's activation scale, and a second int8 call costs more
+                self.layers.append((_Linear(w_hh, b, precision), w_ih.detach().float().contiguous().T))
             else:
                 self.layers.append((_Linear(torch.cat([w_ih, w_hh], dim=1), b, precision), None))
 
@@ -159,11 +161,11 @@ class LSTMStack:
         layer's ``h`` is ``buf.h[-1]``."""
         last = len(self.layers) - 1
         G, (i, f, o, g, ifo), c, tmp = buf.gates, buf.views, buf.c, buf.tmp
-        for layer, (lin, lin_h) in enumerate(self.layers):
-            if lin_h is None:
+        for layer, (lin, input_T) in enumerate(self.layers):
+            if input_T is None:
                 G.copy_(lin(buf.xh[layer]))
-            else:
-                torch.add(lin(buf.x), lin_h(buf.h[0]), out=G)
+            else:  # int8 first layer: W_hh h (int8, with the bias) + x W_ih^T (float32)
+                torch.addmm(lin(buf.h[0]), buf.x, input_T, out=G)
             if layer == 0 and extra0 is not None:
                 G.add_(extra0)
             ifo.sigmoid_()
@@ -200,10 +202,8 @@ class _StackBuffers:
         self.x.copy_(x)
         self.h = [xh[:, n:] for xh, n in zip(self.xh, stack.inputs)]
         self.x_next = [xh[:, :H] for xh in self.xh[1:]]
-        for layer, h in enumerate(hs):
+        for layer, h in enumerate(hs):  # (x_next is written by each frame's lower layer before it is read)
             self.h[layer].copy_(h)
-            if layer < len(self.x_next):
-                self.x_next[layer].copy_(h)
         self.c = [c.float().clone().contiguous() for c in cs]
         self.gates = x.new_empty(B, 4 * H, dtype=torch.float32)
         self.views = (*self.gates.split(H, dim=1), self.gates[:, : 3 * H])
