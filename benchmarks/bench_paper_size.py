@@ -5,6 +5,7 @@ models per precision, and the accuracy budget of int8 / bf16 against fp32. Run b
     python benchmarks/bench_paper_size.py speed --only paper     # paper size only
     python benchmarks/bench_paper_size.py speed --only paper --paper-rows fp32 "int8 fused"
     python benchmarks/bench_paper_size.py accuracy SONG [SONG ...]   # embedded models: int8 / bf16 vs fp32
+    python benchmarks/bench_paper_size.py ab --against 8b4c566  # this tree's decoder vs a git revision's
 
 ``speed``: random weights, batch 1, ``--frames`` (900: one minute at 15 fps) of random normalised music
 features, ``torch.set_num_threads(--threads)`` (2), one warm-up run then the median of ``--repeats`` runs of
@@ -15,6 +16,12 @@ runs); ``fp32 fused`` / ``bf16 fused`` / ``int8 fused`` the decoder of :mod:`dan
 ``int8 unfused`` the library's ``quantize_dynamic`` ``nn.LSTMCell`` per layer, one call per layer per frame.
 Every row prints the machine's 1-minute load average when it finished and the process CPU time: on a
 shared machine the wall time is not the model's alone.
+
+``ab``: A/B of the paper-size decoder of this tree against the one of a git revision (``--against``; its
+``src/dancekit/models/precision.py`` loaded from ``git show``), same random model and music, the rows
+interleaved round by round in one process (on a shared machine the load changes between two runs), for the
+``--precisions`` given (int8); prints the median and best wall and CPU seconds of each row and the largest
+difference between the two dances.
 
 ``accuracy``: each embedded model (revolution, music2dance, dual) dances each song through its pipeline
 (beat sync and clean-up off, so that the comparison is the model's) at fp32 with seeds 0 and 1, and at
@@ -30,8 +37,10 @@ from __future__ import annotations
 
 import argparse
 import copy
+import importlib.util
 import os
 import statistics
+import subprocess
 import sys
 import time
 import warnings
@@ -155,6 +164,46 @@ def bench_speed(args: argparse.Namespace) -> None:
                 _row(f"embedded {name}, {precision}", wall, cpu, ref)
 
 
+def _precision_module_at(rev: str):
+    """``dancekit.models.precision`` as it was at git revision ``rev`` (a separate module object)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    text = subprocess.run(["git", "show", f"{rev}:src/dancekit/models/precision.py"], cwd=root, check=True,
+                          capture_output=True, text=True).stdout
+    spec = importlib.util.spec_from_loader(f"precision_at_{rev}", loader=None)
+    module = importlib.util.module_from_spec(spec)
+    exec(compile(text, f"{rev}:precision.py", "exec"), module.__dict__)
+    return module
+
+
+def bench_ab(args: argparse.Namespace) -> None:
+    torch.set_num_threads(args.threads)
+    torch.manual_seed(0)
+    old = _precision_module_at(args.against)
+    model = RevolutionModel(RevolutionConfig(**PAPER)).eval()
+    music = torch.randn(1, args.frames, model.config.music_dim)
+    rows = {}
+    for p in args.precisions:
+        rows[f"{p} @ {args.against}"] = old.to_precision(model, p)
+        rows[f"{p} @ this tree"] = to_precision(model, p)
+    dances = {name: m.generate(music, generator=torch.Generator().manual_seed(0)) for name, m in rows.items()}  # warm
+    times = {name: ([], []) for name in rows}
+    for _ in range(args.repeats):
+        for name, m in rows.items():
+            c0, t0 = time.process_time(), time.perf_counter()
+            m.generate(music, generator=torch.Generator().manual_seed(0))
+            times[name][0].append(time.perf_counter() - t0)
+            times[name][1].append(time.process_time() - c0)
+    print(f"torch {torch.__version__}, threads {args.threads}, batch 1, {args.frames} frames, paper size, {args.repeats} "
+          f"interleaved rounds after a warm-up; load = 1-min load average at the end: {_load()}")
+    print("| decoder | wall s (median) | wall s (best) | CPU s (median) | CPU s (best) | max abs diff to the first row |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    first = next(iter(dances.values()))
+    for name, (walls, cpus) in times.items():
+        diff = (dances[name] - first).abs().max().item()
+        print(f"| {name} | {statistics.median(walls):.3f} | {min(walls):.3f} | {statistics.median(cpus):.3f} | "
+              f"{min(cpus):.3f} | {diff:.2e} |", flush=True)
+
+
 def _dance(pipe, song: str, seed: int) -> np.ndarray:
     result = pipe(song, seed=seed, beat_sync=False, cleanup=False)
     pos = np.asarray(result.motion.to_positions(), np.float64)  # (T, J, 3)
@@ -198,12 +247,18 @@ def main() -> None:
     s.add_argument("--no-unfused", action="store_true", help="skip the int8 unfused (library LSTMCell) row")
     s.add_argument("--paper-rows", nargs="+", default=None, metavar="ROW",
                    help='only these paper-size rows, e.g. "fp32" "int8 fused" (default: all)')
+    b = sub.add_parser("ab")
+    b.add_argument("--against", required=True, metavar="REV", help="git revision whose decoder is the A row")
+    b.add_argument("--precisions", nargs="+", default=["int8"], choices=PRECISIONS)
+    b.add_argument("--threads", type=int, default=2)
+    b.add_argument("--frames", type=int, default=900)
+    b.add_argument("--repeats", type=int, default=5)
     a = sub.add_parser("accuracy")
     a.add_argument("songs", nargs="+")
     a.add_argument("--models", nargs="+", default=["revolution", "music2dance", "dual"])
     a.add_argument("--threads", type=int, default=2)
     args = parser.parse_args()
-    {"speed": bench_speed, "accuracy": bench_accuracy}[args.what](args)
+    {"speed": bench_speed, "ab": bench_ab, "accuracy": bench_accuracy}[args.what](args)
 
 
 if __name__ == "__main__":

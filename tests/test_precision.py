@@ -23,6 +23,7 @@ from dancekit.models.precision import (
     FusedLSTMDecoder,
     FusedLSTMStep,
     FusedWaveNetStep,
+    _gate_order,
     check_precision,
     to_precision,
 )
@@ -167,3 +168,35 @@ def test_cli_unknown_precision_is_one_line(tmp_path, capsys):
     code = main(["evaluate", "--pred", str(tmp_path), "--ref", str(tmp_path), "-o", str(tmp_path / "r.json"),
                  "--precision", "int8"])
     assert code != 0 and "--precision" in capsys.readouterr().err
+
+
+def test_lstm_gate_order_known_answer():
+    # nn.LSTM's rows [i, f, g, o] (H = 2 each) → [i, f, o, g]
+    assert _gate_order(2).tolist() == [0, 1, 2, 3, 6, 7, 4, 5]
+
+
+@pytest.mark.parametrize("precision", ["fp32", "int8"])
+def test_fused_decoder_state_carries_across_calls(precision):
+    """Two calls (the state and last pose of the first handed to the second) give exactly the dance of one call,
+    at batch 2: the preallocated buffers take the state in and hand it back (h and c of every layer)."""
+    model = _revolution(True)
+    dec = FusedLSTMDecoder(model, precision)
+    z, prev = torch.randn(2, 30, 32), torch.randn(2, 1, 12)
+    state = model.initial_state(2, generator=_gen(1))
+    whole, last, (h, c) = dec(z, prev, state)
+    a, last_a, state_a = dec(z[:, :13], prev, state)
+    b, last_b, (h_b, c_b) = dec(z[:, 13:], last_a, state_a)
+    assert torch.equal(torch.cat([a, b], 1), whole) and torch.equal(last_b, last)
+    assert torch.equal(h_b, h) and torch.equal(c_b, c) and h.shape == (2, 2, 64)
+    assert not whole.is_inference() and not h.is_inference()  # usable outside inference_mode
+    assert torch.equal(state[0], model.initial_state(2, generator=_gen(1))[0])  # the caller's state untouched
+
+
+def test_int8_first_layer_input_product_is_float32():
+    """int8 quantises only ``W_hh h`` in the first layer; its input map is the float32 weights (gate order)."""
+    model = _revolution(False)
+    stack = FusedLSTMDecoder(model, "int8").stack
+    lin, input_T = stack.layers[0]
+    assert lin.precision == "int8"
+    assert torch.equal(input_T, model.decoder.weight_ih_l0[_gate_order(64)].T)
+    assert all(extra is None for _, extra in stack.layers[1:])

@@ -102,53 +102,112 @@ class _Linear:
         return torch.nn.functional.linear(x, self.weight, self.bias)
 
 
-def _lstm_pointwise(gates: torch.Tensor, c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """LSTM gates ``(B, 4H)`` (order i, f, g, o as ``nn.LSTM``) and cell ``c (B, H)`` → ``(h, c)``, float32."""
-    s = torch.sigmoid(gates)
-    i, f, _, o = s.chunk(4, dim=1)
-    H = c.shape[1]
-    c = torch.addcmul(f * c, i, torch.tanh(gates[:, 2 * H : 3 * H]))
-    return o * torch.tanh(c), c
+def _gate_order(H: int) -> torch.Tensor:
+    """Row permutation of ``nn.LSTM``'s gates ``[i, f, g, o]`` (each ``H`` rows) to ``[i, f, o, g]``: the three
+    sigmoid gates contiguous, so that they are one ``sigmoid_`` and ``g`` one ``tanh_``."""
+    return torch.cat([torch.arange(2 * H), torch.arange(3 * H, 4 * H), torch.arange(2 * H, 3 * H)])
 
 
 class LSTMStack:
     """The layers of an ``nn.LSTM`` (unidirectional, batch-first or not) as one step function at a precision.
 
-    Layer ``l`` computes its gates as one product ``[W_ih | W_hh] [x; h_l] + b_ih + b_hh``; for int8 the
-    first layer keeps two products (its input, e.g. a normalised pose, and ``h`` in [-1, 1] get their own
-    activation scales). ``first_input`` selects the first ``first_input`` columns of layer 0's input
-    weights (the rest, e.g. a music term, is added by the caller as ``extra0``).
+    Layer ``l`` computes its gates as one product ``[W_ih | W_hh] [x; h_l] + b_ih + b_hh`` (gate rows
+    reordered to ``[i, f, o, g]``, :func:`_gate_order`, so that the sigmoid gates are one kernel); for int8
+    the first layer's input product (its input, e.g. a normalised pose, is narrow and has another range than
+    ``h`` in [-1, 1]) stays float32 and only ``W_hh h`` is int8. ``first_input`` selects the first ``first_input`` columns of layer 0's input weights
+    (the rest, e.g. a music term, is added by the caller as ``extra0``, rows in the stack's order:
+    :meth:`order_rows`).
+
+    :meth:`step_` runs one frame in preallocated buffers (:meth:`buffers`): per layer one product (for
+    int8's first layer one int8 product and one float32 ``addmm`` into the gates), one copy of the gates into a persistent buffer whose gate views are made once, six
+    element-wise kernels in place and one copy of ``h``; no ``torch.cat``, no slicing and no state
+    allocation per frame (at batch 1 and paper size every dispatch costs a few µs against ~0.3 ms of
+    product per layer).
     """
 
     def __init__(self, lstm: nn.LSTM, precision: str, *, first_input: int | None = None):
         if lstm.bidirectional or getattr(lstm, "proj_size", 0):
             raise ParameterError("only a unidirectional nn.LSTM without projections can be fused")
-        self.layers: list[tuple[_Linear, _Linear | None]] = []
+        self.hidden = H = lstm.hidden_size
+        self.order = _gate_order(H)
+        self.inputs: list[int] = []  # width of each layer's input x
+        self.layers: list[tuple[_Linear, torch.Tensor | None]] = []  # (gates product, float32 input map (in, 4H))
         for layer in range(lstm.num_layers):
-            w_ih = getattr(lstm, f"weight_ih_l{layer}")
-            w_hh = getattr(lstm, f"weight_hh_l{layer}")
-            b = getattr(lstm, f"bias_ih_l{layer}") + getattr(lstm, f"bias_hh_l{layer}") if lstm.bias else None
+            w_ih = getattr(lstm, f"weight_ih_l{layer}")[self.order]
+            w_hh = getattr(lstm, f"weight_hh_l{layer}")[self.order]
+            b = (getattr(lstm, f"bias_ih_l{layer}") + getattr(lstm, f"bias_hh_l{layer}"))[self.order] if lstm.bias else None
             if layer == 0 and first_input is not None:
                 w_ih = w_ih[:, :first_input]
+            self.inputs.append(w_ih.shape[1])
             if layer == 0 and precision == "int8":
-                self.layers.append((_Linear(w_ih, b, precision), _Linear(w_hh, None, precision)))
+                # the input (e.g. a normalised pose, a few dozen columns) stays float32, one small addmm: in the
+                # int8 product its range would coarsen h's activation scale, and a second int8 call costs more
+                self.layers.append((_Linear(w_hh, b, precision), w_ih.detach().float().contiguous().T))
             else:
                 self.layers.append((_Linear(torch.cat([w_ih, w_hh], dim=1), b, precision), None))
 
+    def order_rows(self, w: torch.Tensor) -> torch.Tensor:
+        """``w (4H, ...)`` in ``nn.LSTM``'s gate order → the stack's order (for a caller's ``extra0`` weights)."""
+        return w[self.order]
+
+    def buffers(self, x: torch.Tensor, hs: list[torch.Tensor], cs: list[torch.Tensor]) -> _StackBuffers:
+        """Preallocated per-layer ``[x | h]`` buffers (float32) holding input ``x (B, in)`` and states ``hs``,
+        ``cs`` (lists of ``(B, H)``), for :meth:`step_`."""
+        return _StackBuffers(self, x, hs, cs)
+
+    def step_(self, buf: _StackBuffers, extra0: torch.Tensor | None = None) -> None:
+        """One frame in the buffers (input ``buf.x``, set by the caller): every layer's ``h`` and ``c``
+        updated in place; ``extra0 (B, 4H)`` (stack gate order) added to the first layer's gates. The last
+        layer's ``h`` is ``buf.h[-1]``."""
+        last = len(self.layers) - 1
+        G, (i, f, o, g, ifo), c, tmp = buf.gates, buf.views, buf.c, buf.tmp
+        for layer, (lin, input_T) in enumerate(self.layers):
+            if input_T is None:
+                G.copy_(lin(buf.xh[layer]))
+            else:  # int8 first layer: W_hh h (int8, with the bias) + x W_ih^T (float32)
+                torch.addmm(lin(buf.h[0]), buf.x, input_T, out=G)
+            if layer == 0 and extra0 is not None:
+                G.add_(extra0)
+            ifo.sigmoid_()
+            g.tanh_()
+            c[layer].mul_(f).addcmul_(i, g)  # c = f c + i g
+            torch.tanh(c[layer], out=tmp)
+            if layer < last:  # h = o tanh(c): into the next layer's input, then into this layer's own slot
+                torch.mul(o, tmp, out=buf.x_next[layer])
+                buf.h[layer].copy_(buf.x_next[layer])
+            else:
+                torch.mul(o, tmp, out=buf.h[layer])
+
     def step(self, x: torch.Tensor, hs: list[torch.Tensor], cs: list[torch.Tensor],
              extra0: torch.Tensor | None = None) -> torch.Tensor:
-        """One frame: input ``x (B, in)``, per-layer states ``hs``, ``cs`` (lists of ``(B, H)``, updated in
-        place); ``extra0 (B, 4H)`` added to the first layer's gates. Returns the last layer's ``h``."""
-        for layer, (lin, lin_h) in enumerate(self.layers):
-            if lin_h is None:
-                gates = lin(torch.cat([x, hs[layer]], dim=1))
-            else:
-                gates = lin(x) + lin_h(hs[layer])
-            if layer == 0 and extra0 is not None:
-                gates = gates + extra0
-            hs[layer], cs[layer] = _lstm_pointwise(gates, cs[layer])
-            x = hs[layer]
-        return x
+        """One frame: input ``x (B, in)``, per-layer states ``hs``, ``cs`` (lists of ``(B, H)``, replaced in
+        the lists); ``extra0 (B, 4H)`` (stack gate order) added to the first layer's gates. Returns the last
+        layer's ``h``."""
+        buf = self.buffers(x, hs, cs)
+        self.step_(buf, extra0)
+        hs[:], cs[:] = [h.clone() for h in buf.h], buf.c
+        return hs[-1]
+
+
+class _StackBuffers:
+    """:meth:`LSTMStack.buffers`: ``xh[l] = [x_l | h_l] (B, in_l + H)``, views ``x`` (layer 0's input),
+    ``h[l]`` (layer ``l``'s state inside ``xh[l]``) and ``x_next[l]`` (layer ``l + 1``'s input inside
+    ``xh[l + 1]``, which is layer ``l``'s output), cells ``c[l] (B, H)``, the gates ``(B, 4H)`` with their
+    views ``i, f, o, g`` and ``[i f o]``, scratch ``tmp (B, H)``."""
+
+    def __init__(self, stack: LSTMStack, x: torch.Tensor, hs: list[torch.Tensor], cs: list[torch.Tensor]):
+        B, H = x.shape[0], stack.hidden
+        self.xh = [x.new_empty(B, n + H, dtype=torch.float32) for n in stack.inputs]
+        self.x = self.xh[0][:, : stack.inputs[0]]
+        self.x.copy_(x)
+        self.h = [xh[:, n:] for xh, n in zip(self.xh, stack.inputs)]
+        self.x_next = [xh[:, :H] for xh in self.xh[1:]]
+        for layer, h in enumerate(hs):  # (x_next is written by each frame's lower layer before it is read)
+            self.h[layer].copy_(h)
+        self.c = [c.float().clone().contiguous() for c in cs]
+        self.gates = x.new_empty(B, 4 * H, dtype=torch.float32)
+        self.views = (*self.gates.split(H, dim=1), self.gates[:, : 3 * H])
+        self.tmp = x.new_empty(B, H, dtype=torch.float32)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -156,7 +215,11 @@ class LSTMStack:
 
 
 class FusedLSTMDecoder:
-    """:meth:`RevolutionModel._autoregress` at a precision, one call per frame (see the module docstring)."""
+    """:meth:`RevolutionModel._autoregress` at a precision, one call per frame (see the module docstring).
+
+    The frames run in :meth:`LSTMStack.step_`'s preallocated buffers, under ``torch.inference_mode`` (less
+    bookkeeping per dispatch); the head is one ``addmm`` written straight into the next frame's input.
+    """
 
     def __init__(self, model: nn.Module, precision: str):
         c = model.config
@@ -164,9 +227,10 @@ class FusedLSTMDecoder:
         H, P = c.decoder_hidden, c.pose_dim
         self.stack = LSTMStack(model.decoder, precision, first_input=P)
         w_ih0 = model.decoder.weight_ih_l0.detach()
-        self.music0 = w_ih0[:, P:].clone() if c.condition_on_music else None  # (4H, d), applied per chunk
+        # music term of layer 0 (applied per chunk), rows in the stack's gate order
+        self.music0 = self.stack.order_rows(w_ih0[:, P:]).clone() if c.condition_on_music else None
         w = model.head.weight.detach()  # (P, H + d): ŷ = [h; z] W^S + b
-        self.head_h = _Linear(w[:, :H], None, "fp32")  # small (P × H) and on the feedback path: kept float32
+        self.head_hT = w[:, :H].clone().T  # (H, P) view of a (P, H) matrix; small, on the feedback path: float32
         self.head_z, self.head_b = w[:, H:].clone(), model.head.bias.detach().clone()
 
     def __call__(self, z: torch.Tensor, prev: torch.Tensor, state):
@@ -175,23 +239,27 @@ class FusedLSTMDecoder:
         B, L = z.shape[:2]
         if L == 0:
             return z.new_zeros(B, 0, self.config.pose_dim), prev, state
-        z = z.float()
-        head_z = torch.nn.functional.linear(z, self.head_z, self.head_b)  # (B, L, P), whole chunk at once
-        music0 = None if self.music0 is None else torch.nn.functional.linear(z, self.music0)  # (B, L, 4H)
-        hs, cs = list(state[0].float().unbind(0)), list(state[1].float().unbind(0))
-        y = prev[:, 0].float()
-        outputs = []
-        for t in range(L):
-            y = self.step(y, hs, cs, head_z[:, t], None if music0 is None else music0[:, t])
-            outputs.append(y)
-        out = torch.stack(outputs, dim=1)  # (B, L, P)
-        return out, out[:, -1:], (torch.stack(hs), torch.stack(cs))
+        with torch.inference_mode():
+            z = z.float()
+            head_z = torch.nn.functional.linear(z, self.head_z, self.head_b).unbind(1)  # L × (B, P), whole chunk
+            music0 = None if self.music0 is None else torch.nn.functional.linear(z, self.music0).unbind(1)
+            buf = self.stack.buffers(prev[:, 0].float(), list(state[0].float().unbind(0)),
+                                     list(state[1].float().unbind(0)))
+            out = z.new_empty(B, L, self.config.pose_dim)
+            rows = out.unbind(1)
+            for t in range(L):
+                self.stack.step_(buf, None if music0 is None else music0[t])
+                torch.addmm(head_z[t], buf.h[-1], self.head_hT, out=buf.x)  # ŷ_t (B, P): the next input
+                rows[t].copy_(buf.x)
+            h, c = torch.stack(buf.h), torch.stack(buf.c)
+        out, h, c = out.clone(), h.clone(), c.clone()  # normal tensors again (not inference tensors)
+        return out, out[:, -1:], (h, c)
 
     def step(self, y: torch.Tensor, hs: list[torch.Tensor], cs: list[torch.Tensor], head_z: torch.Tensor,
              music0: torch.Tensor | None) -> torch.Tensor:
-        """One frame: previous pose ``y (B, P)`` → next pose ``(B, P)``; ``hs``, ``cs`` updated in place."""
+        """One frame: previous pose ``y (B, P)`` → next pose ``(B, P)``; ``hs``, ``cs`` replaced in the lists."""
         h = self.stack.step(y, hs, cs, music0)
-        return self.head_h(h) + head_z
+        return torch.addmm(head_z, h, self.head_hT)
 
 
 # --------------------------------------------------------------------------------------------------
