@@ -105,3 +105,26 @@ def test_smoothing_stage_in_pieces_equals_one_pass(dance, monkeypatch):
     assert pieces.motion.positions.dtype == np.float32
     np.testing.assert_array_equal(pieces.motion.positions, whole.motion.positions)
     assert not np.array_equal(pieces.motion.positions, dance)  # it did filter
+
+
+def test_html_quantised_positions_in_pieces_equal_one_pass(dance, monkeypatch):
+    import dancekit.render.html as html
+
+    monkeypatch.setattr(html, "_QUANTISE_CHUNK", SMALL)
+    got, offset, scale = html._quantise(dance)
+    lo = dance.reshape(-1, 3).min(axis=0).astype(np.float64)  # the one-pass formula
+    step = np.maximum(dance.reshape(-1, 3).max(axis=0) - lo, 1e-6) / 65535.0
+    ref = np.clip(np.rint((dance - lo) / step), 0, 65535).astype("<u2")
+    assert got == ref.tobytes() and offset == lo.tolist() and scale == step.tolist()
+
+
+@pytest.mark.parametrize("up_axis", ["y", "z"])
+def test_scene_positions_in_pieces_equal_one_pass(up_axis):
+    from dancekit.render._scene import _TO_Y_UP, prepare_scene
+
+    rng = np.random.default_rng(5)
+    pos = (rng.normal(size=(9000, 4, 3)) * 40 + 100).astype(np.float32)  # 9,000 frames: three 4,096-frame pieces
+    scene = prepare_scene(pos, parents=[-1, 0, 1, 1], fps=FPS, up_axis=up_axis, unit_scale=0.01, follow_ground=False)
+    ref = (pos.astype(np.float64) * 0.01) @ _TO_Y_UP[up_axis].T
+    ref[:, :, 1] -= np.percentile(ref[:, :, 1].min(axis=1), 5)
+    np.testing.assert_array_equal(scene.positions, ref.astype(np.float32))

@@ -143,7 +143,9 @@ def prepare_scene(
     if head is not None and not (0 <= int(head) < J):
         raise ParameterError(f"head must be a joint index in 0..{J - 1}, got {head!r}")
 
-    p = (pos.astype(np.float64) * scale) @ _TO_Y_UP[up_axis].T  # (T, J, 3) metres, y up
+    p = np.empty(pos.shape, np.float64)  # (T, J, 3) metres, y up; per frame, 4,096 frames at a time
+    for a in range(0, T, 4096):
+        p[a: a + 4096] = (pos[a: a + 4096].astype(np.float64) * scale) @ _TO_Y_UP[up_axis].T
     p[:, :, 1] -= ground_level(p[:, :, 1].min(axis=1), fps=fps, follow=follow_ground)[:, None]
     height = float(np.percentile(p[:, :, 1].max(axis=1), 50))
     height = max(height, 0.1)
