@@ -345,7 +345,7 @@ def lock_feet(
 
         drop = gaussian_filter1d(maximum_filter1d(drop, size=2 * blend + 1, mode="nearest"), sigma=blend / 2,
                                  mode="nearest")
-        p = p - drop[:, None, None] * up
+        p -= drop[:, None, None] * up  # p is this function's own float64 copy: lowered in place
     out = p.copy()
     for leg, (hip, knee, ankle, below) in enumerate(legs):
         foot = [ankle, *below]

@@ -182,11 +182,12 @@ def foot_lock(result: DanceResult) -> DanceResult:
     if not _is_3d(motion) or not leg_chains(motion.skeleton):
         return result
     sk, fps = motion.skeleton, motion.fps
-    p = np.asarray(motion.to_positions(), np.float64)
+    p = motion.to_positions()  # lock_feet works on its own float64 copy
     locked = lock_feet(p, skeleton=sk, fps=fps)
     rot = tr = None
     if motion.rotations is not None:
-        rot = leg_rotations(motion.rotations, p, locked, skeleton=sk).astype(motion.rotations.dtype)
+        rot = leg_rotations(motion.rotations, np.asarray(p, np.float64), locked,
+                            skeleton=sk).astype(motion.rotations.dtype)
         tr = locked[:, sk.root].astype(np.float32)  # the body may have been lowered
     out = Motion(skeleton=sk, fps=fps, positions=locked.astype(np.float32), rotations=rot, root_translation=tr)
     return dataclasses.replace(result, motion=out)
