@@ -128,3 +128,29 @@ def test_scene_positions_in_pieces_equal_one_pass(up_axis):
     ref = (pos.astype(np.float64) * 0.01) @ _TO_Y_UP[up_axis].T
     ref[:, :, 1] -= np.percentile(ref[:, :, 1].min(axis=1), 5)
     np.testing.assert_array_equal(scene.positions, ref.astype(np.float32))
+
+
+def test_render_arrays_in_pieces_equal_one_pass(dance, monkeypatch):
+    import dancekit.render._motion as rm
+
+    m = Motion(skeleton=SK, fps=FPS, positions=dance)
+    monkeypatch.setattr(rm, "_CHUNK", 10**9)
+    whole = rm.motion_arrays(m)
+    monkeypatch.setattr(rm, "_CHUNK", SMALL)
+    pieces = rm.motion_arrays(m)
+    assert pieces.keys() == whole.keys() and pieces["positions"].shape == whole["positions"].shape
+    for key, value in whole.items():
+        np.testing.assert_array_equal(pieces[key], value)
+
+
+def test_camera_distance_in_pieces_equals_one_pass():
+    from dancekit.render._scene import camera_basis, fit_distance, prepare_scene
+
+    rng = np.random.default_rng(6)
+    pos = (rng.normal(size=(9000, 4, 3)) * 40 + 100).astype(np.float32)
+    pos[7000, 2] += 900  # the farthest joint in the last piece
+    scene = prepare_scene(pos, parents=[-1, 0, 1, 1], fps=FPS, up_axis="y", unit_scale=0.01)
+    basis = right, up, fwd = camera_basis(0.4, 0.2)
+    rel = scene.positions - scene.target[:, None, :]
+    need = np.maximum(np.abs(rel @ right) / (0.88 * 0.5), np.abs(rel @ up) / (0.88 * 0.3)) - rel @ fwd
+    assert fit_distance(scene, basis, tan_half_x=0.5, tan_half_y=0.3) == max(float(need.max()), 0.5 * scene.height)

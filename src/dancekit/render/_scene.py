@@ -224,9 +224,11 @@ def fit_distance(scene: Scene, basis, *, tan_half_x: float, tan_half_y: float, m
     and is inside when ``|x| <= margin * tan_half_x * z`` (same for y), which is linear in ``d``.
     """
     right, up, fwd = basis
-    rel = scene.positions - scene.target[:, None, :]  # (T, J, 3)
-    x = np.abs(rel @ right)
-    y = np.abs(rel @ up)
-    z = rel @ fwd
-    need = np.maximum(x / (margin * tan_half_x), y / (margin * tan_half_y)) - z
-    return float(max(need.max(), 0.5 * scene.height, 0.5))
+    most = -np.inf
+    for a in range(0, scene.num_frames, 4096):  # per frame: 4,096 frames at a time, the same maximum
+        rel = scene.positions[a: a + 4096] - scene.target[a: a + 4096, None, :]  # (n, J, 3)
+        x = np.abs(rel @ right)
+        y = np.abs(rel @ up)
+        z = rel @ fwd
+        most = max(most, float((np.maximum(x / (margin * tan_half_x), y / (margin * tan_half_y)) - z).max()))
+    return float(max(most, 0.5 * scene.height, 0.5))
