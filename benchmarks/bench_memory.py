@@ -16,6 +16,11 @@ librosa/numba/ffmpeg's C buffers are not).
 /proc/self/status) a thread samples every 0.1 s, with the step running at each sample (features per preset,
 genre reading, generation, song beats, each pipeline stage, each export format: the functions are wrapped,
 not changed), and prints the peak of each step; ``--plot FILE.png`` draws RSS over time for every song.
+
+``--post-frames N`` (e.g. 90000: 60 minutes at 25 fps) measures only what comes after the generation, fast:
+the default model's dance of Vibe Ace tiled to N frames (each copy moved on by the dance's travel) with Vibe
+Ace's beats tiled alike, then the stages (clean-up, smoothing, foot lock, beat sync) and the exports of
+``--format`` (mp4 left out unless named), in this process, with the peak RSS of each step.
 """
 
 from __future__ import annotations
@@ -239,6 +244,59 @@ def plot(traces: dict[str, Path], png: Path) -> None:
     img.save(png)
 
 
+def post(frames: int, formats: str) -> None:
+    """The steps after the generation on an ``frames``-frame dance (see the module docstring)."""
+    import threading
+
+    import numpy as np
+
+    from dancekit.export import check_formats, export_motion
+    from dancekit.features.pulse import SongBeats
+    from dancekit.motion import Motion
+    from dancekit.pipelines import load_pipeline, stages
+    from dancekit.pipelines.base import DanceResult
+
+    song = MUSIC / SONGS[1]
+    pipe = load_pipeline()
+    one = pipe.generate(str(song), seed=0)
+    beats = stages.song_beats_for(song)
+    pos, n = one.positions, one.num_frames
+    travel = pos[-1, one.skeleton.root] - pos[0, one.skeleton.root]
+    travel[one.skeleton.up_index] = 0
+    reps = frames // n + 1
+    tiled = np.concatenate([pos + k * travel for k in range(reps)])[:frames].astype(np.float32)
+    times = np.concatenate([beats.times + k * n / one.fps for k in range(reps)])
+    beats = SongBeats(tempo=beats.tempo, times=times[times < frames / one.fps], clarity=beats.clarity,
+                      has_beat=True)
+    result = DanceResult(motion=Motion(skeleton=one.skeleton, fps=one.fps, positions=tiled), model="", seed=0)
+    del tiled, pos, one
+    label, peaks = ["dance made (imports, model, tiled dance)"], {}
+    done = threading.Event()
+
+    def sample() -> None:
+        while not done.wait(0.05):
+            peaks[label[0]] = max(peaks.get(label[0], 0), _rss())
+
+    threading.Thread(target=sample, daemon=True).start()
+    print(f"  {label[0]}: RSS {_rss() / 2**30:.3f} GiB", flush=True)
+    steps = [("clean-up", stages.clean_up), ("smoothing", stages.smooth), ("foot lock", stages.foot_lock),
+             ("beat sync", lambda r: stages.beat_sync(r, song, beats=beats))]
+    with tempfile.TemporaryDirectory(prefix="dk-mem-") as out:
+        steps += [(f"export {fmt}", lambda r, fmt=fmt: export_motion(r.motion, out, stem="x", formats=[fmt],
+                                                                      audio=song, progress=False) and r)
+                  for fmt in check_formats(formats)]
+        for name, fn in steps:
+            peaks[label[0]] = max(peaks.get(label[0], 0), _rss())
+            label[0] = name
+            t0 = time.perf_counter()
+            result = fn(result)
+            peaks[name] = max(peaks.get(name, 0), _rss())
+            print(f"  {name:12s} {time.perf_counter() - t0:6.1f} s  peak RSS {peaks[name] / 2**30:.3f} GiB", flush=True)
+    done.set()
+    print(f"{frames} frames ({'; '.join(result.notes)}); peak RSS of the process (ru_maxrss) "
+          f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20:.3f} GiB")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, nargs="+", default=[20.0, 60.0])
@@ -250,8 +308,13 @@ def main() -> int:
     ap.add_argument("--trace", action="store_true",
                     help="instead: RSS sampled over time with the step running, the peak of each step")
     ap.add_argument("--plot", default=None, help="with --trace: draw RSS over time into this PNG")
+    ap.add_argument("--post-frames", type=int, default=None,
+                    help="instead: only the steps after the generation, on a dance tiled to this many frames")
     ap.add_argument("--trace-child", nargs=3, metavar=("SONG", "OUT", "CSV"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.post_frames:
+        post(args.post_frames, "npz,html,bvh" if args.format == ap.get_default("format") else args.format)
+        return 0
     if args.trace_child:
         return trace_child(*args.trace_child, formats=args.format)
     if args.trace:
