@@ -210,10 +210,11 @@ def _trace_table(csv: Path) -> list[tuple[str, float, float, int]]:
 
 
 def plot(traces: dict[str, Path], png: Path) -> None:
-    """RSS over time of each trace (one line per song; the steps above 0.5 GiB named), drawn with Pillow."""
+    """RSS over time of each trace (one line per song; each step named below the axis where it first runs),
+    drawn with Pillow."""
     from PIL import Image, ImageDraw
 
-    w, h, left, bottom, top = 1100, 520, 70, 40, 20
+    w, h, left, bottom, top = 1100, 450 + 90 * len(traces), 70, 30 + 90 * len(traces), 20
     data = {k: [(float(t), int(b) / 1e9, what) for t, b, what in (ln.split(",", 2) for ln in p.read_text().splitlines())]
             for k, p in traces.items()}
     tmax = max(r[-1][0] for r in data.values())
@@ -230,15 +231,18 @@ def plot(traces: dict[str, Path], png: Path) -> None:
     for s in range(0, int(tmax) + 1, 300 if tmax > 1200 else 60):
         d.text((xy(s, 0)[0] - 10, h - bottom + 6), f"{s} s", fill="black")
     colours = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (148, 103, 189)]
+    zip_index = {name: k for k, name in enumerate(data)}
     for (name, rows), colour in zip(data.items(), colours):
         d.line([xy(t, g) for t, g, _ in rows], fill=colour, width=2)
         d.text((xy(rows[-1][0], 0)[0] - 60, xy(0, rows[-1][1])[1] - 16), name, fill=colour)
-        last = None
+        seen: list[str] = []  # each step named once, where it first runs, on one of four staggered rows
         for t, _g, what in rows:
-            if what != last and what not in ("end",):
-                d.line([xy(t, 0), xy(t, 0.04)], fill=colour)
-                d.text((xy(t, 0)[0] + 2, xy(0, 0.06 + 0.05 * (hash(what) % 5))[1]), what[:14], fill=colour)
-            last = what
+            if what not in seen and what not in ("end", "imports"):
+                seen.append(what)
+                row = len(seen) % 4
+                y = h - bottom + 24 + 90 * zip_index[name] + 16 * row  # the trace's own band below the axis
+                d.line([(xy(t, 0)[0], xy(0, 0.03)[1]), (xy(t, 0)[0], y + 8)], fill=colour)
+                d.text((xy(t, 0)[0] + 2, y), what[:18], fill=colour)
     d.text((left, 2), "dancekit dance SONG (mp4, html, npz, bvh): resident memory (VmRSS, GB = 1e9 bytes) "
            "against seconds; red: the 1-GB target", fill="black")
     img.save(png)
