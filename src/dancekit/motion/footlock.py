@@ -410,7 +410,7 @@ def lock_feet(
 
         drop = gaussian_filter1d(maximum_filter1d(drop, size=2 * blend + 1, mode="nearest"), sigma=blend / 2,
                                  mode="nearest")
-        p = p - drop[:, None, None] * up
+        p -= drop[:, None, None] * up  # p is this function's own float64 copy: lowered in place
     out = p.copy()
     for leg, (hip, knee, ankle, below) in enumerate(legs):
         foot = [ankle, *below]
@@ -533,16 +533,49 @@ def smoothing_window(positions: np.ndarray, *, skeleton: Skeleton, fps: float, t
                      windows: tuple[int, ...] = (5, 7, 9, 11, 13, 15, 17, 21), order: int = 3) -> int:
     """The shortest Savitzky-Golay window (frames, odd) of ``windows`` whose output has a jitter ratio
     (speed removed by a 5-frame average over the smoothed speed, :func:`dancekit.metrics`' jitter over
-    energy) at most ``target``; 1 (no filter) when the dance already is; the longest when none is."""
-    p = _check(positions, "smoothing_window")
+    energy) at most ``target``; 1 (no filter) when the dance already is; the longest when none is.
+    The filtered dances are measured :data:`CHUNK` frames at a time (no whole-song copies)."""
+    p = np.asarray(positions)
+    if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
+        raise ParameterError(f"smoothing_window needs (T, J, 3) positions, got shape {np.shape(positions)}")
     if _jitter_ratio(p, skeleton, fps) <= target:
         return 1
     for w in windows:
         if w > len(p):
             break
-        if _jitter_ratio(_savgol(p, w, order), skeleton, fps) <= target:
+        if _jitter_ratio(p, skeleton, fps, window=w, order=order) <= target:
             return w
     return max((w for w in windows if w <= len(p)), default=1)
+
+
+#: Frames per piece in the chunked smoothing helpers (:func:`chunks`, :func:`savgol_rows`,
+#: :func:`_jitter_ratio`): the filters are local, so a long song is done piece by piece with a margin.
+CHUNK = 4096
+
+
+def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
+    """``[0, n)`` cut into ``ceil(n / size)`` pieces of nearly equal length (each at least ``size / 2``
+    frames when there are several; ``size`` default :data:`CHUNK`)."""
+    size = CHUNK if size is None else int(size)
+    k = max(1, -(-n // size))
+    edges = np.linspace(0, n, k + 1).round().astype(int)
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def savgol_rows(p: np.ndarray, window: int, order: int, a: int, b: int) -> np.ndarray:
+    """Frames ``[a, b)`` of ``_savgol(p, window, order)``, from frames ``[a - window // 2, b + window // 2)``
+    of ``p`` only: the same numbers (each output frame is the same weighted sum of the same input frames;
+    only the song's own first and last ``window // 2`` frames take the edge polynomials). float64."""
+    T, half = len(p), window // 2
+    if window <= order or window > T:
+        return np.array(p[a:b], dtype=np.float64)
+    lo, hi = max(a - half, 0), min(b + half, T)
+    if hi - lo < window:  # a piece shorter than the window near both ends: widen it (rare: T < 2 * CHUNK)
+        lo, hi = max(0, min(lo, T - window)), min(T, max(hi, window))
+    q = _savgol(p[lo:hi], window, order) if (lo, hi) != (0, T) else _savgol(p, window, order)
+    # inside the piece, rows away from the piece's own ends are exact; the piece's ends are exact only
+    # where they are the song's ends
+    return q[a - lo: b - lo]
 
 
 def _savgol(p: np.ndarray, window: int, order: int) -> np.ndarray:
@@ -567,17 +600,27 @@ def _savgol(p: np.ndarray, window: int, order: int) -> np.ndarray:
     return out
 
 
-def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float) -> float:
+def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int | None = None,
+                  order: int = 3) -> float:
     """Mean body-relative speed removed by a 5-frame moving average, over the smoothed speed (the jitter
-    over the energy of :mod:`dancekit.metrics.stability`, computed here without importing metrics)."""
+    over the energy of :mod:`dancekit.metrics.stability`, computed here without importing metrics), of the
+    dance ``p`` (T, J, 3), or of ``_savgol(p, window, order)`` when ``window`` is given. Summed over pieces
+    of :data:`CHUNK` frames with a margin (the moving average and the filter are local), so a long song
+    needs no whole-song float64 copies; the same ratio as one pass up to float rounding of the sums."""
     from scipy.ndimage import uniform_filter1d
 
-    rel = p - p[:, skeleton.root : skeleton.root + 1]
-    if len(rel) < 3:
+    T = len(p)
+    if T < 3:
         return 0.0
-    raw = np.linalg.norm(np.diff(rel, axis=0), axis=-1).mean()
-    sm = uniform_filter1d(rel, size=5, axis=0, mode="nearest")
-    smooth = np.linalg.norm(np.diff(sm, axis=0), axis=-1).mean()
+    r = skeleton.root
+    raw = smooth = 0.0
+    for a, b in chunks(T - 1):  # the speeds between frames i and i + 1 for i in [a, b)
+        lo, hi = max(a - 2, 0), min(b + 3, T)  # the frames the 5-frame average of frames a..b needs
+        x = (np.asarray(p[lo:hi], np.float64) if window is None else savgol_rows(p, window, order, lo, hi))
+        rel = x - x[:, r: r + 1]
+        raw += float(np.linalg.norm(np.diff(rel[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
+        sm = uniform_filter1d(rel, size=5, axis=0, mode="nearest")  # at lo > 0 / hi < T: 2 real frames of margin
+        smooth += float(np.linalg.norm(np.diff(sm[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
     return float((raw - smooth) / smooth) if smooth > 0 else 0.0
 
 

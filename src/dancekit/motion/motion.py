@@ -15,6 +15,10 @@ __all__ = ["Motion"]
 
 _VIEWS = ("front", "back", "left", "right")
 
+#: Frames per inverse-kinematics call in :meth:`Motion.with_rotations` (IK is per frame: a long song's is
+#: solved in chunks so that its float64 work arrays do not grow with the song).
+IK_CHUNK = 4096
+
 
 def _float_array(x, name: str) -> np.ndarray:
     arr = np.asarray(x)
@@ -187,9 +191,18 @@ class Motion:
         from dancekit.motion.kinematics import inverse_kinematics
 
         assert self.positions is not None
-        rot, tr = inverse_kinematics(self.positions.astype(np.float64), self.skeleton)
-        dt = self.positions.dtype
-        return Motion(self.skeleton, self.fps, self.positions, rot.astype(dt), tr.astype(dt))
+        pos, dt, sk = self.positions, self.positions.dtype, self.skeleton
+        if len(pos) <= IK_CHUNK:
+            rot, tr = inverse_kinematics(pos.astype(np.float64), sk)
+            return Motion(sk, self.fps, pos, rot.astype(dt), tr.astype(dt))
+        # IK is per frame: IK_CHUNK frames at a time, so the float64 work arrays (a few times the
+        # (T, J_rig, 3, 3) rotations) stay the size of a chunk; the same numbers as one call
+        rot = np.empty((len(pos), sk.rig().num_joints, 3, 3), dt)
+        tr = np.empty((len(pos), 3), dt)
+        for a in range(0, len(pos), IK_CHUNK):
+            r, t = inverse_kinematics(pos[a: a + IK_CHUNK].astype(np.float64), sk)
+            rot[a: a + IK_CHUNK], tr[a: a + IK_CHUNK] = r, t
+        return Motion(sk, self.fps, pos, rot, tr)
 
     # ------------------------------------------------------------------ timing
     def resample(self, fps: float) -> Motion:

@@ -133,33 +133,39 @@ def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
     with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them;
     a positions-only motion takes its bone directions from the filtered dance and keeps each frame's bone
     lengths; so bone lengths stay exact either way."""
-    from dancekit.motion.footlock import _jitter_ratio, _savgol, smoothing_window
+    from dancekit.motion.footlock import _jitter_ratio, _savgol, chunks, savgol_rows, smoothing_window
 
     motion = result.motion
     if not _is_3d(motion):
         return result
     sk, fps = motion.skeleton, motion.fps
-    p = np.asarray(motion.to_positions(), np.float64)
+    p = motion.to_positions()  # (T, J, 3); the helpers work in float64 piece by piece
     if target is None:
         target = SMOOTH_TARGET_NOISY if _jitter_ratio(p, sk, fps) > NOISY_RATIO else SMOOTH_TARGET
     window = smoothing_window(p, skeleton=sk, fps=fps, target=target)
     if window <= 1:
         return result
     if motion.rotations is None:
-        q = _savgol(p, window, 3)
-        out = q.copy()  # bone directions from the filtered dance, each frame's own bone lengths kept
-        for j in sk.topological_order:
-            parent = sk.parents[j]
-            if parent >= 0:
-                d = q[:, j] - q[:, parent]
-                length = np.linalg.norm(p[:, j] - p[:, parent], axis=-1, keepdims=True)
-                out[:, j] = out[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
-        smoothed = Motion(skeleton=sk, fps=fps, positions=out.astype(np.float32))
+        out = np.empty(p.shape, np.float32)
+        for a, b in chunks(len(p)):  # the filter is local: piece by piece, the same numbers as one pass
+            q = savgol_rows(p, window, 3, a, b)
+            o = q.copy()  # bone directions from the filtered dance, each frame's own bone lengths kept
+            x = np.asarray(p[a:b], np.float64)
+            for j in sk.topological_order:
+                parent = sk.parents[j]
+                if parent >= 0:
+                    d = q[:, j] - q[:, parent]
+                    length = np.linalg.norm(x[:, j] - x[:, parent], axis=-1, keepdims=True)
+                    o[:, j] = o[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True),
+                                                                     1e-12)
+            out[a:b] = o
+        smoothed = Motion(skeleton=sk, fps=fps, positions=out)
     else:
         import torch
 
         from dancekit.motion.kinematics import rig_forward_kinematics
 
+        p = np.asarray(p, np.float64)
         rot = _savgol(np.asarray(motion.rotations, np.float64).reshape(len(p), -1, 9), window, 3)
         u, _, vt = np.linalg.svd(rot.reshape(len(p), -1, 3, 3))
         d = np.sign(np.linalg.det(u @ vt))
@@ -184,11 +190,12 @@ def foot_lock(result: DanceResult) -> DanceResult:
     if not _is_3d(motion) or not leg_chains(motion.skeleton):
         return result
     sk, fps = motion.skeleton, motion.fps
-    p = np.asarray(motion.to_positions(), np.float64)
+    p = motion.to_positions()  # lock_feet works on its own float64 copy
     locked = lock_feet(p, skeleton=sk, fps=fps, **foot_lock_options(result.model))
     rot = tr = None
     if motion.rotations is not None:
-        rot = leg_rotations(motion.rotations, p, locked, skeleton=sk).astype(motion.rotations.dtype)
+        rot = leg_rotations(motion.rotations, np.asarray(p, np.float64), locked,
+                            skeleton=sk).astype(motion.rotations.dtype)
         tr = locked[:, sk.root].astype(np.float32)  # the body may have been lowered
     out = Motion(skeleton=sk, fps=fps, positions=locked.astype(np.float32), rotations=rot, root_translation=tr)
     return dataclasses.replace(result, motion=out)

@@ -44,6 +44,20 @@ def _drop_joints(pos: np.ndarray, parents: list[int], sides: list[int], head: in
     return pos[:, keep], new_parents, [sides[j] for j in keep], new_index[head]
 
 
+#: Frames per piece of :func:`motion_arrays` (3D motions; every output frame depends on its own frame only).
+_CHUNK = 4096
+
+
+class _Piece:
+    """Frames of a 3D motion, as much of a :class:`~dancekit.motion.Motion` as :func:`motion_arrays` reads."""
+
+    def __init__(self, skeleton, fps: float, positions: np.ndarray) -> None:
+        self.skeleton, self.fps, self._positions = skeleton, fps, positions
+
+    def to_positions(self) -> np.ndarray:
+        return self._positions
+
+
 def motion_arrays(motion) -> dict:
     """Keyword arguments for :func:`render_mp4` / :func:`render_html` describing ``motion``.
 
@@ -62,11 +76,15 @@ def motion_arrays(motion) -> dict:
     try:
         sk = motion.skeleton
         fps = float(motion.fps)
-        pos = np.asarray(motion.to_positions(), dtype=np.float64)
+        pos = motion.to_positions()
     except AttributeError as exc:
         raise ParameterError(f"expected a dancekit.motion.Motion, got {type(motion).__name__}") from exc
-    if pos.ndim != 3 or pos.shape[1] != sk.num_joints or pos.shape[2] not in (2, 3):
-        raise ParameterError(f"motion positions must be (T, {sk.num_joints}, 2|3), got {pos.shape}")
+    if np.ndim(pos) != 3 or np.shape(pos)[1] != sk.num_joints or np.shape(pos)[2] not in (2, 3):
+        raise ParameterError(f"motion positions must be (T, {sk.num_joints}, 2|3), got {np.shape(pos)}")
+    if np.shape(pos)[2] == 3 and len(pos) > _CHUNK:  # per frame: in pieces, no whole-song float64 copies
+        pieces = [motion_arrays(_Piece(sk, fps, pos[a: a + _CHUNK])) for a in range(0, len(pos), _CHUNK)]
+        return {**pieces[0], "positions": np.concatenate([piece["positions"] for piece in pieces])}
+    pos = np.asarray(pos, dtype=np.float64)
     parents = list(sk.parents)
     up_axis, unit_scale = sk.up_axis, sk.unit_scale
     if pos.shape[2] == 2:  # image space -> plane z = 0, a 1.75 m figure

@@ -143,7 +143,9 @@ def prepare_scene(
     if head is not None and not (0 <= int(head) < J):
         raise ParameterError(f"head must be a joint index in 0..{J - 1}, got {head!r}")
 
-    p = (pos.astype(np.float64) * scale) @ _TO_Y_UP[up_axis].T  # (T, J, 3) metres, y up
+    p = np.empty(pos.shape, np.float64)  # (T, J, 3) metres, y up; per frame, 4,096 frames at a time
+    for a in range(0, T, 4096):
+        p[a: a + 4096] = (pos[a: a + 4096].astype(np.float64) * scale) @ _TO_Y_UP[up_axis].T
     p[:, :, 1] -= ground_level(p[:, :, 1].min(axis=1), fps=fps, follow=follow_ground)[:, None]
     height = float(np.percentile(p[:, :, 1].max(axis=1), 50))
     height = max(height, 0.1)
@@ -222,9 +224,11 @@ def fit_distance(scene: Scene, basis, *, tan_half_x: float, tan_half_y: float, m
     and is inside when ``|x| <= margin * tan_half_x * z`` (same for y), which is linear in ``d``.
     """
     right, up, fwd = basis
-    rel = scene.positions - scene.target[:, None, :]  # (T, J, 3)
-    x = np.abs(rel @ right)
-    y = np.abs(rel @ up)
-    z = rel @ fwd
-    need = np.maximum(x / (margin * tan_half_x), y / (margin * tan_half_y)) - z
-    return float(max(need.max(), 0.5 * scene.height, 0.5))
+    most = -np.inf
+    for a in range(0, scene.num_frames, 4096):  # per frame: 4,096 frames at a time, the same maximum
+        rel = scene.positions[a: a + 4096] - scene.target[a: a + 4096, None, :]  # (n, J, 3)
+        x = np.abs(rel @ right)
+        y = np.abs(rel @ up)
+        z = rel @ fwd
+        most = max(most, float((np.maximum(x / (margin * tan_half_x), y / (margin * tan_half_y)) - z).max()))
+    return float(max(most, 0.5 * scene.height, 0.5))

@@ -41,8 +41,14 @@ def _quantise(p: np.ndarray) -> tuple[bytes, list[float], list[float]]:
     lo = p.reshape(-1, 3).min(axis=0).astype(np.float64)
     hi = p.reshape(-1, 3).max(axis=0).astype(np.float64)
     scale = np.maximum(hi - lo, 1e-6) / 65535.0
-    v = np.clip(np.rint((p - lo) / scale), 0, 65535).astype("<u2")
+    v = np.empty(p.shape, "<u2")
+    for a in range(0, len(p), _QUANTISE_CHUNK):  # per frame: the float64 temporaries stay a chunk's size
+        v[a: a + _QUANTISE_CHUNK] = np.clip(np.rint((p[a: a + _QUANTISE_CHUNK] - lo) / scale), 0, 65535)
     return v.tobytes(), lo.tolist(), scale.tolist()
+
+
+#: Frames quantised at a time by :func:`_quantise`.
+_QUANTISE_CHUNK = 4096
 
 
 def page_html(
@@ -106,7 +112,7 @@ def write_page(
         "distance": dist,
         "offset": offset,
         "scale": scale,
-        "positions": base64.b64encode(qbytes).decode("ascii"),
+        "positions": _B64_SLOT,  # written in pieces below
         "target": base64.b64encode(scene.target.astype("<f4").tobytes()).decode("ascii"),
     }
     if figure == "body" and len(scene.bones):
@@ -119,7 +125,6 @@ def write_page(
         data["limb"] = limb.astype(int).tolist()
     else:
         data["figure"] = "stick"
-    data["positions"] = _B64_SLOT
     blob = json.dumps(data, separators=(",", ":")).replace("</", "<\\/")
     before, after = blob.split(_B64_SLOT, 1)
     head, tail = _shell_parts(title)

@@ -604,30 +604,11 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
     order = rotation_order.upper()
     if sorted(order) != ["X", "Y", "Z"]:
         raise MotionFormatError(f"rotation_order must be a permutation of XYZ, got {rotation_order!r}")
-    try:
-        m = motion.with_rotations()
-    except DancekitError as exc:
-        raise MotionFormatError(f"cannot compute rotations for {path}: {exc}") from exc
-    assert m.rotations is not None and m.root_translation is not None
-    rots = m.rotations
-    eul = np.concatenate([  # (T, J, 3); 4,096 frames at a time: no full-song float64 temporaries
-        np.rad2deg(matrix_to_euler_angles(torch.from_numpy(np.asarray(rots[a: a + 4096], dtype=np.float64)),
-                                          order).numpy())
-        for a in range(0, max(len(rots), 1), 4096)
-    ]) if len(rots) else np.rad2deg(matrix_to_euler_angles(torch.from_numpy(np.asarray(rots, np.float64)),
-                                                             order).numpy())
     rot_ch = tuple(f"{a}rotation" for a in order)
     rig = sk.rig()
     J = rig.num_joints
-    channels, cols = [], []
     root = rig.root
-    for j in range(J):
-        if j == root:
-            channels.append(("Xposition", "Yposition", "Zposition") + rot_ch)
-            cols.append(np.concatenate([np.asarray(m.root_translation, np.float64), eul[:, j]], axis=1))
-        else:
-            channels.append(rot_ch)
-            cols.append(eul[:, j])
+    channels = [("Xposition", "Yposition", "Zposition") + rot_ch if j == root else rot_ch for j in range(J)]
     # joints in a DFS order where parents precede children (BVH nesting)
     order_idx = list(rig.topological_order)
     remap = {old: new for new, old in enumerate(order_idx)}
@@ -640,13 +621,34 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
             if not np.any(off):
                 off = np.eye(3)[rig.up_index] * 0.05 / rig.unit_scale
             end_sites[remap[j]] = [off]
+    # the channel values, IK_CHUNK frames at a time (rotations by IK for a motion with positions only, then
+    # Euler angles): no whole-song rotation matrices or float64 temporaries, the same numbers as one pass
+    from dancekit.motion.motion import IK_CHUNK
+
+    T = motion.num_frames
+    values = np.empty((T, sum(len(channels[j]) for j in order_idx)), np.float64)
+    for a in range(0, T, IK_CHUNK):
+        try:
+            m = motion.slice(a, a + IK_CHUNK).with_rotations() if T > IK_CHUNK else motion.with_rotations()
+        except DancekitError as exc:
+            raise MotionFormatError(f"cannot compute rotations for {path}: {exc}") from exc
+        assert m.rotations is not None and m.root_translation is not None
+        eul = np.rad2deg(matrix_to_euler_angles(torch.from_numpy(np.asarray(m.rotations, np.float64)),
+                                                order).numpy())  # (chunk, J, 3)
+        col = 0
+        for j in order_idx:
+            if j == root:
+                values[a: a + len(eul), col: col + 3] = m.root_translation
+                col += 3
+            values[a: a + len(eul), col: col + 3] = eul[:, j]
+            col += 3
     data = BvhData(
         names=[rig.joint_names[j] for j in order_idx],
         parents=parents,
         offsets=np.asarray(rig.offsets, np.float64)[order_idx],
         channels=[channels[j] for j in order_idx],
         end_sites=end_sites,
-        frame_time=1.0 / m.fps,
-        values=np.concatenate([cols[j] for j in order_idx], axis=1),
+        frame_time=1.0 / motion.fps,
+        values=values,
     )
     format_bvh(data, path)
