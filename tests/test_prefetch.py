@@ -69,8 +69,10 @@ def test_prefetch_is_off_when_torch_is_loaded_or_switched_off(song, tmp_path):
 
 
 def test_a_failing_child_is_quiet_and_leaves_nothing(tmp_path):
-    bad = tmp_path / "bad.wav"
-    bad.write_bytes(b"not a wave file at all" * 100)
+    bad = tmp_path / "bad.wav"  # a header that promises 5 s of audio, then a few bytes: the read fails
+    good = tmp_path / "good.wav"
+    save_wav(good, np.zeros(5 * SR, np.float32), sr=SR)
+    bad.write_bytes(good.read_bytes()[:200])
     code = f"""
 from dancekit.features.prefetch import prefetch_features
 pre = prefetch_features({str(bad)!r}, fps=25.0, preset="music2dance")
@@ -80,6 +82,20 @@ print(pre.started, pre.wait())
     assert r.returncode == 0 and r.stdout.split() == ["True", "False"] and r.stderr == "", (r.stdout, r.stderr)
     cache = tmp_path / "cache"
     assert not cache.exists() or not [p for p in cache.rglob("*") if p.is_file()]
+
+
+def test_no_prefetch_for_a_long_clip(song, tmp_path):
+    # a long song's features are computed by the parent alone (two processes would hold memory at once)
+    code = f"""
+import dancekit.features.prefetch as pf
+pf.MAX_SECONDS = 4.0
+whole = pf.prefetch_features({str(song)!r}, fps=25.0, preset="music2dance")      # 6 s > 4 s
+part = pf.prefetch_features({str(song)!r}, fps=25.0, preset="music2dance", start=1.0, end=4.5)  # 3.5 s
+tail = pf.prefetch_features({str(song)!r}, fps=25.0, preset="music2dance", start=1.5)           # 4.5 s
+print(whole.started, part.started, tail.started, part.wait())
+"""
+    r = _python(code, tmp_path / "cache")
+    assert r.returncode == 0 and r.stdout.split() == ["False", "True", "False", "True"], (r.stdout, r.stderr)
 
 
 def test_cancel_stops_a_running_child(song, tmp_path):

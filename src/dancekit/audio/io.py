@@ -371,6 +371,16 @@ def _open_soundfile(path: Path) -> sf.SoundFile | None:
             return None
 
 
+def duration(path: str | os.PathLike) -> float | None:
+    """The length of the audio file ``path`` in seconds from its header (libsndfile), or None when libsndfile
+    cannot read the format (ffmpeg decodes those) or the file cannot be opened. Reads no samples."""
+    f = _open_soundfile(Path(path)) if Path(path).is_file() else None
+    if f is None:
+        return None
+    with f:
+        return f.frames / f.samplerate if f.samplerate > 0 else None
+
+
 def load(
     path: str | os.PathLike,
     *,

@@ -9,7 +9,10 @@ function on the same arguments, so the dance is the same; if the child fails (an
 folder), the parent computes (and reports) as it would have without it.
 
 Only where it can help and is safe: POSIX ``fork``, torch not imported yet in this process (a process that
-has it loaded has nothing left to overlap, and may run threads), and ``DANCEKIT_PREFETCH`` not ``0``. The child writes nothing to stdout or stderr.
+has it loaded has nothing left to overlap, and may run threads), ``DANCEKIT_PREFETCH`` not ``0``, and a
+clip of at most :data:`MAX_SECONDS` whose length the file's header gives: for a long song the second or
+two of overlap is small against the whole run, and two processes would hold memory at once (issue 18 bounds
+a 60-minute song's peak). The child writes nothing to stdout or stderr.
 """
 
 from __future__ import annotations
@@ -18,6 +21,9 @@ import os
 import signal
 import sys
 from pathlib import Path
+
+#: The longest clip (seconds) whose features are prefetched.
+MAX_SECONDS = 600.0
 
 
 class Prefetch:
@@ -73,12 +79,28 @@ def _child(path: Path, kwargs: dict) -> None:
         os._exit(code)
 
 
+def _short_enough(path: str | os.PathLike, start: float | None, end: float | None) -> bool:
+    """Whether the clip ``[start, end)`` of ``path`` is known to last at most :data:`MAX_SECONDS`."""
+    from dancekit.audio.io import duration
+
+    try:
+        total = duration(path)
+    except Exception:  # noqa: BLE001 - the parent's own read reports a bad file
+        return False
+    if total is None:
+        return False
+    span = (total if end is None else min(float(end), total)) - (0.0 if start is None else float(start))
+    return span <= MAX_SECONDS
+
+
 def prefetch_features(path: str | os.PathLike, *, fps: float, preset: str, hop_length: int = 512,
                       start: float | None = None, end: float | None = None) -> Prefetch:
     """Start computing ``extract_file(path, fps=..., preset=..., hop_length=..., start=..., end=...)`` into the
     feature cache in a forked child process; a :class:`Prefetch` with no child where that cannot help (see
     the module docstring)."""
     if not hasattr(os, "fork") or "torch" in sys.modules or os.environ.get("DANCEKIT_PREFETCH", "1") == "0":
+        return Prefetch()
+    if not _short_enough(path, start, end):
         return Prefetch()
     kwargs = {"fps": float(fps), "preset": str(preset), "hop_length": int(hop_length), "start": start, "end": end}
     sys.stdout.flush()
