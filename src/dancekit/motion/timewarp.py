@@ -215,6 +215,17 @@ class _Pentadiagonal:
         return y
 
 
+def _free_bands(bands: tuple[np.ndarray, np.ndarray, np.ndarray], f: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The bands of ``M[f][:, f]`` (``f`` increasing indices) of a pentadiagonal ``M`` given by its bands: again
+    pentadiagonal, since rows ``i < j`` of ``f`` are at least ``j - i`` apart in ``M``."""
+    d0, d1, d2 = bands
+    d1, d2 = np.append(d1, 0.0), np.append(d2, [0.0, 0.0])  # indexable at every row
+    gap = np.diff(f)  # free rows i, i + 1 are gap rows apart in M
+    b1 = np.where(gap == 1, d1[f[:-1]], np.where(gap == 2, d2[f[:-1]], 0.0))
+    b2 = np.where(f[2:] - f[:-2] == 2, d2[f[:-2]], 0.0)
+    return d0[f], b1, b2
+
+
 class _BandedKKT:
     """The warp's equality-constrained least squares: ``min r'Qr/2 - q'r`` s.t. ``C r = c`` and the rates
     ``F`` fixed at given values, ``Q = a0 I + a1 D1'D1 + a2 D2'D2`` (pentadiagonal, positive definite:
@@ -258,11 +269,6 @@ class _BandedKKT:
         pos = np.cumsum(free) - 1  # a free rate's index among the free rates
         held = np.zeros(n)
         held[fixed] = fixed_val
-        d0, d1, d2 = self.bands
-        d1, d2 = np.append(d1, 0.0), np.append(d2, [0.0, 0.0])  # indexable at every rate
-        gap = np.diff(f)  # free rates i, i + 1 in the reduced order are gap frames apart
-        b1 = np.where(gap == 1, d1[f[:-1]], np.where(gap == 2, d2[f[:-1]], 0.0))
-        b2 = np.where(f[2:] - f[:-2] == 2, d2[f[:-2]], 0.0)
         keep = free[self.ci]  # C restricted to the free rates, as triples (sums, no BLAS: a small product
         ri, ci, cv = self.ri[keep], pos[self.ci[keep]], self.cv[keep]  # is not worth BLAS threads)
         nf = len(f)
@@ -274,7 +280,7 @@ class _BandedKKT:
             return np.bincount(ci, weights=cv * lam[ri], minlength=nf)
 
         try:
-            M = _Pentadiagonal(d0[f], b1, b2)
+            M = _Pentadiagonal(*_free_bands(self.bands, f))
             g = a0 - self._qmul(held)[f]  # q - Q_fF r_F
             c = self.c - np.bincount(self.ri, weights=self.cv * held[self.ci], minlength=P)  # c - C_F r_F
             ct = np.zeros((nf, P))
