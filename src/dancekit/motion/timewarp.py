@@ -186,8 +186,9 @@ class _Pentadiagonal:
             m = e - a
             blk = np.zeros((m, m))
             blk[ar[:m], ar[:m]] = d0[a:e]
-            blk[ar[:m - 1], ar[1:m]] = blk[ar[1:m], ar[:m - 1]] = d1[a:e - 1]
-            blk[ar[:m - 2], ar[2:m]] = blk[ar[2:m], ar[:m - 2]] = d2[a:e - 2]
+            for j, d in ((1, d1), (2, d2)):
+                if m > j:
+                    blk[ar[:m - j], ar[j:m]] = blk[ar[j:m], ar[:m - j]] = d[a:e - j]
             if k:  # Schur complement: blk -= U' D_prev^-1 U (U nonzero in its last two rows only)
                 u = np.zeros((2, m))
                 u[0, 0], u[1, 0] = d2[a - 2], d1[a - 1]
