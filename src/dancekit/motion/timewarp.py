@@ -14,8 +14,10 @@ Three steps (:func:`beat_warp` runs them):
    go to the gentlest warp (sum of squared rate changes).
 2. :func:`warp_rates` — the rate per output frame: the smoothest rate (least first and second
    differences: no speed jumps, the dance's speed changes gradually) that puts every matched pair
-   exactly on its beat, an equality-constrained quadratic programme solved with a sparse KKT system;
-   rates that leave ``1 ± max_rate_change`` are fixed at the bound and the rest solved again (active set).
+   exactly on its beat, an equality-constrained quadratic programme (its KKT system solved in NumPy with
+   a banded factorisation, :class:`_BandedKKT`; ``scipy.sparse`` for a song of more than ~2
+   minutes); rates that leave ``1 ± max_rate_change`` are fixed at the bound and the rest solved again
+   (active set).
 3. :func:`warp_motion` — the dance sampled at the fractional source frames: rotations slerped, 3D
    positions bone by bone (:func:`warp_bones`, bone lengths kept), anything else linearly
    (:func:`warp_frames`, the toolkit's resampling rule).
@@ -143,9 +145,11 @@ def _overlap_row(xa: float, xb: float, n_rates: int) -> tuple[np.ndarray, np.nda
 
 
 #: Largest ``free rates × pairs`` whose warp is solved in NumPy (:class:`_BandedKKT`: dense ``(n, P)``
-#: blocks, ~24 bytes an entry: ~24 MB); a larger one (a song of more than ~10 minutes at 25 fps) goes to
-#: ``scipy.sparse.linalg.spsolve``, whose import (~0.4 s) is nothing next to such a dance.
-NUMPY_KKT_MAX = 1_000_000
+#: blocks, ~32 bytes an entry at the peak: ~10 MB). Its work grows as ``n · P`` per active-set round, the
+#: square of the song's length: at this bound (~2 minutes at 25 fps with ~0.7 matched beats a second) it
+#: takes ≤ ~0.1 s, less than ``scipy.sparse``'s import (~0.4 s); a larger system goes to
+#: ``scipy.sparse.linalg.spsolve`` (linear in the length; 3 minutes: 0.07-0.12 s against NumPy's 0.3-1 s).
+NUMPY_KKT_MAX = 300_000
 
 
 def _bands(n: int, a0: float, a1: float, a2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -236,7 +240,7 @@ class _BandedKKT:
     then the range-space method: a banded Cholesky factor of that block (O(n)), ``Z = Q⁻¹ C'``, the small
     ``(P, P)`` system ``(C Z) λ = C Q⁻¹ q - c`` and ``r = Q⁻¹ (q - C' λ)``, and one step of iterative
     refinement on the residual. The solution of the KKT system ``spsolve`` solved before (to ~1e-7 of a
-    rate; ``tests/test_stages.py``) without importing ``scipy.sparse`` (~0.4 s of a fresh process). A
+    frame; ``tests/test_filters.py``) without importing ``scipy.sparse`` (~0.4 s of a fresh process). A
     system above :data:`NUMPY_KKT_MAX`, or a singular one (a pair whose rates are all fixed), goes to
     ``spsolve`` as before.
     """
