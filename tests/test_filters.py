@@ -171,5 +171,12 @@ bad = sorted(m for m in sys.modules if m.startswith(("scipy.ndimage", "scipy.spa
 print(",".join(bad))
 """
     golden = Path(__file__).parent / "golden" / "default_model.npz"
-    out = subprocess.run([sys.executable, "-c", code, str(golden)], capture_output=True, text=True, check=True)
+    import os
+
+    import dancekit
+
+    src = str(Path(dancekit.__file__).resolve().parents[1])  # the dancekit under test, in the child too
+    env = dict(os.environ, PYTHONPATH=src + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out = subprocess.run([sys.executable, "-c", code, str(golden)], capture_output=True, text=True, check=True,
+                         env=env)
     assert out.stdout.strip() == ""
