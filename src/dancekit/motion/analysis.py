@@ -139,16 +139,16 @@ def floor_curve(
 
     ``feet``: joint names or roles (default ``skeleton.feet``; every joint when the skeleton names none).
     """
-    from scipy.ndimage import percentile_filter, uniform_filter1d
+    from dancekit.motion._filters import percentile_filter1d, uniform_filter1d
 
     names = list(feet) if feet is not None else list(skeleton.feet)
     idx = [skeleton.index(f) for f in names] or list(range(skeleton.num_joints))
     sign = up_sign(skeleton)
     lowest = (sign * np.asarray(positions, np.float64)[:, idx, skeleton.up_index]).min(axis=1)
     size = max(1, int(round(window_s * fps)))
-    floor = percentile_filter(lowest, percentile, size=size, mode="nearest")
+    floor = percentile_filter1d(lowest, percentile, size)
     if smooth_s:
-        floor = uniform_filter1d(floor, size=max(1, int(round(smooth_s * fps))), mode="nearest")
+        floor = uniform_filter1d(floor, max(1, int(round(smooth_s * fps))))
     return sign * floor
 
 
@@ -201,7 +201,7 @@ def mean_joint_speed(
     AIST++), speed averaged over joints; ``smooth`` is the Gaussian's standard deviation in seconds
     (None or 0: no smoothing). ``skeleton`` (optional) only checks the joint count.
     """
-    from scipy.ndimage import gaussian_filter1d
+    from dancekit.motion._filters import gaussian_filter1d
 
     fps = check_fps(fps)
     p = check_positions(positions, skeleton, min_frames=3)
@@ -209,7 +209,7 @@ def mean_joint_speed(
     if smooth:
         if smooth < 0:
             raise ParameterError(f"smooth must be >= 0 seconds, got {smooth}")
-        speed = gaussian_filter1d(speed, sigma=smooth * fps, mode="nearest")
+        speed = gaussian_filter1d(speed, smooth * fps)
     return speed
 
 

@@ -42,7 +42,7 @@ def ground_offset(
 ) -> np.ndarray:
     """The height ``(T,)`` (skeleton units, along the up direction) to take off every frame so that the
     lowest joint rests on the floor (height 0): see :func:`ground_contact`."""
-    from scipy.ndimage import gaussian_filter1d, minimum_filter1d
+    from dancekit.motion._filters import gaussian_filter1d, minimum_filter1d
 
     fps = check_fps(fps)
     p = np.asarray(positions, dtype=np.float64)
@@ -50,9 +50,9 @@ def ground_offset(
         raise ParameterError(f"ground_contact needs (T, J, 3) positions, got shape {p.shape}")
     low = heights(p, skeleton).min(axis=1)  # (T,)
     size = max(1, int(round(window_s * fps)) | 1)
-    offset = minimum_filter1d(low, size=size, mode="nearest")
+    offset = minimum_filter1d(low, size)
     if smooth_s:
-        offset = gaussian_filter1d(offset, sigma=smooth_s * fps, mode="nearest")
+        offset = gaussian_filter1d(offset, smooth_s * fps)
     return np.minimum(offset, low)
 
 

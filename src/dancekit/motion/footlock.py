@@ -89,10 +89,10 @@ def leg_chains(skeleton: Skeleton) -> list[tuple[int, int, int, list[int]]]:
 
 def _local_floor(p: np.ndarray, skeleton: Skeleton, fps: float, window_s: float) -> np.ndarray:
     """(T,) the lowest point of the lowest joint within ±window_s/2, metres along the up axis."""
-    from scipy.ndimage import minimum_filter1d
+    from dancekit.motion._filters import minimum_filter1d
 
     low = heights(p, skeleton).min(axis=1) * skeleton.unit_scale
-    return minimum_filter1d(low, size=2 * int(round(window_s * fps / 2)) + 1, mode="nearest")
+    return minimum_filter1d(low, 2 * int(round(window_s * fps / 2)) + 1)
 
 
 def _hysteresis(on: np.ndarray, stay: np.ndarray, min_len: int) -> np.ndarray:
@@ -406,10 +406,9 @@ def lock_feet(
             need = -dv - np.sqrt(np.maximum(reach**2 - dh2, 0.0))
             drop = np.maximum(drop, np.where(held, np.clip(need, 0.0, max_drop_m / skeleton.unit_scale), 0.0))
     if drop.any():  # lowered smoothly: at least as far as needed around every frame, no sudden sink
-        from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+        from dancekit.motion._filters import gaussian_filter1d, maximum_filter1d
 
-        drop = gaussian_filter1d(maximum_filter1d(drop, size=2 * blend + 1, mode="nearest"), sigma=blend / 2,
-                                 mode="nearest")
+        drop = gaussian_filter1d(maximum_filter1d(drop, 2 * blend + 1), blend / 2)
         p -= drop[:, None, None] * up  # p is this function's own float64 copy: lowered in place
     out = p.copy()
     for leg, (hip, knee, ankle, below) in enumerate(legs):
@@ -423,9 +422,9 @@ def lock_feet(
         if drop.any():  # a lowered body must not push a free foot through the floor
             sink = np.maximum(floor - heights(want, skeleton).min(axis=1), 0.0) * (drop > 0)
             if sink_sigma_s > 0 and c1_blend and sink.any():  # a softer landing, never lower than the floor
-                from scipy.ndimage import gaussian_filter1d
+                from dancekit.motion._filters import gaussian_filter1d
 
-                sink = np.maximum(sink, gaussian_filter1d(sink, sigma=sink_sigma_s * fps, mode="nearest"))
+                sink = np.maximum(sink, gaussian_filter1d(sink, sink_sigma_s * fps))
             want = want + sink[:, None, None] * up
         off = want - orig
         changed = np.abs(off).max(axis=(1, 2)) > 0
@@ -445,9 +444,9 @@ def lock_feet(
             act = np.clip(np.maximum(weight, moved), 0.0, 1.0)
             side = p[:, knee] - p[:, hip]
             if pole_sigma > 0:
-                from scipy.ndimage import gaussian_filter1d
+                from dancekit.motion._filters import gaussian_filter1d
 
-                side = gaussian_filter1d(side, sigma=pole_sigma * fps, axis=0, mode="nearest")
+                side = gaussian_filter1d(side, pole_sigma * fps, axis=0)
             pole = (side + 0.25 * thigh * act[:, None] * toe)[t]
         else:
             pole = ((p[:, knee] - p[:, hip]) + 0.25 * thigh * toe)[t]
@@ -607,7 +606,7 @@ def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int 
     dance ``p`` (T, J, 3), or of ``_savgol(p, window, order)`` when ``window`` is given. Summed over pieces
     of :data:`CHUNK` frames with a margin (the moving average and the filter are local), so a long song
     needs no whole-song float64 copies; the same ratio as one pass up to float rounding of the sums."""
-    from scipy.ndimage import uniform_filter1d
+    from dancekit.motion._filters import uniform_filter1d
 
     T = len(p)
     if T < 3:
@@ -619,7 +618,7 @@ def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int 
         x = (np.asarray(p[lo:hi], np.float64) if window is None else savgol_rows(p, window, order, lo, hi))
         rel = x - x[:, r: r + 1]
         raw += float(np.linalg.norm(np.diff(rel[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
-        sm = uniform_filter1d(rel, size=5, axis=0, mode="nearest")  # at lo > 0 / hi < T: 2 real frames of margin
+        sm = uniform_filter1d(rel, 5, axis=0)  # at lo > 0 / hi < T: 2 real frames of margin
         smooth += float(np.linalg.norm(np.diff(sm[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
     return float((raw - smooth) / smooth) if smooth > 0 else 0.0
 

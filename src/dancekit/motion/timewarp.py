@@ -14,8 +14,10 @@ Three steps (:func:`beat_warp` runs them):
    go to the gentlest warp (sum of squared rate changes).
 2. :func:`warp_rates` — the rate per output frame: the smoothest rate (least first and second
    differences: no speed jumps, the dance's speed changes gradually) that puts every matched pair
-   exactly on its beat, an equality-constrained quadratic programme solved with a sparse KKT system;
-   rates that leave ``1 ± max_rate_change`` are fixed at the bound and the rest solved again (active set).
+   exactly on its beat, an equality-constrained quadratic programme (its KKT system solved in NumPy with
+   a banded factorisation, :class:`_BandedKKT`; ``scipy.sparse`` for a song of more than ~2
+   minutes); rates that leave ``1 ± max_rate_change`` are fixed at the bound and the rest solved again
+   (active set).
 3. :func:`warp_motion` — the dance sampled at the fractional source frames: rotations slerped, 3D
    positions bone by bone (:func:`warp_bones`, bone lengths kept), anything else linearly
    (:func:`warp_frames`, the toolkit's resampling rule).
@@ -142,6 +144,195 @@ def _overlap_row(xa: float, xb: float, n_rates: int) -> tuple[np.ndarray, np.nda
     return cols[keep], coef[keep]
 
 
+#: Largest ``free rates × pairs`` whose warp is solved in NumPy (:class:`_BandedKKT`: dense ``(n, P)``
+#: blocks, ~32 bytes an entry at the peak: ~10 MB). Its work grows as ``n · P`` per active-set round, the
+#: square of the song's length: at this bound (~2 minutes at 25 fps with ~0.7 matched beats a second) it
+#: takes ≤ ~0.1 s, less than ``scipy.sparse``'s import (~0.4 s); a larger system goes to
+#: ``scipy.sparse.linalg.spsolve`` (linear in the length; 3 minutes: 0.07-0.12 s against NumPy's 0.3-1 s).
+NUMPY_KKT_MAX = 300_000
+
+
+def _bands(n: int, a0: float, a1: float, a2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Diagonal, first and second super-diagonal of ``Q = a0 I + a1 D1'D1 + a2 D2'D2`` (n × n; ``D1``,
+    ``D2`` the first and second differences)."""
+    d = (np.full(n, a0), np.zeros(max(n - 1, 0)), np.zeros(max(n - 2, 0)))
+    for stencil, a in (((-1.0, 1.0), a1), ((1.0, -2.0, 1.0), a2)):
+        m = n - len(stencil) + 1  # rows of the difference operator
+        if m < 1:
+            continue
+        for i, ci in enumerate(stencil):
+            for j in range(i, len(stencil)):
+                d[j - i][i:i + m] += a * ci * stencil[j]
+    return d
+
+
+#: Rows per block of :class:`_Pentadiagonal`'s block elimination (its products stay below the size at
+#: which BLAS starts threads: threads of two processes on a loaded machine cost more than they give).
+BLOCK = 48
+
+
+class _Pentadiagonal:
+    """``M⁻¹ b`` for a symmetric positive definite pentadiagonal ``M`` (its diagonal ``d0``, first and
+    second super-diagonals ``d1``, ``d2``) by block Gaussian elimination: ``M`` cut into diagonal blocks of
+    :data:`BLOCK` rows (block tridiagonal, neighbours coupled through a 2 × 2 corner), each block's Schur
+    complement inverted densely (``np.linalg.inv``; symmetric positive definite, so no pivoting is needed);
+    a solve is then ~2 n / BLOCK small matrix products. Raises ``np.linalg.LinAlgError`` for a singular
+    block."""
+
+    def __init__(self, d0: np.ndarray, d1: np.ndarray, d2: np.ndarray):
+        n = len(d0)
+        self.starts = list(range(0, n, BLOCK)) + [n]
+        self.inv: list[np.ndarray] = []
+        self.u: list[np.ndarray | None] = [None]  # u[k]: M[last two rows of block k - 1, block k]
+        ar = np.arange(BLOCK)
+        for k in range(len(self.starts) - 1):
+            a, e = self.starts[k], self.starts[k + 1]
+            m = e - a
+            blk = np.zeros((m, m))
+            blk[ar[:m], ar[:m]] = d0[a:e]
+            for j, d in ((1, d1), (2, d2)):
+                if m > j:
+                    blk[ar[:m - j], ar[j:m]] = blk[ar[j:m], ar[:m - j]] = d[a:e - j]
+            if k:  # Schur complement: blk -= U' D_prev^-1 U (U nonzero in its last two rows only)
+                u = np.zeros((2, m))
+                u[0, 0], u[1, 0] = d2[a - 2], d1[a - 1]
+                if m > 1:
+                    u[1, 1] = d2[a - 1]
+                self.u.append(u)
+                blk -= u.T @ (self.inv[-1][-2:, -2:] @ u)
+            self.inv.append(np.linalg.inv(blk))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``M⁻¹ b`` for ``b`` (n,) or (n, k), float64."""
+        y = np.array(b, dtype=np.float64)
+        st, K = self.starts, len(self.starts) - 1
+        z = []  # D_k^-1 y_k of the forward pass
+        for k in range(K):
+            a, e = st[k], st[k + 1]
+            if k:
+                y[a:e] -= self.u[k].T @ z[-1][-2:]
+            z.append(self.inv[k] @ y[a:e])
+        x = z[-1]
+        y[st[K - 1]:st[K]] = x
+        for k in range(K - 2, -1, -1):
+            x = z[k] - self.inv[k][:, -2:] @ (self.u[k + 1] @ x)
+            y[st[k]:st[k + 1]] = x
+        return y
+
+
+def _free_bands(bands: tuple[np.ndarray, np.ndarray, np.ndarray], f: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The bands of ``M[f][:, f]`` (``f`` increasing indices) of a pentadiagonal ``M`` given by its bands: again
+    pentadiagonal, since rows ``i < j`` of ``f`` are at least ``j - i`` apart in ``M``."""
+    d0, d1, d2 = bands
+    d1, d2 = np.append(d1, 0.0), np.append(d2, [0.0, 0.0])  # indexable at every row
+    gap = np.diff(f)  # free rows i, i + 1 are gap rows apart in M
+    b1 = np.where(gap == 1, d1[f[:-1]], np.where(gap == 2, d2[f[:-1]], 0.0))
+    b2 = np.where(f[2:] - f[:-2] == 2, d2[f[:-2]], 0.0)
+    return d0[f], b1, b2
+
+
+class _BandedKKT:
+    """The warp's equality-constrained least squares: ``min r'Qr/2 - q'r`` s.t. ``C r = c`` and the rates
+    ``F`` fixed at given values, ``Q = a0 I + a1 D1'D1 + a2 D2'D2`` (pentadiagonal, positive definite:
+    ``a0 > 0``), ``q = a0 · 1``, ``C`` the pairs' rows (:func:`_overlap_row`).
+
+    The fixed rates are substituted (the free rates' block of ``Q`` is again pentadiagonal in their order),
+    then the range-space method: a banded Cholesky factor of that block (O(n)), ``Z = Q⁻¹ C'``, the small
+    ``(P, P)`` system ``(C Z) λ = C Q⁻¹ q - c`` and ``r = Q⁻¹ (q - C' λ)``, and one step of iterative
+    refinement on the residual. The solution of the KKT system ``spsolve`` solved before (to ~1e-7 of a
+    frame; ``tests/test_filters.py``) without importing ``scipy.sparse`` (~0.4 s of a fresh process). A
+    system above :data:`NUMPY_KKT_MAX`, or a singular one (a pair whose rates are all fixed), goes to
+    ``spsolve`` as before.
+    """
+
+    def __init__(self, rows: list[tuple[np.ndarray, np.ndarray]], rhs: np.ndarray, n: int, a: tuple):
+        self.rows, self.c, self.n, self.a = rows, np.asarray(rhs, np.float64), n, a
+        self.bands = _bands(n, *a)
+        # C as (row, column, coefficient) triples
+        self.ri = np.concatenate([np.full(len(cols), k) for k, (cols, _) in enumerate(rows)] or [np.zeros(0, int)])
+        self.ci = np.concatenate([cols for cols, _ in rows] or [np.zeros(0, int)])
+        self.cv = np.concatenate([coef for _, coef in rows] or [np.zeros(0)])
+
+    def _qmul(self, r: np.ndarray) -> np.ndarray:
+        """``Q r``."""
+        d0, d1, d2 = self.bands
+        out = d0 * r
+        out[:-1] += d1 * r[1:]
+        out[1:] += d1 * r[:-1]
+        out[:-2] += d2 * r[2:]
+        out[2:] += d2 * r[:-2]
+        return out
+
+    def solve(self, fixed: np.ndarray, fixed_val: np.ndarray) -> np.ndarray:
+        """The rates ``(n,)``, the rates at indices ``fixed`` held at ``fixed_val``."""
+        n, a0, P = self.n, self.a[0], len(self.rows)
+        if (n - len(fixed)) * P > NUMPY_KKT_MAX:
+            return self._spsolve(fixed, fixed_val)
+        free = np.ones(n, dtype=bool)
+        free[fixed] = False
+        f = np.flatnonzero(free)
+        pos = np.cumsum(free) - 1  # a free rate's index among the free rates
+        held = np.zeros(n)
+        held[fixed] = fixed_val
+        keep = free[self.ci]  # C restricted to the free rates, as triples (sums, no BLAS: a small product
+        ri, ci, cv = self.ri[keep], pos[self.ci[keep]], self.cv[keep]  # is not worth BLAS threads)
+        nf = len(f)
+
+        def cmul(x):  # C_f x
+            return np.bincount(ri, weights=cv * x[ci], minlength=P)
+
+        def ctmul(lam):  # C_f' lam
+            return np.bincount(ci, weights=cv * lam[ri], minlength=nf)
+
+        try:
+            M = _Pentadiagonal(*_free_bands(self.bands, f))
+            g = a0 - self._qmul(held)[f]  # q - Q_fF r_F
+            c = self.c - np.bincount(self.ri, weights=self.cv * held[self.ci], minlength=P)  # c - C_F r_F
+            ct = np.zeros((nf, P))
+            ct[ci, ri] = cv
+            Z = M.solve(ct)  # Q_ff^-1 C_f', (n_free, P)
+            S = np.zeros((P, P))
+            np.add.at(S, ri, cv[:, None] * Z[ci])  # C_f Z
+            r0 = M.solve(g)
+            lam = np.linalg.solve(S, cmul(r0) - c)
+            x = r0 - (Z * lam).sum(axis=1)
+            # one step of iterative refinement on the KKT residual
+            xf = np.zeros(n)
+            xf[f] = x
+            res1 = g - self._qmul(xf)[f] - ctmul(lam)  # Q_ff x = (Q x on the free rates)_f
+            u = M.solve(res1)
+            dlam = np.linalg.solve(S, cmul(u) - (c - cmul(x)))
+            x = x + u - (Z * dlam).sum(axis=1)
+        except np.linalg.LinAlgError:
+            return self._spsolve(fixed, fixed_val)
+        if not np.isfinite(x).all():
+            return self._spsolve(fixed, fixed_val)
+        held[f] = x
+        return held
+
+    def _spsolve(self, fixed: np.ndarray, fixed_val: np.ndarray) -> np.ndarray:
+        """The same solution from the sparse KKT system and ``scipy.sparse.linalg.spsolve``."""
+        from scipy import sparse
+        from scipy.sparse.linalg import spsolve
+
+        n, (a0, a1, a2) = self.n, self.a
+        Q = a0 * sparse.identity(n, format="csr")
+        if n >= 2:
+            d1 = sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
+            Q = Q + a1 * (d1.T @ d1)
+        if n >= 3:
+            d2 = sparse.diags([np.ones(n - 2), -2 * np.ones(n - 2), np.ones(n - 2)], [0, 1, 2], shape=(n - 2, n))
+            Q = Q + a2 * (d2.T @ d2)
+        rows = [np.full(len(cols), k) for k, (cols, _) in enumerate(self.rows)]
+        C = sparse.csr_matrix((np.concatenate([v for _, v in self.rows]),
+                               (np.concatenate(rows), np.concatenate([c for c, _ in self.rows]))),
+                              shape=(len(self.rows), n))
+        E = sparse.csr_matrix((np.ones(len(fixed)), (np.arange(len(fixed)), fixed)), shape=(len(fixed), n))
+        A = sparse.vstack([C, E]).tocsr()
+        K = sparse.bmat([[Q, A.T], [A, None]], format="csc")
+        return spsolve(K, np.concatenate([a0 * np.ones(n), self.c, fixed_val]))[:n]
+
+
 def warp_rates(
     *,
     pairs: np.ndarray,
@@ -166,9 +357,6 @@ def warp_rates(
     ``s[t + 1] - s[t]`` in ``[1 - max_rate_change, 1 + max_rate_change]``; matched pairs land on
     their beats (``s(m · fps) = k · fps``, interpolated linearly between frames) to ~1e-6 frame.
     """
-    from scipy import sparse
-    from scipy.sparse.linalg import spsolve
-
     T = int(n_frames)
     if T < 2:
         return np.zeros(max(T, 0))
@@ -178,39 +366,25 @@ def warp_rates(
     D = (T - 1) / float(fps)
     knots = np.concatenate([[[0.0, 0.0]], pairs, [[D, D]]]) * float(fps)  # frames
     n = T - 1  # one rate per output interval
-    rows, cols, vals, rhs = [], [], [], []
+    rows = []  # (columns, coefficients) of each pair's equality row
+    rhs = []
     for (xa, ya), (xb, yb) in zip(knots[:-1], knots[1:], strict=True):
         c, v = _overlap_row(xa, xb, n)
         if len(c):
-            rows.append(np.full(len(c), len(rhs)))
-            cols.append(c)
-            vals.append(v)
+            rows.append((c, v))
             rhs.append(yb - ya)
-    C = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(len(rhs), n))
     c = np.asarray(rhs)
     # quadratic form: a0 |r - 1|^2 + a1 |D1 r|^2 + a2 |D2 r|^2 (first and second differences of the rate)
     L = max(1.0, smooth_s * fps)
     a0, a1, a2 = 1e-3, L**2, L**4 / 4.0
-    Q = a0 * sparse.identity(n, format="csr")
-    if n >= 2:
-        d1 = sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
-        Q = Q + a1 * (d1.T @ d1)
-    if n >= 3:
-        d2 = sparse.diags([np.ones(n - 2), -2 * np.ones(n - 2), np.ones(n - 2)], [0, 1, 2], shape=(n - 2, n))
-        Q = Q + a2 * (d2.T @ d2)
-    q = a0 * np.ones(n)
     lo, hi = 1.0 - max_rate_change, 1.0 + max_rate_change
     fixed = np.zeros(n, dtype=bool)
     fixed_val = np.zeros(n)
     rates = np.ones(n)
+    kkt = _BandedKKT(rows, c, n, (a0, a1, a2))
     for _ in range(50):  # active set: rates that leave the box are fixed at the bound, then solve again
         F = np.flatnonzero(fixed)
-        E = sparse.csr_matrix((np.ones(len(F)), (np.arange(len(F)), F)), shape=(len(F), n))
-        A = sparse.vstack([C, E]).tocsr()
-        rhs_all = np.concatenate([c, fixed_val[F]])
-        K = sparse.bmat([[Q, A.T], [A, None]], format="csc")
-        sol = spsolve(K, np.concatenate([q, rhs_all]))
-        rates = sol[:n]
+        rates = kkt.solve(F, fixed_val[F])
         bad = ((rates < lo - 1e-9) | (rates > hi + 1e-9)) & ~fixed
         if not bad.any():
             break

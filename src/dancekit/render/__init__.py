@@ -15,7 +15,7 @@ from typing import Any
 
 from dancekit.render.options import AudioClip, RenderOptions
 
-# the renderers import scipy.ndimage and PIL: loaded on first use, so that a dance written as npz or bvh
+# the renderers import PIL: loaded on first use, so that a dance written as npz or bvh
 # (and ``dancekit dance``'s start-up) does not pay for them
 _LAZY = {
     "render_html": "dancekit.render.html",

@@ -11,10 +11,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d, percentile_filter
 
 from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
+from dancekit.motion._filters import gaussian_filter1d, percentile_filter1d
 
 #: rotation taking each supported up axis onto +y (right-handed, det = +1)
 _TO_Y_UP = {
@@ -154,8 +154,8 @@ def prepare_scene(
     sigma = max(smooth_s * fps, 1e-6)
     path = p[:, root, :].copy()
     if T > 1:
-        path[:, 0] = gaussian_filter1d(path[:, 0], sigma, mode="nearest")
-        path[:, 2] = gaussian_filter1d(path[:, 2], sigma, mode="nearest")
+        path[:, 0] = gaussian_filter1d(path[:, 0], sigma)
+        path[:, 2] = gaussian_filter1d(path[:, 2], sigma)
     mid = np.median(0.5 * (p[:, :, 1].max(axis=1) + np.maximum(p[:, :, 1].min(axis=1), 0.0)))
     path[:, 1] = mid
 
@@ -195,8 +195,8 @@ def ground_level(lowest: np.ndarray, *, fps: float, follow: bool = True, window_
     if not follow or lowest.shape[0] < 3:
         return np.full(lowest.shape, np.percentile(lowest, 5))
     size = max(3, int(round(window_s * fps)) | 1)
-    level = percentile_filter(lowest, 10, size=size, mode="nearest")
-    return gaussian_filter1d(level, 0.5 * fps, mode="nearest")
+    level = percentile_filter1d(lowest, 10, size)
+    return gaussian_filter1d(level, 0.5 * fps)
 
 
 def default_azimuth(scene: Scene, *, offset: float = 30.0) -> float:
