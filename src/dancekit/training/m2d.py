@@ -256,8 +256,12 @@ def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
     Logs ``mse`` (the corrected lower body), ``mse_input`` (the corrupted one), ``contact_v2`` and, in
     validation, ``contact_v2_input`` ((m/s)² of the toes on contacts, corrected and corrupted).
     """
-    from dancekit.models.foot_constraint import (contact_velocity_loss, detect_contacts, swing_speed_loss,
-                                                 unit_smooth_noise)
+    from dancekit.models.foot_constraint import (
+        contact_velocity_loss,
+        detect_contacts,
+        swing_speed_loss,
+        unit_smooth_noise,
+    )
     from dancekit.motion.root_delta import rootdelta_positions
 
     c = model.config
