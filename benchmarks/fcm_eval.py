@@ -31,6 +31,14 @@ from dancekit.pipelines.base import DanceResult
 from dancekit.pipelines.foot_constraint import load_foot_constraint
 from dancekit.pipelines.stages import finish
 
+LEGS = tuple(f"{side}_{j}" for side in ("left", "right") for j in ("knee", "ankle", "toe"))
+
+
+def leg_speed(positions: np.ndarray, fps: float, sk) -> float:
+    """Mean world speed (m/s) of the knees, ankles and toes of positions ``(T, J, 3)`` (skeleton units)."""
+    p = positions[:, [sk.index(n) for n in LEGS]] * sk.unit_scale
+    return float(np.linalg.norm(np.diff(p, axis=0), axis=-1).mean() * fps)
+
 
 def main() -> None:
     ap = argparse.ArgumentParser()
@@ -51,13 +59,16 @@ def main() -> None:
         name, _, folder = spec.partition("=")
         fixes[name] = None if name == "none" else load_foot_constraint(folder or name)
     report = {}
+    real = [leg_speed(np.asarray(data.motion(n).to_positions(), np.float64), data.fps, sk) for n in data.names(args.split)]
+    report["real/leg_speed"] = float(np.mean(real))
+    print(f"{args.split} real leg speed {np.mean(real):.3f} m/s", flush=True)
     for model in args.models:
         files = sorted((Path(args.raw) / model / args.split).glob("*.npz"))
         raw = [bench_feet.load(f, sk) for f in files]
         for name, fix in fixes.items():
             for lock in args.lock:
                 t0, cpu0 = time.perf_counter(), time.process_time()
-                positions, skating = [], []
+                positions, skating, legs = [], [], []
                 for motion in raw:
                     m = motion if fix is None else fix(motion)
                     res = finish(DanceResult(motion=m, model=model, seed=0), "", beat_sync_on=False, cleanup_on=True,
@@ -65,11 +76,12 @@ def main() -> None:
                     p = np.asarray(res.motion.to_positions(), np.float64)
                     positions.append(p)
                     skating.append(foot_skating(p, fps=res.motion.fps, skeleton=sk)["ratio"])
-                row = {"skating": float(np.nanmean(skating)), **bench_stages.fids(positions, reference, 25.0, sk),
+                    legs.append(leg_speed(p, res.motion.fps, sk))
+                row = {"skating": float(np.nanmean(skating)), "leg_speed": float(np.mean(legs)), **bench_stages.fids(positions, reference, 25.0, sk),
                        "dances": len(raw), "cpu_s": time.process_time() - cpu0, "wall_s": time.perf_counter() - t0}
                 report[f"{model}/{name}/lock_{lock}"] = row
                 print(f"{args.split} {model:<12} {name:<10} lock {lock:<3}  skating {row['skating']:.3f}  "
-                      f"FID_k {row['fid_k']:.2f}  FID_g {row['fid_g']:.2f}  ({len(raw)} dances, {row['cpu_s']:.0f} s CPU)",
+                      f"FID_k {row['fid_k']:.2f}  FID_g {row['fid_g']:.2f}  legs {row['leg_speed']:.3f} m/s  ({len(raw)} dances, {row['cpu_s']:.0f} s CPU)",
                       flush=True)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps({"split": args.split, "fcm": args.fcm, "rows": report}, indent=1))

@@ -230,6 +230,70 @@ def test_contact_velocity_loss_pulls_a_gliding_foot_to_a_stop():
     assert g[0] < 0 < g[-1] and toes.grad[0, :, 0].abs().max() == 0  # first frame forward, last back; still toe: 0
 
 
+def _legs_moving(v_left: float, v_right: float, T: int = 26, K: int = 4, fps: float = 25.0) -> torch.Tensor:
+    """Leg joints ``(1, T, 2, K, 3)`` (metres): every joint of the left leg moving along z at ``v_left`` m/s,
+    of the right leg along x at ``v_right``."""
+    legs = torch.zeros(1, T, 2, K, 3, dtype=torch.float64)
+    steps = torch.arange(T, dtype=torch.float64)[:, None] / fps
+    legs[0, :, 0, :, 2] = v_left * steps
+    legs[0, :, 1, :, 0] = v_right * steps
+    return legs
+
+
+def test_swing_speed_loss_known_answers():
+    from dancekit.models.foot_constraint import swing_speed_loss
+
+    off = torch.zeros(1, 26, 2, dtype=torch.float64)
+    target = _legs_moving(0.5, 0.5)
+    assert float(swing_speed_loss(target, target, off, fps=25.0)) == 0.0  # as fast as the target: free
+    assert float(swing_speed_loss(_legs_moving(0.8, 0.9), target, off, fps=25.0)) == 0.0  # faster: free too
+    # both legs still where the target's move at 0.5 m/s: 0.5² = 0.25 (m/s)²
+    assert float(swing_speed_loss(_legs_moving(0.0, 0.0), target, off, fps=25.0)) == pytest.approx(0.25, rel=1e-6)
+    # left at 0.2, right at 0.5 where the target's left moves at 0.5: shortfall 0.3 on half the terms → 0.09 / 2
+    assert float(swing_speed_loss(_legs_moving(0.2, 0.5), target, off, fps=25.0)) == pytest.approx(0.045, rel=1e-6)
+    # the direction does not matter, only the speed: the right leg moving along z at the target's speed is free
+    turned = _legs_moving(0.5, 0.0)
+    turned[0, :, 1, :, 2] = 0.5 * torch.arange(26, dtype=torch.float64)[:, None] / 25.0
+    assert float(swing_speed_loss(turned, target, off, fps=25.0)) == pytest.approx(0.0, abs=1e-12)
+    # steps on which the toe is in contact at both ends do not count: left planted all along → the right alone
+    left = off.clone()
+    left[..., 0] = 1.0
+    assert float(swing_speed_loss(_legs_moving(0.0, 0.3), target, left, fps=25.0)) == pytest.approx(0.04, rel=1e-6)
+    assert float(swing_speed_loss(_legs_moving(0.0, 0.0), target, torch.ones_like(off), fps=25.0)) == 0.0
+
+
+def test_swing_speed_loss_speeds_a_slow_leg_up():
+    from dancekit.models.foot_constraint import swing_speed_loss
+
+    legs = _legs_moving(0.0, 0.25).requires_grad_(True)
+    swing_speed_loss(legs, _legs_moving(0.0, 0.5), torch.zeros(1, 26, 2, dtype=torch.float64), fps=25.0).backward()
+    g = legs.grad[0, :, 1, :, 0]  # right leg along its motion: first frame pulled back, last pushed on (faster)
+    assert (g[0] > 0).all() and (g[-1] < 0).all() and legs.grad[0, :, 0].abs().max() == 0  # left: as fast as its target
+
+
+def test_objective_swing_term_is_logged_and_weighted():
+    from dancekit.training import StepContext, TrainConfig
+    from dancekit.training.m2d import foot_constraint_step
+
+    rng = torch.Generator().manual_seed(3)
+    x = 0.3 * torch.randn(2, 40, 155, generator=rng, dtype=torch.float64)
+    x[..., -2:] = 0.0  # no contacts: every step counts
+
+    def run(weight: float) -> tuple[float, dict]:
+        ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0),
+                          config=TrainConfig())
+        torch.manual_seed(0)
+        model = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0, contact_weight=0.0,
+                                                         swing_weight=weight)).double()
+        loss, logs = foot_constraint_step(model, {"dance": x}, ctx)
+        return float(loss), logs
+
+    base, _ = run(0.0)
+    loss, logs = run(2.0)
+    assert logs["swing_short2"] > 0  # the glide changes the legs' speeds: some joints are slower than the target's
+    assert loss == pytest.approx(base + 2.0 * logs["swing_short2"], rel=1e-9)
+
+
 def test_detect_contacts_reads_height_and_speed():
     from dancekit.models.foot_constraint import detect_contacts
 

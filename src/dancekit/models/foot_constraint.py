@@ -24,7 +24,8 @@ Training (``dancekit.training.m2d.foot_constraint_step``)
     A share ``clean_share`` of the windows is left clean (the identity is their target). Loss: MSE +
     ``smooth_weight`` (0.1) x the mean squared second difference of the corrected lower body +
     ``contact_weight`` x :func:`contact_velocity_loss` of its toes (world, differentiable FK) on the clean
-    dance's planted frames. With ``contact_speed > 0`` the model's contact inputs are
+    dance's planted frames + ``swing_weight`` x :func:`swing_speed_loss` of its legs (how much slower than the
+    clean dance's they move off contact). With ``contact_speed > 0`` the model's contact inputs are
     :func:`detect_contacts` (< 5 cm, slower than ``contact_speed`` m/s), in training and in the pipeline.
     Checkpoints written before these settings existed record ``corruption="paper"``, ``contact_weight=0``,
     ``contact_speed=0`` in their config.json.
@@ -77,6 +78,8 @@ class FootConstraintConfig:
     glide_amp: float = 0.3  # glide: std of the drift added to each lower-body column (normalised units) ...
     glide_sigma: float = 6.0  # ... Gaussian-smoothed white noise of this correlation (frames)
     contact_weight: float = 1.0  # weight of the contact-velocity loss ((m/s)² of the toes on target contacts)
+    swing_weight: float = 0.0  # weight of the leg-speed-keeping loss ((m/s)² the legs are slower than the target's
+    #                            off contact, :func:`swing_speed_loss`)
     contact_speed: float = 1.0  # contact: toe ≤ 5 cm over the running floor and slower than this (m/s); 0: the
     #                             representation's own contact columns (30 cm/s) are the input and the target
     fps: float = 25.0  # frame rate of the training data (the contact velocities)
@@ -104,9 +107,9 @@ class FootConstraintConfig:
         if self.keep_root_path and len(self.lower_idx) < 4:
             raise ParameterError("FootConstraintConfig.keep_root_path needs lower_idx to start with the root's 6 columns")
         if min(self.noise_std, self.smooth_sigma, self.smooth_weight, self.glide_amp, self.glide_sigma,
-               self.contact_weight, self.contact_speed) < 0:
+               self.contact_weight, self.contact_speed, self.swing_weight) < 0:
             raise ParameterError("FootConstraintConfig: noise_std, smooth_sigma, smooth_weight, glide_amp, glide_sigma, "
-                                 "contact_weight and contact_speed must be >= 0")
+                                 "contact_weight, contact_speed and swing_weight must be >= 0")
         if self.corruption not in CORRUPTIONS:
             raise ParameterError(f"FootConstraintConfig.corruption must be one of {CORRUPTIONS}, got {self.corruption!r}")
         if not self.fps > 0:
@@ -241,3 +244,20 @@ def contact_velocity_loss(toes: torch.Tensor, contacts: torch.Tensor, *, fps: fl
     v = (toes[..., 1:, :, :] - toes[..., :-1, :, :]) * fps  # (..., T-1, 2, 3)
     both = contacts[..., 1:, :] * contacts[..., :-1, :]  # (..., T-1, 2)
     return (both * v.pow(2).sum(-1)).sum() / both.sum().clamp_min(1.0)
+
+
+def swing_speed_loss(legs: torch.Tensor, target: torch.Tensor, contacts: torch.Tensor, *, fps: float) -> torch.Tensor:
+    """Mean squared shortfall (m/s)² of the leg joints' speed below the target's, off contact.
+
+    ``legs``, ``target``: positions ``(..., T, 2, K, 3)`` (metres) of K joints of the left (index 0) and
+    right (1) leg, the model's and the clean dance's; ``contacts (..., T, 2)`` (0/1, left, right) the target's
+    toe contacts. A step ``t → t+1`` counts for a leg unless its toe is in contact at both ends; its cost per
+    joint is ``max(|v_target| - |v|, 0)²``: a leg as fast as the target's or faster costs nothing, a leg
+    still where the target's moves at ``v`` m/s costs ``v²``. 0 without such a step.
+    """
+    v = (legs[..., 1:, :, :, :] - legs[..., :-1, :, :, :]) * fps  # (..., T-1, 2, K, 3)
+    vt = (target[..., 1:, :, :, :] - target[..., :-1, :, :, :]) * fps
+    off = (1.0 - contacts[..., 1:, :] * contacts[..., :-1, :])[..., None]  # (..., T-1, 2, 1)
+    speed = v.pow(2).sum(-1).clamp_min(1e-18).sqrt()  # (..., T-1, 2, K); clamped: a finite gradient at rest
+    short = (vt.pow(2).sum(-1).sqrt() - speed).clamp_min(0.0)
+    return (off * short.pow(2)).sum() / (off.sum() * legs.shape[-2]).clamp_min(1.0)

@@ -249,10 +249,19 @@ def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
     the batch's ``dance_mean`` / ``dance_std`` denormalise) on the clean dance's own contact columns (planted
     toes: slower than 30 cm/s, :data:`~dancekit.motion.root_delta.CONTACT_SPEED_CM_S`).
 
+    With ``swing_weight > 0`` it adds ``swing_weight`` x :func:`~dancekit.models.foot_constraint.swing_speed_loss`
+    of the knees, ankles, heels and toes (world, differentiable FK) against the clean dance's on the steps off
+    its toe contacts: the term that keeps the legs moving outside contacts (logged as ``swing_short2``).
+
     Logs ``mse`` (the corrected lower body), ``mse_input`` (the corrupted one), ``contact_v2`` and, in
     validation, ``contact_v2_input`` ((m/s)² of the toes on contacts, corrected and corrupted).
     """
-    from dancekit.models.foot_constraint import contact_velocity_loss, detect_contacts, unit_smooth_noise
+    from dancekit.models.foot_constraint import (
+        contact_velocity_loss,
+        detect_contacts,
+        swing_speed_loss,
+        unit_smooth_noise,
+    )
     from dancekit.motion.root_delta import rootdelta_positions
 
     c = model.config
@@ -299,6 +308,16 @@ def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
                                    target_contacts, fps=c.fps)
         loss = loss + c.contact_weight * v2
         logs["contact_v2"] = float(v2.detach())
+    if c.swing_weight > 0 or not ctx.training:  # the legs kept moving off contact
+        sides = [[sk.index(f"{side}_{j}") for j in ("knee", "ankle", "heel", "toe")] for side in ("left", "right")]
+        legs = [j for side in sides for j in side]
+        shape = (*x.shape[:2], 2, len(sides[0]), 3)
+        moved = rootdelta_positions(denorm(out), sk, joints=tuple(legs)).reshape(shape) * scale
+        with torch.no_grad():
+            clean = rootdelta_positions(denorm(x), sk, joints=tuple(legs)).reshape(shape) * scale
+        short = swing_speed_loss(moved, clean, target_contacts, fps=c.fps)
+        loss = loss + c.swing_weight * short
+        logs["swing_short2"] = float(short.detach())
         if not ctx.training:
             with torch.no_grad():
                 logs["contact_v2_input"] = float(contact_velocity_loss(
