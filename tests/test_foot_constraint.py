@@ -286,7 +286,7 @@ def test_objective_swing_term_is_logged_and_weighted():
         model = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0, contact_weight=0.0,
                                                          swing_weight=weight)).double()
         loss, logs = foot_constraint_step(model, {"dance": x}, ctx)
-        return float(loss), logs
+        return float(loss.detach()), logs
 
     base, _ = run(0.0)
     loss, logs = run(2.0)
