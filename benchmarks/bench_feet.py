@@ -68,7 +68,7 @@ def metrics(motion: Motion, beats: np.ndarray | None, real: dict | None) -> dict
 
 
 def model_folder(model: str) -> str:
-    """The embedded model's folder (so the stages pick its settings, ``stages.FOOT_LOCK_BY_MODEL``)."""
+    """The embedded model's folder (so the stages pick its settings, its config.json's ``"foot_lock"``, ``stages.foot_lock_options``)."""
     return str(Path(stages.__file__).resolve().parent.parent / "assets" / "models" / model)
 
 

@@ -46,7 +46,7 @@ CONTACT_SPEED_OFF = 0.9
 MIN_CONTACT_S = 0.12
 BLEND_S = 0.32
 #: The shortest hold (s) by default: a foot stopped for less is not held. The pipeline stage sets it per
-#: embedded model (:data:`dancekit.pipelines.stages.FOOT_LOCK_BY_MODEL`, chosen on the validation songs).
+#: model from its checkpoint's ``"foot_lock"`` entry (:func:`dancekit.pipelines.stages.foot_lock_options`).
 MIN_HOLD_S = 0.12
 #: A held foot is re-planted (a new hold begins after a short gap) once the original foot has moved this far
 #: from where it is held, or the leg could not reach it: generated dances glide with a foot near the floor

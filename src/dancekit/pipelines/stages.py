@@ -25,13 +25,15 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from pathlib import Path
 
 import numpy as np
 
+from dancekit.errors import CheckpointError
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["FOOT_LOCK_BY_MODEL", "NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock",
+__all__ = ["NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock",
            "foot_lock_options", "smooth", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
@@ -42,12 +44,6 @@ __all__ = ["FOOT_LOCK_BY_MODEL", "NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_
 SMOOTH_TARGET = 0.09
 SMOOTH_TARGET_NOISY = 0.065
 NOISY_RATIO = 0.2
-#: Foot-lock settings per embedded model (the folder's name under ``dancekit/assets/models``; any other model
-#: gets :func:`~dancekit.motion.footlock.lock_feet`'s defaults), chosen on the validation songs
-#: (docs/STAGES.md): Dance Revolution's dances have many short stops near the floor; holding them for
-#: 0.12-0.4 s makes the foot stop and go (jitter) and plants its feet more often than the real dances'.
-#: music2dance's have few contacts, and its geometric FID rises without its short holds.
-FOOT_LOCK_BY_MODEL: dict[str, dict[str, float]] = {"revolution": {"min_hold_s": 0.4}}
 
 
 def _is_3d(motion: Motion) -> bool:
@@ -181,7 +177,7 @@ def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
 def foot_lock(result: DanceResult) -> DanceResult:
     """The result with its planted feet pinned (:func:`dancekit.motion.footlock.lock_feet`: contacts from
     foot height and speed, the foot held where it was planted, the leg solved by two-bone IK, blended in
-    and out), with the settings of :data:`FOOT_LOCK_BY_MODEL` for an embedded model (``result.model``).
+    and out), with the settings of the model's checkpoint (:func:`foot_lock_options` of ``result.model``).
     Only the legs change; a motion with rotations has its leg rotations updated
     (:func:`~dancekit.motion.footlock.leg_rotations`). Skeletons without legs are returned unchanged."""
     from dancekit.motion.footlock import leg_chains, leg_rotations, lock_feet
@@ -202,19 +198,25 @@ def foot_lock(result: DanceResult) -> DanceResult:
 
 
 def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
-    """The :func:`~dancekit.motion.footlock.lock_feet` settings of :data:`FOOT_LOCK_BY_MODEL` for an embedded
-    model's folder (``DanceResult.model``); ``{}`` for any other folder."""
-    from pathlib import Path
+    """The :func:`~dancekit.motion.footlock.lock_feet` settings a model's checkpoint folder carries in its
+    ``config.json`` (``"foot_lock": {"min_hold_s": s}``), chosen on the validation songs (docs/STAGES.md):
+    the embedded Dance Revolution's dances have many short stops near the floor, and holding them for
+    0.12-0.4 s makes the foot stop and go (jitter); the embedded music2dance's geometric FID rises without
+    its short holds, so it keeps the defaults. ``{}`` (the defaults) for a folder without the entry or that
+    is not a checkpoint."""
+    from dancekit.checkpoints.hub import read_meta
 
     if not model:
         return {}
-    folder = Path(model)
-    embedded = Path(__file__).resolve().parent.parent / "assets" / "models"
     try:
-        inside = folder.resolve().parent == embedded
-    except OSError:
+        spec = read_meta(model).get("foot_lock") or {}
+    except (CheckpointError, OSError):
         return {}
-    return dict(FOOT_LOCK_BY_MODEL.get(folder.name, {})) if inside else {}
+    allowed = {"min_hold_s"}
+    if not isinstance(spec, dict) or not set(spec) <= allowed:
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'foot_lock' takes "
+                              f"{sorted(allowed)}, got {spec!r}")
+    return {k: float(v) for k, v in spec.items()}
 
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
