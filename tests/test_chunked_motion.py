@@ -110,7 +110,7 @@ def test_smoothing_stage_in_pieces_equals_one_pass(dance, monkeypatch):
 def test_html_quantised_positions_in_pieces_equal_one_pass(dance, monkeypatch):
     import dancekit.render.html as html
 
-    monkeypatch.setattr(html, "_QUANTISE_CHUNK", SMALL)
+    monkeypatch.setattr(html, "_CHUNK", SMALL)
     got, offset, scale = html._quantise(dance)
     lo = dance.reshape(-1, 3).min(axis=0).astype(np.float64)  # the one-pass formula
     step = np.maximum(dance.reshape(-1, 3).max(axis=0) - lo, 1e-6) / 65535.0

@@ -44,7 +44,8 @@ def _drop_joints(pos: np.ndarray, parents: list[int], sides: list[int], head: in
     return pos[:, keep], new_parents, [sides[j] for j in keep], new_index[head]
 
 
-#: Frames per piece of :func:`motion_arrays` (3D motions; every output frame depends on its own frame only).
+#: Frames per piece in the render's per-frame work (:func:`motion_arrays` of 3D motions, the scene's
+#: conversion and camera distance, the html's quantisation): every output frame depends on its own frame only.
 _CHUNK = 4096
 
 

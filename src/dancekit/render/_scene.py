@@ -15,6 +15,7 @@ import numpy as np
 from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
 from dancekit.motion._filters import gaussian_filter1d, percentile_filter1d
+from dancekit.render._motion import _CHUNK
 
 #: rotation taking each supported up axis onto +y (right-handed, det = +1)
 _TO_Y_UP = {
@@ -144,8 +145,8 @@ def prepare_scene(
         raise ParameterError(f"head must be a joint index in 0..{J - 1}, got {head!r}")
 
     p = np.empty(pos.shape, np.float64)  # (T, J, 3) metres, y up; per frame, 4,096 frames at a time
-    for a in range(0, T, 4096):
-        p[a: a + 4096] = (pos[a: a + 4096].astype(np.float64) * scale) @ _TO_Y_UP[up_axis].T
+    for a in range(0, T, _CHUNK):
+        p[a: a + _CHUNK] = (pos[a: a + _CHUNK].astype(np.float64) * scale) @ _TO_Y_UP[up_axis].T
     p[:, :, 1] -= ground_level(p[:, :, 1].min(axis=1), fps=fps, follow=follow_ground)[:, None]
     height = float(np.percentile(p[:, :, 1].max(axis=1), 50))
     height = max(height, 0.1)
@@ -225,8 +226,8 @@ def fit_distance(scene: Scene, basis, *, tan_half_x: float, tan_half_y: float, m
     """
     right, up, fwd = basis
     most = -np.inf
-    for a in range(0, scene.num_frames, 4096):  # per frame: 4,096 frames at a time, the same maximum
-        rel = scene.positions[a: a + 4096] - scene.target[a: a + 4096, None, :]  # (n, J, 3)
+    for a in range(0, scene.num_frames, _CHUNK):  # per frame: a chunk at a time, the same maximum
+        rel = scene.positions[a: a + _CHUNK] - scene.target[a: a + _CHUNK, None, :]  # (n, J, 3)
         x = np.abs(rel @ right)
         y = np.abs(rel @ up)
         z = rel @ fwd

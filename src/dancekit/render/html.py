@@ -21,6 +21,7 @@ import numpy as np
 
 from dancekit._io import atomic_path
 from dancekit.render._ffmpeg import audio_span, encode_audio_slice
+from dancekit.render._motion import _CHUNK
 from dancekit.render._scene import Scene, camera_basis, default_azimuth, fit_distance, prepare_scene
 from dancekit.render.options import AudioClip, RenderOptions, resolve
 
@@ -42,13 +43,9 @@ def _quantise(p: np.ndarray) -> tuple[bytes, list[float], list[float]]:
     hi = p.reshape(-1, 3).max(axis=0).astype(np.float64)
     scale = np.maximum(hi - lo, 1e-6) / 65535.0
     v = np.empty(p.shape, "<u2")
-    for a in range(0, len(p), _QUANTISE_CHUNK):  # per frame: the float64 temporaries stay a chunk's size
-        v[a: a + _QUANTISE_CHUNK] = np.clip(np.rint((p[a: a + _QUANTISE_CHUNK] - lo) / scale), 0, 65535)
+    for a in range(0, len(p), _CHUNK):  # per frame: the float64 temporaries stay a chunk's size
+        v[a: a + _CHUNK] = np.clip(np.rint((p[a: a + _CHUNK] - lo) / scale), 0, 65535)
     return v.tobytes(), lo.tolist(), scale.tolist()
-
-
-#: Frames quantised at a time by :func:`_quantise`.
-_QUANTISE_CHUNK = 4096
 
 
 def page_html(
