@@ -89,6 +89,8 @@ def variant(motion: Motion, name: str, audio, beats, model: str = "cached", **op
                                   model="cached", seed=0)
             else:
                 res = stages.foot_lock(res)
+            if opts.get("settle", True):
+                res = stages.settle(res, **stages.settle_options(res.model))
     if name != "grid" and beats is not None:
         res = stages.beat_sync(res, audio[0], start=audio[1], end=audio[2], beats=beats)
     return res.motion
@@ -147,7 +149,9 @@ def main() -> None:
                                  "target": target, "height_on": h_on, "height_off": h_on + 0.03, "speed_on": s_on,
                                  "speed_off": s_on + 0.4, "max_drift_m": drift})
     else:
-        settings = [{"name": "before", "variant": "before"}, {"name": "after", "variant": "after"}]
+        settings = [{"name": "before", "variant": "before"},
+                    {"name": "after, no settle", "variant": "after", "settle": False},
+                    {"name": "after", "variant": "after"}]
         if args.today:  # the stages as on main before the jitter work: the offset blend, 0.12-s holds
             settings.insert(1, {"name": "today", "variant": "after", "c1_blend": False, "min_hold_s": 0.12})
 

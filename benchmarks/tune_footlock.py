@@ -6,7 +6,8 @@ warp) and FID_k / FID_g against the training dances (``FID=1``).
         '{"former": {"lock": {"c1_blend": false}, "warp": true}, "hold 0.4": {"lock": {"min_hold_s": 0.4}, "warp": true}}'
 
 Arguments: model, split (val / test / song), a JSON object ``name -> {"smooth": target | null | "off",
-"noisy_ratio": the smoothing stage's NOISY_RATIO (default 0.2),
+"noisy_ratio": the smoothing stage's NOISY_RATIO (default 0.2), "kind": the smoothing filter ("lowpass" /
+"savgol", default the stage's), "post": a final low-pass cut-off in Hz after the lock (``stages.settle``),
 "lock": lock_feet keyword arguments | null (no lock), "warp": bool}``, optionally a comma-separated list of
 song-name prefixes. Dances: ``runs/feet_raw/<model>/<split>/`` of ``benchmarks/feet_dances.py``; real dances
 and songs from ``data/tang2018`` and ``../shared/music``. Choose settings on ``val`` only.
@@ -79,10 +80,12 @@ def main() -> None:
             song = f.stem.rsplit("__", 1)[0]
             if v.get("smooth") != "off":
                 stages.NOISY_RATIO = v.get("noisy_ratio", 0.2)
-                res = stages.smooth(res, target=v.get("smooth"))
+                res = stages.smooth(res, target=v.get("smooth"), kind=v.get("kind"))
             if v.get("lock") is not None:
                 q = fl.lock_feet(np.asarray(res.motion.to_positions(), np.float64), skeleton=SK, fps=FPS, **v["lock"])
                 res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=q.astype(np.float32)), model="x", seed=0)
+            if v.get("post"):
+                res = stages.settle(res, cutoff=v["post"], legs=v.get("post_legs", True))
             b = None
             if v.get("warp"):
                 a = audio[song]
