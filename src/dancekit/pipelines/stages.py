@@ -140,8 +140,15 @@ def smooth(result: DanceResult, *, target: float | None = None, kind: str | None
     a positions-only motion takes its bone directions from the filtered dance and keeps each frame's bone
     lengths; so bone lengths stay exact either way."""
     from dancekit.motion._filters import fir_lowpass, lowpass_kernel
-    from dancekit.motion.footlock import (_jitter_ratio, _savgol, chunks, lowpass_cutoff, lowpass_rows, savgol_rows,
-                                          smoothing_window)
+    from dancekit.motion.footlock import (
+        _jitter_ratio,
+        _savgol,
+        chunks,
+        lowpass_cutoff,
+        lowpass_rows,
+        savgol_rows,
+        smoothing_window,
+    )
 
     motion = result.motion
     if not _is_3d(motion):
