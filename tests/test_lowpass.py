@@ -170,3 +170,46 @@ def _ancestors(j: int) -> set[int]:
         j = SK.parents[j]
         out.add(j)
     return out
+
+
+def test_settle_options_come_from_the_checkpoint(tmp_path):
+    import json
+    from pathlib import Path
+
+    import dancekit.pipelines.stages as stages
+    from dancekit.errors import CheckpointError
+
+    folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+    assert stages.settle_options(str(folder / "revolution")) == {"cutoff": 3.0}
+    assert stages.settle_options(str(folder / "music2dance")) == {}
+    assert stages.settle_options(str(folder / "dual")) == {}
+    assert stages.settle_options("/somewhere/else/revolution") == {}
+    assert stages.settle_options(None) == {}
+    bad = tmp_path / "m"
+    bad.mkdir()
+    cfg = json.loads((folder / "revolution" / "config.json").read_text())
+    cfg["settle"] = {"cutoff": 3}
+    (bad / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(CheckpointError, match="config.json"):
+        stages.settle_options(str(bad))
+
+
+def test_finish_settles_after_the_lock_for_the_model_that_asks(monkeypatch):
+    from pathlib import Path
+
+    import dancekit.pipelines.stages as stages
+
+    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+    calls = []
+    real = stages.settle
+    monkeypatch.setattr(stages, "settle", lambda r, **kw: calls.append(kw) or real(r, **kw))
+    for model, want in ((str(folder / "revolution"), {"cutoff": 3.0}), (str(folder / "music2dance"), {})):
+        res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=model, seed=0)
+        out = stages.finish(res, "unused.wav", beat_sync_on=False)
+        assert calls[-1] == want
+        locked = stages.foot_lock(stages.smooth(stages.clean_up(res)))
+        same = np.array_equal(out.motion.positions, locked.motion.positions)
+        assert same == (not want)  # only the model that asks is low-passed
+    stages.finish(res, "unused.wav", beat_sync_on=False, foot_lock_on=False)
+    assert len(calls) == 2  # no lock: no settle
