@@ -7,7 +7,8 @@ warp) and FID_k / FID_g against the training dances (``FID=1``).
 
 Arguments: model, split (val / test / song), a JSON object ``name -> {"smooth": target | null | "off",
 "noisy_ratio": the smoothing stage's NOISY_RATIO (default 0.2), "noisy_target": its SMOOTH_TARGET_NOISY (0.065), "kind": the smoothing filter ("lowpass" /
-"savgol", default the stage's), "post": a final low-pass cut-off in Hz after the lock (``stages.settle``),
+"savgol", default the stage's), "post": a final low-pass cut-off in Hz after the lock (``stages.settle``), "post_ground": the lowest joint
+put back on the floor after it,
 "lock": lock_feet keyword arguments | null (no lock), "warp": bool}``, optionally a comma-separated list of
 song-name prefixes. Dances: ``runs/feet_raw/<model>/<split>/`` of ``benchmarks/feet_dances.py``; real dances
 and songs from ``data/tang2018`` and ``../shared/music``. Choose settings on ``val`` only.
@@ -87,6 +88,14 @@ def main() -> None:
                 res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=q.astype(np.float32)), model="x", seed=0)
             if v.get("post"):
                 res = stages.settle(res, cutoff=v["post"], legs=v.get("post_legs", True))
+                if v.get("post_ground"):  # the lowest joint put back on the floor (the clean-up's offset)
+                    from dancekit.motion.analysis import up_sign
+                    from dancekit.motion.cleanup import ground_offset
+
+                    q = np.asarray(res.motion.to_positions(), np.float64)
+                    q[..., SK.up_index] -= up_sign(SK) * ground_offset(q, skeleton=SK, fps=FPS)[:, None]
+                    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=q.astype(np.float32)), model="x",
+                                      seed=0)
             b = None
             if v.get("warp"):
                 a = audio[song]
