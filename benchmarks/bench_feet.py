@@ -7,13 +7,14 @@
     PYTHONPATH=src python benchmarks/bench_feet.py --data data/tang2018 --raw runs/feet_raw --split song ...
 
 Variants per dance: ``before`` = the stages as they were (clean-up, beat sync), ``after`` = clean-up,
-smoothing, foot lock, beat sync (today's default); with ``--grid`` (validation songs only) the foot-lock
+smoothing, foot lock, the model's low-pass after the lock (``stages.settle``), beat sync (today's default),
+``after, no settle`` = the same without the low-pass; with ``--grid`` (validation songs only) the foot-lock
 contact thresholds and the smoothing target are varied, without the warp. Metrics per dance: the
 ``bench_stages`` floor / planted-foot / travel / knee metrics (planted foot: its lowest joint within 3 cm
 of the local floor and slower than 0.15 m/s), foot skating (``dancekit.metrics.foot_skating``), jitter and
 smoothed energy as ratios to the song's real dance (the mean of the real test dances for songs outside the
 dataset), jerk, BAS / hit rate against the song's tracked beats, the share of frames with a hand joint
-(wrist or hand tip) within a head radius (10 cm) of the head's centre, and FID_k / FID_g of each variant
+(wrist or hand tip) within a head radius (10 cm) of the head's centre, the stillness share, and FID_k / FID_g of each variant
 against the training dances (10-s segments). Writes ``OUT/feet.json`` and prints a table.
 """
 
@@ -28,7 +29,7 @@ import bench_stages  # benchmarks/ is on the path when run as a script
 import numpy as np
 
 from dancekit.data import PreparedData
-from dancekit.metrics import smoothed_energy
+from dancekit.metrics import smoothed_energy, stillness_share
 from dancekit.motion import Motion, get_skeleton
 from dancekit.motion import footlock as fl
 from dancekit.pipelines import stages
@@ -61,6 +62,7 @@ def metrics(motion: Motion, beats: np.ndarray | None, real: dict | None) -> dict
     row = bench_stages.dance_row(motion, beats)
     row["energy"] = smoothed_energy(p, fps=fps, skeleton=sk)
     row["hands_in_head"] = hands_in_head(p, sk)
+    row["stillness"] = stillness_share(p, fps=fps, skeleton=sk)
     if real is not None:
         row["jitter_ratio"] = row["jitter"] / real["jitter"]
         row["energy_ratio"] = row["energy"] / real["energy"]
@@ -89,6 +91,8 @@ def variant(motion: Motion, name: str, audio, beats, model: str = "cached", **op
                                   model="cached", seed=0)
             else:
                 res = stages.foot_lock(res)
+            if opts.get("settle", True):
+                res = stages.settle(res, **stages.settle_options(res.model))
     if name != "grid" and beats is not None:
         res = stages.beat_sync(res, audio[0], start=audio[1], end=audio[2], beats=beats)
     return res.motion
@@ -147,7 +151,9 @@ def main() -> None:
                                  "target": target, "height_on": h_on, "height_off": h_on + 0.03, "speed_on": s_on,
                                  "speed_off": s_on + 0.4, "max_drift_m": drift})
     else:
-        settings = [{"name": "before", "variant": "before"}, {"name": "after", "variant": "after"}]
+        settings = [{"name": "before", "variant": "before"},
+                    {"name": "after, no settle", "variant": "after", "settle": False},
+                    {"name": "after", "variant": "after"}]
         if args.today:  # the stages as on main before the jitter work: the offset blend, 0.12-s holds
             settings.insert(1, {"name": "today", "variant": "after", "c1_blend": False, "min_hold_s": 0.12})
 
@@ -183,7 +189,8 @@ def main() -> None:
                   f"{worst[1]['jitter_ratio']:.2f}) energy/real {summary['energy_ratio']:.2f} knee p5 "
                   f"{summary['knee_p5_deg']:.1f} floor {summary['floor_median_cm']:.2f}/{summary['floor_within_2cm']:.2f}"
                   f" FID_k {summary['fid_k']:.2f} FID_g {summary['fid_g']:.2f} jerk {summary['jerk']:.1f} "
-                  f"hands {summary['hands_in_head']:.3f}"
+                  f"hands {summary['hands_in_head']:.3f} still {summary['stillness']:.3f} (worst "
+                  f"{max(v['stillness'] for v in summary['per_song'].values()):.3f})"
                   + (f" BAS {summary['bas']:.3f} hit {summary['hit_rate']:.3f}" if "bas" in summary else ""),
                   flush=True)
     print(f"real {args.split}: planted {real_mean['planted_foot_share']:.3f} skate {real_mean['foot_skating']:.3f} "

@@ -6,7 +6,9 @@ warp) and FID_k / FID_g against the training dances (``FID=1``).
         '{"former": {"lock": {"c1_blend": false}, "warp": true}, "hold 0.4": {"lock": {"min_hold_s": 0.4}, "warp": true}}'
 
 Arguments: model, split (val / test / song), a JSON object ``name -> {"smooth": target | null | "off",
-"noisy_ratio": the smoothing stage's NOISY_RATIO (default 0.2),
+"noisy_ratio": the smoothing stage's NOISY_RATIO (default 0.2), "noisy_target": its SMOOTH_TARGET_NOISY (0.065), "kind": the smoothing filter ("lowpass" /
+"savgol", default the stage's), "post": a final low-pass cut-off in Hz after the lock (``stages.settle``), "post_ground": the lowest joint
+put back on the floor after it,
 "lock": lock_feet keyword arguments | null (no lock), "warp": bool}``, optionally a comma-separated list of
 song-name prefixes. Dances: ``runs/feet_raw/<model>/<split>/`` of ``benchmarks/feet_dances.py``; real dances
 and songs from ``data/tang2018`` and ``../shared/music``. Choose settings on ``val`` only.
@@ -79,10 +81,21 @@ def main() -> None:
             song = f.stem.rsplit("__", 1)[0]
             if v.get("smooth") != "off":
                 stages.NOISY_RATIO = v.get("noisy_ratio", 0.2)
-                res = stages.smooth(res, target=v.get("smooth"))
+                stages.SMOOTH_TARGET_NOISY = v.get("noisy_target", 0.065)
+                res = stages.smooth(res, target=v.get("smooth"), kind=v.get("kind"))
             if v.get("lock") is not None:
                 q = fl.lock_feet(np.asarray(res.motion.to_positions(), np.float64), skeleton=SK, fps=FPS, **v["lock"])
                 res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=q.astype(np.float32)), model="x", seed=0)
+            if v.get("post"):
+                res = stages.settle(res, cutoff=v["post"], legs=v.get("post_legs", True))
+                if v.get("post_ground"):  # the lowest joint put back on the floor (the clean-up's offset)
+                    from dancekit.motion.analysis import up_sign
+                    from dancekit.motion.cleanup import ground_offset
+
+                    q = np.asarray(res.motion.to_positions(), np.float64)
+                    q[..., SK.up_index] -= up_sign(SK) * ground_offset(q, skeleton=SK, fps=FPS)[:, None]
+                    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=q.astype(np.float32)), model="x",
+                                      seed=0)
             b = None
             if v.get("warp"):
                 a = audio[song]
@@ -97,6 +110,7 @@ def main() -> None:
         m = bench_feet.mean_rows([r for x in per.values() for r in x])
         js = {s[6:][:8]: round(float(np.mean([r["jitter_ratio"] for r in x])), 2) for s, x in per.items()}
         es = {s[6:][:8]: round(float(np.mean([r["energy_ratio"] for r in x])), 2) for s, x in per.items()}
+        st = max(float(np.mean([r["stillness"] for r in x])) for x in per.values())
         extra = ""
         if do_fid:
             fd = fids(pos)
@@ -106,7 +120,7 @@ def main() -> None:
         print(f"{name:24s} planted {m['planted_foot_share']:.3f} skate {m['foot_skating']:.3f} jerk {m['jerk']:.1f} "
               f"knee p5 {m['knee_p5_deg']:.1f} floor {m['floor_median_cm']:.2f}/{m['floor_within_2cm']:.2f} far "
               f"{m['max_distance_m']:.1f}{extra} cpu {cpu:.0f}s\n   jitter {js} max {max(js.values())}\n"
-              f"   energy {es} min {min(es.values())}", flush=True)
+              f"   energy {es} min {min(es.values())} stillness worst song {st:.3f}", flush=True)
 
 
 if __name__ == "__main__":

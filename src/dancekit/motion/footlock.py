@@ -34,8 +34,8 @@ from dancekit.errors import ParameterError
 from dancekit.motion.analysis import heights, horizontal_axes, up_sign
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["FootLockReport", "foot_contacts", "leg_chains", "leg_rotations", "lock_feet", "smooth_positions",
-           "smoothing_window", "two_bone_ik"]
+__all__ = ["FootLockReport", "foot_contacts", "leg_chains", "leg_rotations", "lock_feet", "lowpass_cutoff",
+           "lowpass_rows", "smooth_positions", "smoothing_window", "two_bone_ik"]
 
 #: Contact thresholds (metres above the local floor, m/s), chosen on the validation songs
 #: (``benchmarks/tune_feet.py``): a foot enters a contact below ``ON`` and leaves it above ``OFF``.
@@ -551,6 +551,10 @@ def smoothing_window(positions: np.ndarray, *, skeleton: Skeleton, fps: float, t
 #: :func:`_jitter_ratio`): the filters are local, so a long song is done piece by piece with a margin.
 CHUNK = 4096
 
+#: The cut-offs (Hz, highest first) :func:`lowpass_cutoff` tries: the 5-frame average of the jitter measure
+#: removes half of a 3-Hz motion and all of 5 and 10 Hz at 25 fps; dance motion is mostly below 2 Hz.
+CUTOFFS_HZ = (8.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.5)
+
 
 def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
     """``[0, n)`` cut into ``ceil(n / size)`` pieces of nearly equal length (each at least ``size / 2``
@@ -599,23 +603,75 @@ def _savgol(p: np.ndarray, window: int, order: int) -> np.ndarray:
     return out
 
 
+def lowpass_rows(p: np.ndarray, kernel: np.ndarray, a: int, b: int) -> np.ndarray:
+    """Frames ``[a, b)`` of :func:`dancekit.motion._filters.fir_lowpass` ``(p, kernel)`` (a zero-phase FIR along
+    axis 0), from frames ``[a - N // 2, b + N // 2)`` of ``p`` only (beyond the song's ends the same odd
+    reflection about the end frame): the same numbers, bit for bit, so a long song is filtered piece by piece
+    (:func:`chunks`). A dance shorter than the kernel comes back unfiltered. float64."""
+    h = np.asarray(kernel, np.float64)
+    T, half = len(p), len(h) // 2
+    if T < len(h) or T <= half:
+        return np.array(p[a:b], dtype=np.float64)
+    idx = np.arange(a - half, b + half)
+    lo, hi = max(a - half, 0), min(b + half, T)
+    x = np.asarray(p[lo:hi], np.float64)
+    parts = []
+    if idx[0] < 0:  # before the first frame: 2 p[0] - p[-i]
+        parts.append(2 * np.asarray(p[:1], np.float64) - np.asarray(p[-idx[idx < 0]], np.float64))
+    parts.append(x)
+    if idx[-1] >= T:  # after the last frame: 2 p[T-1] - p[2 (T-1) - i]
+        parts.append(2 * np.asarray(p[T - 1:], np.float64)
+                     - np.asarray(p[2 * (T - 1) - idx[idx >= T]], np.float64))
+    ext = np.concatenate(parts) if len(parts) > 1 else x
+    n = b - a
+    out = h[0] * ext[:n]
+    for k in range(1, len(h)):
+        out += h[k] * ext[k:k + n]
+    return out
+
+
+def lowpass_cutoff(positions: np.ndarray, *, skeleton: Skeleton, fps: float, target: float,
+                   cutoffs: tuple[float, ...] = CUTOFFS_HZ) -> float:
+    """The highest low-pass cut-off (Hz) of ``cutoffs`` (highest first) whose output (:func:`lowpass_rows`,
+    a Hamming-windowed sinc of :func:`~dancekit.motion._filters.lowpass_taps` taps) has a jitter ratio
+    (speed removed by a 5-frame average over the smoothed speed, :func:`dancekit.metrics`' jitter over
+    energy) at most ``target``; 0 (no filter) when the dance already is; the lowest when none is. Measured
+    :data:`CHUNK` frames at a time."""
+    p = np.asarray(positions)
+    if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
+        raise ParameterError(f"lowpass_cutoff needs (T, J, 3) positions, got shape {np.shape(positions)}")
+    if _jitter_ratio(p, skeleton, fps) <= target:
+        return 0.0
+    for c in cutoffs:
+        if _jitter_ratio(p, skeleton, fps, cutoff=c) <= target:
+            return float(c)
+    return float(cutoffs[-1])
+
+
 def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int | None = None,
-                  order: int = 3) -> float:
+                  order: int = 3, cutoff: float | None = None) -> float:
     """Mean body-relative speed removed by a 5-frame moving average, over the smoothed speed (the jitter
     over the energy of :mod:`dancekit.metrics.stability`, computed here without importing metrics), of the
-    dance ``p`` (T, J, 3), or of ``_savgol(p, window, order)`` when ``window`` is given. Summed over pieces
+    dance ``p`` (T, J, 3), or of ``_savgol(p, window, order)`` when ``window`` is given, or of its
+    low-pass at ``cutoff`` Hz (:func:`lowpass_rows`) when ``cutoff`` is. Summed over pieces
     of :data:`CHUNK` frames with a margin (the moving average and the filter are local), so a long song
     needs no whole-song float64 copies; the same ratio as one pass up to float rounding of the sums."""
-    from dancekit.motion._filters import uniform_filter1d
+    from dancekit.motion._filters import lowpass_kernel, uniform_filter1d
 
     T = len(p)
     if T < 3:
         return 0.0
     r = skeleton.root
+    h = lowpass_kernel(cutoff, fps=fps) if cutoff else None
     raw = smooth = 0.0
     for a, b in chunks(T - 1):  # the speeds between frames i and i + 1 for i in [a, b)
         lo, hi = max(a - 2, 0), min(b + 3, T)  # the frames the 5-frame average of frames a..b needs
-        x = (np.asarray(p[lo:hi], np.float64) if window is None else savgol_rows(p, window, order, lo, hi))
+        if h is not None:
+            x = lowpass_rows(p, h, lo, hi)
+        elif window is not None:
+            x = savgol_rows(p, window, order, lo, hi)
+        else:
+            x = np.asarray(p[lo:hi], np.float64)
         rel = x - x[:, r: r + 1]
         raw += float(np.linalg.norm(np.diff(rel[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
         sm = uniform_filter1d(rel, 5, axis=0)  # at lo > 0 / hi < T: 2 real frames of margin

@@ -16,6 +16,8 @@ model's own output):
   dance (:mod:`dancekit.motion.footlock`); a smooth one is left alone.
 * **foot lock** (:func:`foot_lock`): planted feet held where they were planted, the legs solved by two-bone
   IK, the body lowered where a held foot is out of reach, blended in and out (:mod:`dancekit.motion.footlock`).
+* **settle** (:func:`settle`): for a model whose checkpoint asks for it, a light zero-phase windowed-sinc
+  low-pass of the whole body after the lock (Dance Revolution: 3 Hz), softening the lock's stop and go.
 
 :func:`finish` runs them (clean-up, smoothing, foot lock, then the warp) and records what happened in
 ``result.notes`` (the summary line).
@@ -33,8 +35,8 @@ from dancekit.errors import CheckpointError
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock",
-           "foot_lock_options", "smooth", "song_beats_for"]
+__all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock",
+           "foot_lock_options", "settle", "settle_options", "smooth", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
 #: jittery dance down to: about the 80th percentile of the real training dances' (0.055-0.28, median 0.065);
@@ -44,6 +46,10 @@ __all__ = ["NOISY_RATIO", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "
 SMOOTH_TARGET = 0.09
 SMOOTH_TARGET_NOISY = 0.065
 NOISY_RATIO = 0.2
+#: The cut-off (Hz) of the light low-pass after the foot lock (:func:`settle`); 0: none.
+SETTLE_HZ = 0.0
+#: The smoothing stage's filter (:func:`smooth`): ``"lowpass"`` or ``"savgol"``.
+SMOOTH_FILTER = "savgol"
 
 
 def _is_3d(motion: Motion) -> bool:
@@ -121,30 +127,68 @@ def clean_up(result: DanceResult) -> DanceResult:
     return dataclasses.replace(result, motion=cleaned)
 
 
-def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
-    """The result with frame-to-frame noise filtered out (:func:`dancekit.motion.footlock.smooth_positions`:
-    a Savitzky-Golay filter whose window is the shortest that brings the dance's jitter-to-energy ratio to
-    ``target``, default :data:`SMOOTH_TARGET`, or :data:`SMOOTH_TARGET_NOISY` for a dance beyond
-    :data:`NOISY_RATIO`; a dance already that smooth is returned as it is). A motion
+def smooth(result: DanceResult, *, target: float | None = None, kind: str | None = None) -> DanceResult:
+    """The result with frame-to-frame noise filtered out; a dance already smooth enough is returned as it is.
+
+    ``kind`` (default :data:`SMOOTH_FILTER`): ``"lowpass"``, a zero-phase windowed-sinc FIR low-pass whose
+    cut-off is the highest of :data:`dancekit.motion.footlock.CUTOFFS_HZ` that brings the dance's
+    jitter-to-energy ratio to ``target`` (:func:`dancekit.motion.footlock.lowpass_cutoff`); ``"savgol"``, a
+    Savitzky-Golay filter whose window is the shortest that does
+    (:func:`dancekit.motion.footlock.smoothing_window`). ``target`` default :data:`SMOOTH_TARGET`, or
+    :data:`SMOOTH_TARGET_NOISY` for a dance beyond :data:`NOISY_RATIO`. A motion
     with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them;
     a positions-only motion takes its bone directions from the filtered dance and keeps each frame's bone
     lengths; so bone lengths stay exact either way."""
-    from dancekit.motion.footlock import _jitter_ratio, _savgol, chunks, savgol_rows, smoothing_window
+    from dancekit.motion._filters import fir_lowpass, lowpass_kernel
+    from dancekit.motion.footlock import (
+        _jitter_ratio,
+        _savgol,
+        chunks,
+        lowpass_cutoff,
+        lowpass_rows,
+        savgol_rows,
+        smoothing_window,
+    )
 
     motion = result.motion
     if not _is_3d(motion):
         return result
+    kind = SMOOTH_FILTER if kind is None else kind
     sk, fps = motion.skeleton, motion.fps
     p = motion.to_positions()  # (T, J, 3); the helpers work in float64 piece by piece
     if target is None:
         target = SMOOTH_TARGET_NOISY if _jitter_ratio(p, sk, fps) > NOISY_RATIO else SMOOTH_TARGET
-    window = smoothing_window(p, skeleton=sk, fps=fps, target=target)
-    if window <= 1:
-        return result
+    if kind == "lowpass":
+        cutoff = lowpass_cutoff(p, skeleton=sk, fps=fps, target=target)
+        if cutoff <= 0:
+            return result
+        h = lowpass_kernel(cutoff, fps=fps)
+
+        def rows(x, a, b):
+            return lowpass_rows(x, h, a, b)
+
+        def whole(x):
+            return fir_lowpass(x, h)
+
+        note = f"smoothed ({cutoff:g}-Hz low-pass)"
+    elif kind == "savgol":
+        window = smoothing_window(p, skeleton=sk, fps=fps, target=target)
+        if window <= 1:
+            return result
+
+        def rows(x, a, b):
+            return savgol_rows(x, window, 3, a, b)
+
+        def whole(x):
+            return _savgol(x, window, 3)
+
+        note = f"smoothed ({window}-frame filter)"
+    else:
+        raise ValueError(f"unknown smoothing filter {kind!r}")
     if motion.rotations is None:
         out = np.empty(p.shape, np.float32)
         for a, b in chunks(len(p)):  # the filter is local: piece by piece, the same numbers as one pass
-            q = savgol_rows(p, window, 3, a, b)
+            q = rows(p, a, b)
             o = q.copy()  # bone directions from the filtered dance, each frame's own bone lengths kept
             x = np.asarray(p[a:b], np.float64)
             for j in sk.topological_order:
@@ -162,16 +206,16 @@ def smooth(result: DanceResult, *, target: float | None = None) -> DanceResult:
         from dancekit.motion.kinematics import rig_forward_kinematics
 
         p = np.asarray(p, np.float64)
-        rot = _savgol(np.asarray(motion.rotations, np.float64).reshape(len(p), -1, 9), window, 3)
+        rot = whole(np.asarray(motion.rotations, np.float64).reshape(len(p), -1, 9))
         u, _, vt = np.linalg.svd(rot.reshape(len(p), -1, 3, 3))
         d = np.sign(np.linalg.det(u @ vt))
         u[..., :, -1] *= d[..., None]
         rot = u @ vt
-        tr = _savgol(np.asarray(motion.root_translation, np.float64), window, 3)
+        tr = whole(np.asarray(motion.root_translation, np.float64))
         pos = rig_forward_kinematics(torch.from_numpy(rot), torch.from_numpy(tr), sk).numpy()
         smoothed = Motion(skeleton=sk, fps=fps, positions=pos.astype(np.float32),
                           rotations=rot.astype(motion.rotations.dtype), root_translation=tr.astype(np.float32))
-    return _with_note(dataclasses.replace(result, motion=smoothed), f"smoothed ({window}-frame filter)")
+    return _with_note(dataclasses.replace(result, motion=smoothed), note)
 
 
 def foot_lock(result: DanceResult) -> DanceResult:
@@ -195,6 +239,84 @@ def foot_lock(result: DanceResult) -> DanceResult:
         tr = locked[:, sk.root].astype(np.float32)  # the body may have been lowered
     out = Motion(skeleton=sk, fps=fps, positions=locked.astype(np.float32), rotations=rot, root_translation=tr)
     return dataclasses.replace(result, motion=out)
+
+
+def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = True) -> DanceResult:
+    """The result with a light zero-phase low-pass (:func:`dancekit.motion._filters.lowpass_kernel` at
+    ``cutoff`` Hz, default :data:`SETTLE_HZ`; ``0``: off) on every joint's position, run after the foot lock:
+    the lock's stop-and-go (a foot handed over between holds, the knee solved frame by frame) is softened,
+    while a held foot stays where it is (a constant passes a unit-gain low-pass unchanged: only the
+    hold's first and last few frames are eased). Each frame's bone lengths are kept (bone directions from the
+    filtered dance, parents first), piece by piece (:func:`dancekit.motion.footlock.chunks`); a motion with
+    rotations has its rotations and root translation filtered instead (re-orthonormalised, whole-song, as
+    :func:`smooth` does) and its positions recomputed from them, so a held foot moves a little there."""
+    from dancekit.motion._filters import lowpass_kernel
+    from dancekit.motion.footlock import chunks, lowpass_rows
+
+    cutoff = SETTLE_HZ if cutoff is None else float(cutoff)
+    motion = result.motion
+    if not cutoff or not _is_3d(motion):
+        return result
+    sk, fps = motion.skeleton, motion.fps
+    h = lowpass_kernel(cutoff, fps=fps)
+    p = motion.to_positions()
+    if len(p) < len(h):
+        return result
+    from dancekit.motion.footlock import leg_chains
+
+    keep = sorted({j for hip, knee, ankle, below in leg_chains(sk) for j in (hip, knee, ankle, *below)}) \
+        if not legs else []
+    out = np.empty(p.shape, np.float32)
+    for a, b in chunks(len(p)):
+        q = lowpass_rows(p, h, a, b)
+        if keep:  # the legs as locked: only the rest of the body filtered
+            q[:, keep] = np.asarray(p[a:b, keep], np.float64)
+        o = q.copy()
+        x = np.asarray(p[a:b], np.float64)
+        for j in sk.topological_order:
+            parent = sk.parents[j]
+            if parent >= 0:
+                d = q[:, j] - q[:, parent]
+                length = np.linalg.norm(x[:, j] - x[:, parent], axis=-1, keepdims=True)
+                o[:, j] = o[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+        out[a:b] = o
+    rot = tr = None
+    if motion.rotations is not None:  # the rotations filtered as the smoothing stage does, positions by FK
+        import torch
+
+        from dancekit.motion._filters import fir_lowpass
+        from dancekit.motion.kinematics import rig_forward_kinematics
+
+        r = fir_lowpass(np.asarray(motion.rotations, np.float64).reshape(len(p), -1, 9), h)
+        u, _, vt = np.linalg.svd(r.reshape(len(p), -1, 3, 3))
+        u[..., :, -1] *= np.sign(np.linalg.det(u @ vt))[..., None]
+        r = u @ vt
+        t = fir_lowpass(np.asarray(motion.root_translation, np.float64), h)
+        out = rig_forward_kinematics(torch.from_numpy(r), torch.from_numpy(t), sk).numpy().astype(np.float32)
+        rot, tr = r.astype(motion.rotations.dtype), t.astype(np.float32)
+    settled = Motion(skeleton=sk, fps=fps, positions=out, rotations=rot, root_translation=tr)
+    return dataclasses.replace(result, motion=settled)
+
+
+def settle_options(model: str | os.PathLike | None) -> dict[str, float]:
+    """The :func:`settle` settings a model's checkpoint folder carries in its ``config.json`` (``"settle":
+    {"cutoff_hz": hz}``), chosen on the validation songs (docs/STAGES.md): the embedded Dance Revolution's
+    dances take a 3-Hz low-pass after the lock; the embedded music2dance's geometric FID rises with any
+    (+3-28 % on validation), so it has none. ``{}`` (no low-pass, :data:`SETTLE_HZ`) for a folder without
+    the entry or that is not a checkpoint."""
+    from dancekit.checkpoints.hub import read_meta
+
+    if not model:
+        return {}
+    try:
+        spec = read_meta(model).get("settle") or {}
+    except (CheckpointError, OSError):
+        return {}
+    allowed = {"cutoff_hz"}
+    if not isinstance(spec, dict) or not set(spec) <= allowed:
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'settle' takes "
+                              f"{sorted(allowed)}, got {spec!r}")
+    return {"cutoff": float(spec["cutoff_hz"])} if "cutoff_hz" in spec else {}
 
 
 def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
@@ -223,8 +345,9 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
            end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
            foot_lock_on: bool | None = None, smooth_on: bool | None = None, beats=None) -> DanceResult:
     """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
-    a jittery dance is filtered), the foot lock (after the smoothing, so a pinned foot stays pinned), then
-    the beat sync (so the speed minima it aligns are those of the final dance). ``foot_lock_on`` and
+    a jittery dance is filtered), the foot lock (after the smoothing, so a pinned foot stays pinned) and,
+    with it, the light low-pass after the lock that the model's checkpoint asks for (:func:`settle`,
+    :func:`settle_options`: a held foot stays held), then the beat sync (so the speed minima it aligns are those of the final dance). ``foot_lock_on`` and
     ``smooth_on`` follow ``cleanup_on`` unless given. ``beats``: the song's
     :class:`~dancekit.features.pulse.SongBeats` when already tracked (many dances of one song), else tracked
     here when needed."""
@@ -234,6 +357,7 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
         result = smooth(result)
     if cleanup_on if foot_lock_on is None else foot_lock_on:
         result = foot_lock(result)
+        result = settle(result, **settle_options(result.model))
     if beat_sync_on:
         result = beat_sync(result, audio_path, start=start, end=end, beats=beats)
     return result

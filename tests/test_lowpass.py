@@ -1,0 +1,215 @@
+"""The windowed-sinc FIR low-pass of the smoothing stages (issue 15: jitter without losing energy): its kernel
+is scipy's ``firwin`` design, it is zero-phase (``np.convolve`` of the odd-reflected signal), a sine below
+the cut-off passes and one above is removed, the chunked rows equal the one-pass filter bit for bit, and the
+stage after the foot lock (:func:`dancekit.pipelines.stages.settle`) keeps bone lengths and a held foot."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import dancekit.motion.footlock as footlock
+from dancekit.errors import ParameterError
+from dancekit.motion import Motion, get_skeleton
+from dancekit.motion._filters import fir_lowpass, lowpass_kernel, lowpass_taps
+from dancekit.pipelines.base import DanceResult
+from dancekit.pipelines.stages import settle
+
+FPS = 25.0
+SK = get_skeleton("tang2018")
+
+
+@pytest.mark.parametrize("cutoff", [2.0, 3.0, 4.0, 6.0, 8.0])
+@pytest.mark.parametrize("window", ["hamming", "hann", "blackman", ("kaiser", 5.0)])
+def test_kernel_is_scipys_firwin(cutoff, window):
+    from scipy.signal import firwin
+
+    n = lowpass_taps(cutoff, fps=FPS)
+    assert n % 2 == 1
+    np.testing.assert_allclose(lowpass_kernel(cutoff, fps=FPS, window=window),
+                               firwin(n, cutoff, window=window, fs=FPS), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lowpass_kernel(cutoff, fps=FPS, numtaps=41),
+                               firwin(41, cutoff, window="hamming", fs=FPS), rtol=0, atol=1e-12)
+
+
+def test_filter_is_convolution_with_odd_reflected_ends():
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(300, 4))
+    h = lowpass_kernel(3.0, fps=FPS)
+    half = len(h) // 2
+    ext = np.concatenate([2 * x[:1] - x[half:0:-1], x, 2 * x[-1:] - x[-2:-half - 2:-1]])
+    ref = np.stack([np.convolve(ext[:, i], h, mode="valid") for i in range(4)], axis=1)
+    np.testing.assert_allclose(fir_lowpass(x, h), ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fir_lowpass(x.T, h, axis=1), ref.T, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("cutoff", [3.0, 4.0])
+def test_sine_below_passes_and_sine_above_is_removed(cutoff):
+    """Known answers from the design (not from this code): a Hamming window's transition band is ~3.3 fps / N
+    wide around the cut-off, its stop band below -50 dB; so a sine at a third of the cut-off passes within
+    1 % and one at twice the cut-off comes out below 1 % of its amplitude (away from the ends)."""
+    t = np.arange(1000) / FPS
+    h = lowpass_kernel(cutoff, fps=FPS)
+    inner = slice(len(h), -len(h))
+    low = np.sin(2 * np.pi * cutoff / 3 * t + 0.3)
+    high = np.sin(2 * np.pi * 2 * cutoff * t + 0.7)
+    np.testing.assert_allclose(fir_lowpass(low, h)[inner], low[inner], atol=0.01)
+    assert np.abs(fir_lowpass(high, h)[inner]).max() < 0.01
+    both = fir_lowpass(low + high, h)
+    np.testing.assert_allclose(both[inner], low[inner], atol=0.02)
+    line = 3.0 * t - 2.0  # unit gain at 0 Hz and odd-reflected ends: a straight line is kept to the ends
+    np.testing.assert_allclose(fir_lowpass(line, h), line, atol=1e-9)
+
+
+def test_bad_designs_are_named_errors():
+    with pytest.raises(ParameterError):
+        lowpass_kernel(13.0, fps=FPS)  # above Nyquist
+    with pytest.raises(ParameterError):
+        lowpass_kernel(3.0, fps=FPS, numtaps=20)  # even: not zero-phase
+    with pytest.raises(ParameterError):
+        lowpass_kernel(3.0, fps=FPS, window="triangle")
+
+
+@pytest.fixture(scope="module")
+def dance() -> np.ndarray:
+    rng = np.random.default_rng(3)
+    rest = np.zeros((SK.num_joints, 3))
+    for j in SK.topological_order:
+        if SK.parents[j] >= 0:
+            rest[j] = rest[SK.parents[j]] + SK.offsets[j]
+    T = 700
+    t = np.arange(T)[:, None, None] / FPS
+    freq = rng.uniform(0.3, 2.0, size=(1, SK.num_joints, 3))
+    wobble = 6.0 * np.sin(2 * np.pi * freq * t + rng.uniform(0, 6, size=freq.shape))
+    travel = np.concatenate([30 * np.sin(0.2 * t), 0 * t, 20 * np.cos(0.13 * t)], axis=-1)
+    return (rest[None] + wobble + travel + rng.normal(scale=1.5, size=(T, SK.num_joints, 3))).astype(np.float32)
+
+
+@pytest.mark.parametrize("cutoff", [3.0, 6.0])
+def test_rows_in_pieces_equal_the_whole_filter(dance, cutoff):
+    h = lowpass_kernel(cutoff, fps=FPS)
+    whole = fir_lowpass(dance, h)
+    pieces = [footlock.lowpass_rows(dance, h, a, b) for a, b in footlock.chunks(len(dance), 61)]
+    np.testing.assert_array_equal(np.concatenate(pieces), whole)
+
+
+def test_jitter_ratio_of_the_lowpass_in_pieces(dance, monkeypatch):
+    whole = footlock._jitter_ratio(fir_lowpass(dance, lowpass_kernel(3.0, fps=FPS)), SK, FPS)
+    monkeypatch.setattr(footlock, "CHUNK", 61)
+    got = footlock._jitter_ratio(dance, SK, FPS, cutoff=3.0)
+    assert got == pytest.approx(whole, rel=1e-12)
+    assert got < 0.5 * footlock._jitter_ratio(dance, SK, FPS)  # the frame noise is gone
+
+
+def test_lowpass_cutoff_reaches_the_target(dance):
+    ratios = {c: footlock._jitter_ratio(dance, SK, FPS, cutoff=c) for c in footlock.CUTOFFS_HZ}
+    assert all(ratios[a] > ratios[b] for a, b in zip(footlock.CUTOFFS_HZ[:-1], footlock.CUTOFFS_HZ[1:]))
+    target = ratios[4.0] * (1 + 1e-9)  # the highest cut-off within the target is 4 Hz
+    assert footlock.lowpass_cutoff(dance, skeleton=SK, fps=FPS, target=target) == 4.0
+    assert footlock.lowpass_cutoff(dance, skeleton=SK, fps=FPS, target=0.0) == footlock.CUTOFFS_HZ[-1]
+    assert footlock.lowpass_cutoff(fir_lowpass(dance, lowpass_kernel(2.0, fps=FPS)), skeleton=SK, fps=FPS,
+                                   target=0.5) == 0.0  # smooth already: left alone
+
+
+def test_settle_keeps_bones_and_filters_in_pieces(dance, monkeypatch):
+    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=dance), model="m", seed=0)
+    p = dance.astype(np.float64)
+    out = settle(res, cutoff=3.0).motion.positions.astype(np.float64)
+    for j in SK.topological_order:
+        q = SK.parents[j]
+        if q >= 0:
+            np.testing.assert_allclose(np.linalg.norm(out[:, j] - out[:, q], axis=-1),
+                                       np.linalg.norm(p[:, j] - p[:, q], axis=-1), rtol=1e-5)
+    assert np.abs(out - p).max() > 1.0  # it did filter (cm); the jitter it removes: the held-feet test below
+    monkeypatch.setattr(footlock, "CHUNK", 97)
+    np.testing.assert_array_equal(settle(res, cutoff=3.0).motion.positions, out.astype(np.float32))
+    assert settle(res, cutoff=0).motion is res.motion
+
+
+def test_settle_keeps_held_feet_held():
+    """On the embedded model's own dances, locked: inside every hold (6 frames from its ends) the settled
+    ankle stays within 1 cm of where the lock holds it."""
+    from pathlib import Path
+
+    checked = 0
+    for key in ("none_seed3", "auto_seed0", "rumba_seed1"):
+        checked += _held_frames_checked(np.load(Path(__file__).parent / "golden" / "default_model.npz")[key])
+    assert checked >= 2
+
+
+def _held_frames_checked(p: np.ndarray) -> int:
+    p = p.astype(np.float64)
+    locked, rep = footlock.lock_feet(p, skeleton=SK, fps=FPS, return_report=True)
+    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=locked.astype(np.float32)), model="m", seed=0)
+    out = settle(res, cutoff=3.0).motion.positions.astype(np.float64)
+    assert footlock._jitter_ratio(out, SK, FPS) < 0.8 * footlock._jitter_ratio(locked, SK, FPS)
+    checked = 0
+    for leg, (_hip, _knee, ankle, _below) in enumerate(footlock.leg_chains(SK)):
+        for s, e in footlock._runs(rep.held[:, leg]):
+            if e - s >= 12:
+                inner = slice(s + 6, e - 5)
+                assert np.linalg.norm(out[inner, ankle] - locked[inner, ankle], axis=-1).max() * SK.unit_scale < 0.01
+                checked += 1
+    return checked
+
+
+def test_settle_filters_rotations_consistently(dance):
+    m = Motion(skeleton=SK, fps=FPS, positions=dance[:200]).with_rotations()
+    out = settle(DanceResult(motion=m, model="m", seed=0), cutoff=3.0).motion
+    assert out.rotations.shape == m.rotations.shape
+    r = out.rotations.astype(np.float64)
+    np.testing.assert_allclose(r @ np.swapaxes(r, -1, -2), np.broadcast_to(np.eye(3), r.shape), atol=1e-5)
+    fk = Motion(skeleton=SK, fps=FPS, rotations=out.rotations, root_translation=out.root_translation).to_positions()
+    np.testing.assert_allclose(fk, out.positions, atol=1e-3)  # positions from the filtered rotations
+    assert footlock._jitter_ratio(out.positions, SK, FPS) < footlock._jitter_ratio(m.to_positions(), SK, FPS)
+
+
+def _ancestors(j: int) -> set[int]:
+    out = set()
+    while SK.parents[j] >= 0:
+        j = SK.parents[j]
+        out.add(j)
+    return out
+
+
+def test_settle_options_come_from_the_checkpoint(tmp_path):
+    import json
+    from pathlib import Path
+
+    import dancekit.pipelines.stages as stages
+    from dancekit.errors import CheckpointError
+
+    folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+    assert stages.settle_options(str(folder / "revolution")) == {"cutoff": 3.0}
+    assert stages.settle_options(str(folder / "music2dance")) == {}
+    assert stages.settle_options(str(folder / "dual")) == {}
+    assert stages.settle_options("/somewhere/else/revolution") == {}
+    assert stages.settle_options(None) == {}
+    bad = tmp_path / "m"
+    bad.mkdir()
+    cfg = json.loads((folder / "revolution" / "config.json").read_text())
+    cfg["settle"] = {"cutoff": 3}
+    (bad / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(CheckpointError, match="config.json"):
+        stages.settle_options(str(bad))
+
+
+def test_finish_settles_after_the_lock_for_the_model_that_asks(monkeypatch):
+    from pathlib import Path
+
+    import dancekit.pipelines.stages as stages
+
+    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+    calls = []
+    real = stages.settle
+    monkeypatch.setattr(stages, "settle", lambda r, **kw: calls.append(kw) or real(r, **kw))
+    for model, want in ((str(folder / "revolution"), {"cutoff": 3.0}), (str(folder / "music2dance"), {})):
+        res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=model, seed=0)
+        out = stages.finish(res, "unused.wav", beat_sync_on=False)
+        assert calls[-1] == want
+        locked = stages.foot_lock(stages.smooth(stages.clean_up(res)))
+        same = np.array_equal(out.motion.positions, locked.motion.positions)
+        assert same == (not want)  # only the model that asks is low-passed
+    stages.finish(res, "unused.wav", beat_sync_on=False, foot_lock_on=False)
+    assert len(calls) == 2  # no lock: no settle
