@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dancekit.errors import CheckpointError
+from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
@@ -184,38 +184,49 @@ def smooth(result: DanceResult, *, target: float | None = None, kind: str | None
 
         note = f"smoothed ({window}-frame filter)"
     else:
-        raise ValueError(f"unknown smoothing filter {kind!r}")
+        raise ParameterError(f"unknown smoothing filter {kind!r}: lowpass or savgol")
     if motion.rotations is None:
         out = np.empty(p.shape, np.float32)
         for a, b in chunks(len(p)):  # the filter is local: piece by piece, the same numbers as one pass
-            q = rows(p, a, b)
-            o = q.copy()  # bone directions from the filtered dance, each frame's own bone lengths kept
-            x = np.asarray(p[a:b], np.float64)
-            for j in sk.topological_order:
-                parent = sk.parents[j]
-                if parent >= 0:
-                    d = q[:, j] - q[:, parent]
-                    length = np.linalg.norm(x[:, j] - x[:, parent], axis=-1, keepdims=True)
-                    o[:, j] = o[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True),
-                                                                     1e-12)
-            out[a:b] = o
+            out[a:b] = _bones_kept(rows(p, a, b), p[a:b], sk)
         smoothed = Motion(skeleton=sk, fps=fps, positions=out)
     else:
-        import torch
-
-        from dancekit.motion.kinematics import rig_forward_kinematics
-
-        p = np.asarray(p, np.float64)
-        rot = whole(np.asarray(motion.rotations, np.float64).reshape(len(p), -1, 9))
-        u, _, vt = np.linalg.svd(rot.reshape(len(p), -1, 3, 3))
-        d = np.sign(np.linalg.det(u @ vt))
-        u[..., :, -1] *= d[..., None]
-        rot = u @ vt
-        tr = whole(np.asarray(motion.root_translation, np.float64))
-        pos = rig_forward_kinematics(torch.from_numpy(rot), torch.from_numpy(tr), sk).numpy()
-        smoothed = Motion(skeleton=sk, fps=fps, positions=pos.astype(np.float32),
-                          rotations=rot.astype(motion.rotations.dtype), root_translation=tr.astype(np.float32))
+        smoothed = _rotations_filtered(motion, whole)
     return _with_note(dataclasses.replace(result, motion=smoothed), note)
+
+
+def _bones_kept(q: np.ndarray, x: np.ndarray, skeleton) -> np.ndarray:
+    """Filtered positions ``q`` (F, J, 3) with each frame's bone lengths of the unfiltered ``x`` (F, J, 3):
+    bone directions from ``q``, parents first, from ``q``'s root. Returns float64 (F, J, 3)."""
+    q = np.asarray(q, np.float64)
+    x = np.asarray(x, np.float64)
+    o = q.copy()
+    for j in skeleton.topological_order:
+        parent = skeleton.parents[j]
+        if parent >= 0:
+            d = q[:, j] - q[:, parent]
+            length = np.linalg.norm(x[:, j] - x[:, parent], axis=-1, keepdims=True)
+            o[:, j] = o[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+    return o
+
+
+def _rotations_filtered(motion: Motion, whole) -> Motion:
+    """``motion`` (with rotations) with ``whole`` (a zero-phase filter over axis 0 of a float64 array) applied
+    to its rotation matrices (re-orthonormalised by SVD) and root translation, positions by forward
+    kinematics: bone lengths exact."""
+    import torch
+
+    from dancekit.motion.kinematics import rig_forward_kinematics
+
+    n = len(motion.rotations)
+    rot = whole(np.asarray(motion.rotations, np.float64).reshape(n, -1, 9))
+    u, _, vt = np.linalg.svd(rot.reshape(n, -1, 3, 3))
+    u[..., :, -1] *= np.sign(np.linalg.det(u @ vt))[..., None]
+    rot = u @ vt
+    tr = whole(np.asarray(motion.root_translation, np.float64))
+    pos = rig_forward_kinematics(torch.from_numpy(rot), torch.from_numpy(tr), motion.skeleton).numpy()
+    return Motion(skeleton=motion.skeleton, fps=motion.fps, positions=pos.astype(np.float32),
+                  rotations=rot.astype(motion.rotations.dtype), root_translation=tr.astype(np.float32))
 
 
 def foot_lock(result: DanceResult) -> DanceResult:
@@ -266,36 +277,17 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
 
     keep = sorted({j for hip, knee, ankle, below in leg_chains(sk) for j in (hip, knee, ankle, *below)}) \
         if not legs else []
+    if motion.rotations is not None:  # the rotations filtered as the smoothing stage does, positions by FK
+        from dancekit.motion._filters import fir_lowpass
+
+        return dataclasses.replace(result, motion=_rotations_filtered(motion, lambda x: fir_lowpass(x, h)))
     out = np.empty(p.shape, np.float32)
     for a, b in chunks(len(p)):
         q = lowpass_rows(p, h, a, b)
         if keep:  # the legs as locked: only the rest of the body filtered
             q[:, keep] = np.asarray(p[a:b, keep], np.float64)
-        o = q.copy()
-        x = np.asarray(p[a:b], np.float64)
-        for j in sk.topological_order:
-            parent = sk.parents[j]
-            if parent >= 0:
-                d = q[:, j] - q[:, parent]
-                length = np.linalg.norm(x[:, j] - x[:, parent], axis=-1, keepdims=True)
-                o[:, j] = o[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
-        out[a:b] = o
-    rot = tr = None
-    if motion.rotations is not None:  # the rotations filtered as the smoothing stage does, positions by FK
-        import torch
-
-        from dancekit.motion._filters import fir_lowpass
-        from dancekit.motion.kinematics import rig_forward_kinematics
-
-        r = fir_lowpass(np.asarray(motion.rotations, np.float64).reshape(len(p), -1, 9), h)
-        u, _, vt = np.linalg.svd(r.reshape(len(p), -1, 3, 3))
-        u[..., :, -1] *= np.sign(np.linalg.det(u @ vt))[..., None]
-        r = u @ vt
-        t = fir_lowpass(np.asarray(motion.root_translation, np.float64), h)
-        out = rig_forward_kinematics(torch.from_numpy(r), torch.from_numpy(t), sk).numpy().astype(np.float32)
-        rot, tr = r.astype(motion.rotations.dtype), t.astype(np.float32)
-    settled = Motion(skeleton=sk, fps=fps, positions=out, rotations=rot, root_translation=tr)
-    return dataclasses.replace(result, motion=settled)
+        out[a:b] = _bones_kept(q, p[a:b], sk)
+    return dataclasses.replace(result, motion=Motion(skeleton=sk, fps=fps, positions=out))
 
 
 def settle_options(model: str | os.PathLike | None) -> dict[str, float]:
