@@ -213,3 +213,18 @@ def test_finish_settles_after_the_lock_for_the_model_that_asks(monkeypatch):
         assert same == (not want)  # only the model that asks is low-passed
     stages.finish(res, "unused.wav", beat_sync_on=False, foot_lock_on=False)
     assert len(calls) == 2  # no lock: no settle
+
+
+def test_smoothing_with_the_lowpass_keeps_bones_and_an_unknown_filter_is_named(dance):
+    from dancekit.pipelines.stages import smooth
+
+    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=dance), model="m", seed=0)
+    out = smooth(res, kind="lowpass", target=0.0)
+    assert out.notes and out.notes[-1].endswith("-Hz low-pass)")
+    p, q = dance.astype(np.float64), out.motion.positions.astype(np.float64)
+    for j in SK.topological_order:
+        if SK.parents[j] >= 0:
+            np.testing.assert_allclose(np.linalg.norm(q[:, j] - q[:, SK.parents[j]], axis=-1),
+                                       np.linalg.norm(p[:, j] - p[:, SK.parents[j]], axis=-1), rtol=1e-5)
+    with pytest.raises(ParameterError, match="unknown smoothing filter 'median'"):
+        smooth(res, kind="median")
