@@ -427,6 +427,12 @@ def test_the_embedded_model_loads_in_float32_with_its_parts_and_dances(song8):
     sampling = json.loads((folder / "config.json").read_text())["sampling"]
     assert (pipe.temperature, pipe.noise_correlation, pipe.smooth_sigma) == (
         sampling["temperature"], sampling["noise_correlation"], sampling["smooth_sigma"])
+    # --genre chacha / tango: their own sampling and smoothing targets (docs/MUSIC2DANCE.md); waltz, rumba,
+    # auto and none: the plain sampling above
+    assert set(pipe.genre_sampling) == {"chacha", "tango"}
+    from dancekit.pipelines.stages import genre_smoothing_targets
+
+    assert set(genre_smoothing_targets(folder)) == {"chacha", "tango"}
     assert foot_constraint_folder() == folder / "foot_constraint"
     fix = load_foot_constraint()
     assert {p.dtype for p in fix.model.parameters()} == {torch.float32}
