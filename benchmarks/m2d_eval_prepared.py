@@ -110,7 +110,8 @@ def main() -> None:
     report["generation"] = {"checkpoint": args.model, "split": args.split, "seeds": args.seeds, "genre": args.genre,
                             "features": "prepared", "foot_constraint": bool(fix), "elapsed_s": round(gen, 1),
                             "sampling": {k: getattr(m2d, k) for k in ("temperature", "noise_correlation",
-                                                                     "smooth_sigma", "genre_scale")}}
+                                                                     "smooth_sigma", "genre_scale")},
+                            "genre_sampling": m2d.genre_sampling}
     (out / "report.json").write_text(json.dumps(report, indent=1))
     m = report["metrics"]
     print(f"{args.model} {args.split}: generated in {gen:.0f} s; " + ", ".join(

@@ -327,3 +327,45 @@ def test_the_revolution_stage_uses_its_own_minimum_hold():
     assert stages.foot_lock_options(str(folder / "music2dance")) == {}
     assert stages.foot_lock_options("/somewhere/else/revolution") == {}  # a user's model: the defaults
     assert stages.foot_lock_options(None) == {}
+
+
+def test_the_smoothing_stage_takes_a_named_genres_target_from_the_checkpoint(tmp_path):
+    """A dance whose genre was asked for by name is smoothed to the checkpoint's target for that genre
+    (``"smoothing": {"genre_targets": ...}``); "auto", "none", another genre or a folder without the entry
+    keep the stage's own targets."""
+    import dataclasses
+    import json
+
+    from dancekit.errors import CheckpointError
+    from dancekit.motion.footlock import _jitter_ratio
+    from dancekit.pipelines import stages
+    from dancekit.pipelines.base import DanceResult
+
+    T = 200
+    t = np.arange(T) / FPS
+    rng = np.random.default_rng(3)
+    p = (np.sin(2 * np.pi * 1.5 * t)[:, None, None] * rng.normal(size=(1, SK.num_joints, 3)) * 10.0
+         + rng.normal(scale=1.3, size=(T, SK.num_joints, 3)))
+    folder = tmp_path / "m"
+    folder.mkdir()
+    (folder / "config.json").write_text(json.dumps({"model": "music2dance",
+                                                    "smoothing": {"genre_targets": {"chacha": 0.25}}}))
+    named = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32)), model=str(folder),
+                        seed=0, genre_requested="chacha", genre="chacha")
+    assert _jitter_ratio(p, SK, FPS) > 0.4  # jittery: the stage filters it either way
+    assert stages.smoothing_target(named) == 0.25
+    others = [dataclasses.replace(named, genre_requested="auto"), dataclasses.replace(named, genre_requested="none"),
+              dataclasses.replace(named, genre_requested="waltz", genre="waltz"),
+              dataclasses.replace(named, model=str(tmp_path / "nowhere"))]
+    assert [stages.smoothing_target(r) for r in others] == [None] * 4
+    mine = stages.smooth(named)
+    np.testing.assert_array_equal(mine.motion.positions, stages.smooth(others[0], target=0.25).motion.positions)
+    plain = stages.smooth(others[0])  # the stage's own target (0.065 for a dance this jittery): a longer filter
+
+    def window(r):
+        return int(r.notes[-1].split("(")[1].split("-")[0])
+
+    assert 1 < window(mine) < window(plain)
+    (folder / "config.json").write_text(json.dumps({"model": "x", "smoothing": {"genre_targets": {"chacha": "a"}}}))
+    with pytest.raises(CheckpointError, match="smoothing"):
+        stages.smooth(named)

@@ -427,6 +427,12 @@ def test_the_embedded_model_loads_in_float32_with_its_parts_and_dances(song8):
     sampling = json.loads((folder / "config.json").read_text())["sampling"]
     assert (pipe.temperature, pipe.noise_correlation, pipe.smooth_sigma) == (
         sampling["temperature"], sampling["noise_correlation"], sampling["smooth_sigma"])
+    # --genre chacha / tango: their own sampling and smoothing targets (docs/MUSIC2DANCE.md); waltz, rumba,
+    # auto and none: the plain sampling above
+    assert set(pipe.genre_sampling) == {"chacha", "tango"}
+    from dancekit.pipelines.stages import genre_smoothing_targets
+
+    assert set(genre_smoothing_targets(folder)) == {"chacha", "tango"}
     assert foot_constraint_folder() == folder / "foot_constraint"
     fix = load_foot_constraint()
     assert {p.dtype for p in fix.model.parameters()} == {torch.float32}
@@ -490,6 +496,45 @@ def test_genre_guidance_moves_the_dance_type_vector_away_from_no_type():
                                rtol=0, atol=1e-12)
     with pytest.raises(ParameterError, match="genre_scale"):
         model.generate(music, genre, genre_scale=-1.0)
+
+
+def test_genre_sampling_applies_when_a_genre_is_named_and_not_otherwise(m2d_folder, song8, tmp_path):
+    """A checkpoint's ``"genre_sampling": {genre: settings}`` is how that genre is sampled when it is asked for
+    by name (``--genre rumba``); other genres, "none" and "auto" sample with the plain settings; a batch
+    mixing them gives each row what it would get alone."""
+    import json
+    import shutil
+
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    folder = tmp_path / "steered"
+    shutil.copytree(m2d_folder, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    steer = {"genre_scale": 3.0, "temperature": 0.5, "noise_correlation": 0.5, "smooth_sigma": 1.0}
+    (folder / "config.json").write_text(json.dumps({**meta, "genre_sampling": {"rumba": steer}}))
+    plain, steered = Music2DancePipeline.from_pretrained(m2d_folder), Music2DancePipeline.from_pretrained(folder)
+    assert steered.genre_sampling == {"rumba": steer} and plain.genre_sampling == {}
+    by_hand = Music2DancePipeline.from_pretrained(m2d_folder)
+    by_hand.noise_correlation, by_hand.smooth_sigma = 0.5, 1.0
+
+    def pos(pipe, genre, **kw):
+        return pipe(song8, seed=0, genre=genre, end=3.0, **kw).motion.to_positions()
+
+    rumba = pos(steered, "rumba")
+    np.testing.assert_array_equal(rumba, pos(by_hand, "rumba", genre_scale=3.0, temperature=0.5))
+    assert np.abs(rumba - pos(plain, "rumba")).max() > 1e-3
+    for genre in ("waltz", "none", "auto"):
+        np.testing.assert_array_equal(pos(steered, genre), pos(plain, genre))
+    mixed = steered.dances(song8, seeds=[0, 0, 1], genre=["rumba", "waltz", "rumba"], end=3.0)
+    assert [r.genre for r in mixed] == ["rumba", "waltz", "rumba"]
+    alone = [rumba, pos(plain, "waltz"), steered(song8, seed=1, genre="rumba", end=3.0).motion.to_positions()]
+    for r, a in zip(mixed, alone):  # a batch of two equals the rows alone up to float rounding
+        np.testing.assert_allclose(r.motion.to_positions(), a, rtol=0, atol=1e-4)
+    for bad in ({"tango": steer}, {"rumba": {"speed": 2}}, {"rumba": {"noise_correlation": 1.0}}, ["rumba"]):
+        (folder / "config.json").write_text(json.dumps({**meta, "genre_sampling": bad}))
+        with pytest.raises(CheckpointError, match="genre_sampling"):
+            Music2DancePipeline.from_pretrained(folder)
 
 
 def test_pipeline_takes_its_default_genre_scale_from_the_checkpoint(m2d_folder, song8, tmp_path):

@@ -91,9 +91,38 @@ class Music2DancePipeline:
         if not (np.isfinite(self.genre_scale) and self.genre_scale >= 0):
             raise CheckpointError(f"checkpoint {folder}: sampling genre_scale must be a finite number >= 0, "
                                   f"got {self.genre_scale!r}")
+        #: sampling per genre when that genre is asked for by name (``genre="tango"``, ``--genre tango``): the
+        #: checkpoint's ``"genre_sampling": {genre: {"temperature": t, "noise_correlation": ρ, "smooth_sigma": s,
+        #: "genre_scale": α}}`` (any subset; the rest as :attr:`temperature` etc.), chosen on the validation
+        #: songs for the embedded model so that the style classifier reads the genre back; "auto", "none" and
+        #: the genres not listed keep the plain settings
+        self.genre_sampling = self._genre_sampling(meta.get("genre_sampling"), folder)
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
+
+    def _genre_sampling(self, spec: Any, folder: str | os.PathLike) -> dict[str, dict[str, float]]:
+        if spec is None:
+            return {}
+        allowed = ("temperature", "noise_correlation", "smooth_sigma", "genre_scale")
+        if not isinstance(spec, dict) or set(spec) - set(self.genres) or not all(isinstance(v, dict) for v in spec.values()):
+            raise CheckpointError(f"checkpoint {folder}: config.json 'genre_sampling' maps genres of the model "
+                                  f"({', '.join(self.genres) or 'none'}) to sampling settings, got {spec!r}")
+        out: dict[str, dict[str, float]] = {}
+        for genre, settings in spec.items():
+            if set(settings) - set(allowed):
+                raise CheckpointError(f"checkpoint {folder}: genre_sampling {genre!r} takes {list(allowed)}, "
+                                      f"got {settings!r}")
+            out[genre] = {}
+            for key, value in settings.items():
+                ok = (isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
+                      and value >= 0 and (key != "noise_correlation" or value < 1))
+                if not ok:
+                    raise CheckpointError(f"checkpoint {folder}: genre_sampling {genre!r} {key} must be a finite "
+                                          f"number >= 0{' and < 1' if key == 'noise_correlation' else ''}, "
+                                          f"got {value!r}")
+                out[genre][key] = float(value)
+        return out
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu",
@@ -188,17 +217,37 @@ class Music2DancePipeline:
         ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
         :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type). ``music``:
         the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
-        prepared dataset's), instead of extracting them from ``audio_path``."""
-        temperature = self.temperature if temperature is None else temperature
-        if not temperature >= 0:
-            raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
-        genre_scale = self.genre_scale if genre_scale is None else float(genre_scale)
-        if not (np.isfinite(genre_scale) and genre_scale >= 0):
-            raise ParameterError(f"genre_scale must be a finite number >= 0, got {genre_scale!r}")
+        prepared dataset's), instead of extracting them from ``audio_path``. Rows whose genre is named and has
+        an entry in :attr:`genre_sampling` sample with it over the plain settings (one batch per such genre);
+        ``temperature`` / ``genre_scale`` given here override both."""
         seeds = check_seeds(seeds)
         wanted = list(genre) if isinstance(genre, (list, tuple)) else [genre] * len(seeds)
         if len(wanted) != len(seeds):
             raise ParameterError(f"{len(wanted)} genres for {len(seeds)} seeds")
+        # rows whose genre is named and has its own sampling settings: one batch per such genre
+        keys = [str(g) if g is not None and str(g) in self.genre_sampling else None for g in wanted]
+        if len(set(keys)) > 1:
+            out: list[DanceResult | None] = [None] * len(seeds)
+            for key in dict.fromkeys(keys):
+                rows = [k for k, x in enumerate(keys) if x == key]
+                part = self.dances(audio_path, seeds=[seeds[k] for k in rows], genre=[wanted[k] for k in rows],
+                                   temperature=temperature, start=start, end=end, progress=progress, music=music,
+                                   beat_sync=beat_sync, cleanup=cleanup, genre_scale=genre_scale)
+                for k, r in zip(rows, part):
+                    out[k] = r
+            return out
+        steer = self.genre_sampling.get(keys[0], {}) if keys[0] is not None else {}
+        noise_correlation = steer.get("noise_correlation", self.noise_correlation)
+        smooth_sigma = steer.get("smooth_sigma", self.smooth_sigma)
+        if temperature is None:
+            temperature = steer.get("temperature", self.temperature)
+        if genre_scale is None:
+            genre_scale = steer.get("genre_scale", self.genre_scale)
+        if not temperature >= 0:
+            raise ParameterError(f"temperature must be >= 0, got {temperature!r}")
+        genre_scale = float(genre_scale)
+        if not (np.isfinite(genre_scale) and genre_scale >= 0):
+            raise ParameterError(f"genre_scale must be a finite number >= 0, got {genre_scale!r}")
         read = {g: self._genre(g, audio_path, start, end) for g in dict.fromkeys(wanted)}  # (requested, danced, probs)
         if music is None:
             feats = self.features(audio_path, start=start, end=end)
@@ -214,13 +263,13 @@ class Music2DancePipeline:
         window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
         x = x.to(self.model.genre_embedding.weight.device).expand(B, -1, -1)
         y = self.model.generate(x, index, temperature=temperature, generator=gens, progress=progress,
-                                fmap_window=window, noise_correlation=self.noise_correlation,
+                                fmap_window=window, noise_correlation=noise_correlation,
                                 genre_scale=genre_scale)  # (B, T, P)
-        if self.smooth_sigma > 0:
+        if smooth_sigma > 0:
             from dancekit.models.foot_constraint import gaussian_smooth
 
             D = self.model.config.gmm_dim
-            y = torch.cat([gaussian_smooth(y[..., :D], self.smooth_sigma), y[..., D:]], -1)
+            y = torch.cat([gaussian_smooth(y[..., :D], smooth_sigma), y[..., D:]], -1)
         out, beats = [], None
         for k, (seed, g) in enumerate(zip(seeds, wanted)):
             requested, danced, probs = read[g]

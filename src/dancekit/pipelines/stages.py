@@ -13,7 +13,9 @@ model's own output):
   toward its start beyond 4 m, never farther than 12 m) and its lowest joint put on the floor
   (:mod:`dancekit.motion.cleanup`).
 * **smoothing** (:func:`smooth`): a jittery dance gets a Savitzky-Golay filter whose window is chosen per
-  dance (:mod:`dancekit.motion.footlock`); a smooth one is left alone.
+  dance (:mod:`dancekit.motion.footlock`); a smooth one is left alone. A dance whose genre was asked for by
+  name is brought to that genre's own jitter-to-energy ratio when the model's checkpoint carries one
+  (:func:`genre_smoothing_targets`: real cha-chas and tangos have 2-4x the high-frequency motion of waltzes).
 * **foot lock** (:func:`foot_lock`): planted feet held where they were planted, the legs solved by two-bone
   IK, the body lowered where a held foot is out of reach, blended in and out (:mod:`dancekit.motion.footlock`).
 * **settle** (:func:`settle`): for a model whose checkpoint asks for it, a light zero-phase windowed-sinc
@@ -35,8 +37,9 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish", "foot_lock",
-           "foot_lock_options", "settle", "settle_options", "smooth", "song_beats_for"]
+__all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish",
+           "foot_lock", "foot_lock_options", "genre_smoothing_targets", "settle", "settle_options", "smooth",
+           "smoothing_target", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
 #: jittery dance down to: about the 80th percentile of the real training dances' (0.055-0.28, median 0.065);
@@ -134,8 +137,9 @@ def smooth(result: DanceResult, *, target: float | None = None, kind: str | None
     cut-off is the highest of :data:`dancekit.motion.footlock.CUTOFFS_HZ` that brings the dance's
     jitter-to-energy ratio to ``target`` (:func:`dancekit.motion.footlock.lowpass_cutoff`); ``"savgol"``, a
     Savitzky-Golay filter whose window is the shortest that does
-    (:func:`dancekit.motion.footlock.smoothing_window`). ``target`` default :data:`SMOOTH_TARGET`, or
-    :data:`SMOOTH_TARGET_NOISY` for a dance beyond :data:`NOISY_RATIO`. A motion
+    (:func:`dancekit.motion.footlock.smoothing_window`). ``target`` default :func:`smoothing_target`:
+    :data:`SMOOTH_TARGET`, or :data:`SMOOTH_TARGET_NOISY` for a dance beyond :data:`NOISY_RATIO`, or the
+    requested genre's ratio of the model's checkpoint. A motion
     with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them;
     a positions-only motion takes its bone directions from the filtered dance and keeps each frame's bone
     lengths; so bone lengths stay exact either way."""
@@ -156,6 +160,8 @@ def smooth(result: DanceResult, *, target: float | None = None, kind: str | None
     kind = SMOOTH_FILTER if kind is None else kind
     sk, fps = motion.skeleton, motion.fps
     p = motion.to_positions()  # (T, J, 3); the helpers work in float64 piece by piece
+    if target is None:
+        target = smoothing_target(result)
     if target is None:
         target = SMOOTH_TARGET_NOISY if _jitter_ratio(p, sk, fps) > NOISY_RATIO else SMOOTH_TARGET
     if kind == "lowpass":
@@ -227,6 +233,37 @@ def _rotations_filtered(motion: Motion, whole) -> Motion:
     pos = rig_forward_kinematics(torch.from_numpy(rot), torch.from_numpy(tr), motion.skeleton).numpy()
     return Motion(skeleton=motion.skeleton, fps=motion.fps, positions=pos.astype(np.float32),
                   rotations=rot.astype(motion.rotations.dtype), root_translation=tr.astype(np.float32))
+
+
+def smoothing_target(result: DanceResult) -> float | None:
+    """The jitter-to-energy ratio :func:`smooth` brings ``result`` to when it was danced in a genre asked for
+    by name (``result.genre_requested`` is a genre, not "auto" / "none") and the model's checkpoint has a
+    target for it (:func:`genre_smoothing_targets`); None otherwise (the stage's own targets apply)."""
+    if result.genre_requested in (None, "auto", "none") or result.genre != result.genre_requested:
+        return None
+    return genre_smoothing_targets(result.model).get(str(result.genre))
+
+
+def genre_smoothing_targets(model: str | os.PathLike | None) -> dict[str, float]:
+    """Per genre, the jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) that the
+    smoothing stage brings a dance of that genre to when the genre was asked for by name: the checkpoint's
+    ``"smoothing": {"genre_targets": {genre: ratio}}`` (for the embedded music2dance: the median of the real
+    training dances of each genre, ``benchmarks/genre_smoothing_targets.py``; docs/MUSIC2DANCE.md). ``{}``
+    for a folder without the entry or that is not a checkpoint."""
+    from dancekit.checkpoints.hub import read_meta
+
+    if not model:
+        return {}
+    try:
+        spec = read_meta(model).get("smoothing") or {}
+    except (CheckpointError, OSError):
+        return {}
+    targets = spec.get("genre_targets", {}) if isinstance(spec, dict) else None
+    if not isinstance(spec, dict) or set(spec) - {"genre_targets"} or not isinstance(targets, dict) or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < 10 for v in targets.values()):
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'smoothing' takes "
+                              f"{{'genre_targets': {{genre: ratio in (0, 10)}}}}, got {spec!r}")
+    return {str(g): float(v) for g, v in targets.items()}
 
 
 def foot_lock(result: DanceResult) -> DanceResult:
