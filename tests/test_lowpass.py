@@ -192,6 +192,10 @@ def test_settle_options_come_from_the_checkpoint(tmp_path):
     (bad / "config.json").write_text(json.dumps(cfg))
     with pytest.raises(CheckpointError, match="config.json"):
         stages.settle_options(str(bad))
+    cfg["settle"] = {"cutoff_hz": "3"}  # a string where a number goes
+    (bad / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(CheckpointError, match="'settle' takes numbers"):
+        stages.settle_options(str(bad))
 
 
 def test_finish_settles_after_the_lock_for_the_model_that_asks(monkeypatch):

@@ -333,19 +333,8 @@ def settle_options(model: str | os.PathLike | None) -> dict[str, float]:
     dances take a 3-Hz low-pass after the lock; the embedded music2dance's geometric FID rises with any
     (+3-28 % on validation), so it has none. ``{}`` (no low-pass, :data:`SETTLE_HZ`) for a folder without
     the entry or that is not a checkpoint."""
-    from dancekit.checkpoints.hub import read_meta
-
-    if not model:
-        return {}
-    try:
-        spec = read_meta(model).get("settle") or {}
-    except (CheckpointError, OSError):
-        return {}
-    allowed = {"cutoff_hz"}
-    if not isinstance(spec, dict) or not set(spec) <= allowed:
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'settle' takes "
-                              f"{sorted(allowed)}, got {spec!r}")
-    return {"cutoff": float(spec["cutoff_hz"])} if "cutoff_hz" in spec else {}
+    spec = _stage_entry(model, "settle", {"cutoff_hz"})
+    return {"cutoff": spec["cutoff_hz"]} if "cutoff_hz" in spec else {}
 
 
 def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
@@ -355,18 +344,25 @@ def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
     0.12-0.4 s makes the foot stop and go (jitter); the embedded music2dance's geometric FID rises without
     its short holds, so it keeps the defaults. ``{}`` (the defaults) for a folder without the entry or that
     is not a checkpoint."""
+    return _stage_entry(model, "foot_lock", {"min_hold_s"})
+
+
+def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str]) -> dict[str, float]:
+    """The checkpoint folder's ``config.json`` entry ``key`` (a dict of numbers whose keys are in
+    ``allowed``); ``{}`` for no model, a folder without the entry, or one that is not a checkpoint. A
+    malformed entry is a :class:`~dancekit.errors.CheckpointError` naming the file."""
     from dancekit.checkpoints.hub import read_meta
 
     if not model:
         return {}
     try:
-        spec = read_meta(model).get("foot_lock") or {}
+        spec = read_meta(model).get(key) or {}
     except (CheckpointError, OSError):
         return {}
-    allowed = {"min_hold_s"}
-    if not isinstance(spec, dict) or not set(spec) <= allowed:
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'foot_lock' takes "
-                              f"{sorted(allowed)}, got {spec!r}")
+    if not isinstance(spec, dict) or not set(spec) <= allowed or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in spec.values()):
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: '{key}' takes "
+                              f"numbers for {sorted(allowed)}, got {spec!r}")
     return {k: float(v) for k, v in spec.items()}
 
 
