@@ -1,32 +1,42 @@
-"""Compose a contact-gated Foot Constraint Model from two trained ones (issue 13, ``compose_gated``).
+"""Compose contact-gated Foot Constraint Models from trained ones (issue 13, ``compose_gated``).
 
-    PYTHONPATH=src python benchmarks/fcm_compose.py --plant runs/fc_N/model --swing runs/fc_H/model \
-        --out runs/fcm_gate/NH [--gate-frames 5] [--gate-root any|swing] [--strength 1] [--swing-strength 1]
+    PYTHONPATH=src python benchmarks/fcm_compose.py --plant N=runs/fc_N/model --swing H=runs/fc_H/model none \
+        --out runs/fcm_gate [--gate-frames 5 9] [--gate-root any swing] [--strength 1 0.75 0.5] [--swing-strength 1]
 
-``--swing none``: no increment off contact. The folder is a foot_constraint checkpoint (``gate=True``) that
-``benchmarks/fcm_eval.py --fcm NAME=FOLDER`` and ``dancekit dance --foot-constraint FOLDER`` take.
+Every combination of the settings given is written to ``OUT/<plant>_<swing>_<root>_g<frames>_s<strength>_w<swing
+strength>`` (a foot_constraint checkpoint, ``gate=True``); ``--swing none``: no increment off contact. The
+last line printed is the ``NAME=FOLDER`` list for ``benchmarks/fcm_eval.py --fcm``.
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
+from pathlib import Path
 
 from dancekit.pipelines.foot_constraint import compose_gated
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--plant", required=True)
-    ap.add_argument("--swing", required=True, help="a foot model folder, or none")
+    ap.add_argument("--plant", nargs="+", required=True, help="NAME=FOLDER of foot models for contact frames")
+    ap.add_argument("--swing", nargs="+", required=True, help="NAME=FOLDER of foot models for the rest, or none")
     ap.add_argument("--out", required=True)
-    ap.add_argument("--gate-frames", type=int, default=5)
-    ap.add_argument("--gate-root", default="any", choices=("any", "swing"))
-    ap.add_argument("--strength", type=float, default=1.0)
-    ap.add_argument("--swing-strength", type=float, default=1.0)
+    ap.add_argument("--gate-frames", type=int, nargs="+", default=[5])
+    ap.add_argument("--gate-root", nargs="+", default=["any"], choices=("any", "swing"))
+    ap.add_argument("--strength", type=float, nargs="+", default=[1.0])
+    ap.add_argument("--swing-strength", type=float, nargs="+", default=[1.0])
     a = ap.parse_args()
-    out = compose_gated(a.plant, None if a.swing == "none" else a.swing, a.out, gate_frames=a.gate_frames,
-                        gate_root=a.gate_root, strength=a.strength, swing_strength=a.swing_strength)
-    print(out)
+    plants = dict(p.split("=", 1) for p in a.plant)
+    swings = {s.split("=", 1)[0]: (s.split("=", 1)[1] if "=" in s else None) for s in a.swing}
+    specs = []
+    for (pn, pf), (sn, sf), root, frames, s, w in itertools.product(
+            plants.items(), swings.items(), a.gate_root, a.gate_frames, a.strength, a.swing_strength):
+        name = f"{pn}_{sn}_{root}_g{frames}_s{s:g}_w{w:g}"
+        out = compose_gated(pf, sf, Path(a.out) / name, gate_frames=frames, gate_root=root, strength=s,
+                            swing_strength=w)
+        specs.append(f"{name}={out}")
+    print(" ".join(specs))
 
 
 if __name__ == "__main__":

@@ -419,3 +419,30 @@ def test_compose_gated_checkpoint(tmp_path):
     with pytest.raises(CheckpointError, match="swing head"):
         compose_gated(tmp_path / "plant", tmp_path / "other", tmp_path / "bad")
     assert not (tmp_path / "bad").exists()
+
+
+def test_objective_mse_to_the_input():
+    """``mse_target="input"``: an untrained model (the identity) on corrupted windows costs only its smoothness
+    term (it returns its input); with the clean target it also pays the corruption's MSE (logged as mse)."""
+    from dancekit.training import StepContext, TrainConfig
+    from dancekit.training.m2d import foot_constraint_step
+
+    rng = torch.Generator().manual_seed(3)
+    x = 0.3 * torch.randn(2, 40, 155, generator=rng, dtype=torch.float64)
+    x[..., -2:] = 0.0
+
+    def run(target: str, smooth: float) -> tuple[float, dict]:
+        ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0),
+                          config=TrainConfig())
+        model = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0, contact_weight=0.0,
+                                                         smooth_weight=smooth, mse_target=target)).double()
+        loss, logs = foot_constraint_step(model, {"dance": x}, ctx)
+        return float(loss.detach()), logs
+
+    loss, logs = run("input", 0.0)
+    assert loss == 0.0 and logs["mse"] > 1e-3  # the identity fits its input; the clean dance it does not
+    clean, clogs = run("clean", 0.0)
+    assert clean == pytest.approx(clogs["mse"], rel=1e-12) and clean == pytest.approx(logs["mse"], rel=1e-12)
+    assert run("input", 0.1)[0] > 0  # the smoothness term still counts
+    with pytest.raises(Exception, match="mse_target"):
+        FootConstraintConfig(mse_target="target")

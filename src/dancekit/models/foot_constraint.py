@@ -85,6 +85,8 @@ class FootConstraintConfig:
     #                             representation's own contact columns (30 cm/s) are the input and the target
     fps: float = 25.0  # frame rate of the training data (the contact velocities)
     skeleton: str = "tang2018"  # the skeleton of the differentiable forward kinematics (the contact loss)
+    mse_target: str = "clean"  # the MSE's target: the clean dance (the paper) | the model's own (corrupted) input:
+    #                            change nothing but what the contact term asks for
     strength: float = 1.0  # the increment is scaled by this (the plant head's with ``gate``)
     gate: bool = False  # two heads: "plant" on a leg's contact frames, "swing" elsewhere (conv only)
     gate_frames: int = 5  # width (frames, odd) of the raised-cosine window that blends the heads at contact edges
@@ -118,6 +120,8 @@ class FootConstraintConfig:
                self.contact_weight, self.contact_speed, self.swing_weight) < 0:
             raise ParameterError("FootConstraintConfig: noise_std, smooth_sigma, smooth_weight, glide_amp, glide_sigma, "
                                  "contact_weight, contact_speed and swing_weight must be >= 0")
+        if self.mse_target not in ("clean", "input"):
+            raise ParameterError(f"FootConstraintConfig.mse_target must be 'clean' or 'input', got {self.mse_target!r}")
         if self.corruption not in CORRUPTIONS:
             raise ParameterError(f"FootConstraintConfig.corruption must be one of {CORRUPTIONS}, got {self.corruption!r}")
         if not self.fps > 0:
