@@ -16,6 +16,12 @@ Architecture
     the legs alone are corrected.
     The paper's baseline (Table 2, ``arch="lstm"``): one fully connected layer, an LSTM, one fully connected
     layer, predicting the same increment.
+    ``strength`` scales the increment. With ``gate`` the model has two conv heads of the same shape, "plant"
+    and "swing": each leg's columns take ``strength`` x the plant head's increment on the frames where that
+    leg's toe contact input is on and ``swing_strength`` x the swing head's elsewhere (the root and the branch
+    joints above the hips: either toe, ``gate_root``), blended over ``gate_frames`` frames by a raised-cosine
+    window (:meth:`FootConstraintModel.gate_weights`); ``dancekit.pipelines.foot_constraint.compose_gated``
+    builds one from two trained models (the embedded one: issue 13, docs/BENCHMARKS.md).
 Training (``dancekit.training.m2d.foot_constraint_step``)
     Ground-truth windows with simulated foot sliding; the target is the clean lower body. ``corruption=
     "glide"`` (default): a slow drift on every lower-body column (``glide_amp`` x unit-std noise smoothed over
