@@ -9,7 +9,7 @@ each dance goes the way ``dancekit dance --foot-constraint`` takes it: the foot 
 dance, then the stages (clean-up, smoothing, the foot lock as ``--lock`` says; no beat warp, which moves
 frames in time only). Scores: the mean foot-skating ratio (``dancekit.metrics.foot_skating``) and FID_k /
 FID_g of all the model's dances of the split against the training dances (10-s segments, as
-``bench_stages.fids``). Run the validation songs to choose, the test songs once per final candidate.
+``bench_stages.fids``); the json also has each dance's skating ratio (``skating_per_dance``). Run the validation songs to choose, the test songs once per final candidate.
 """
 
 from __future__ import annotations
@@ -77,7 +77,9 @@ def main() -> None:
                     positions.append(p)
                     skating.append(foot_skating(p, fps=res.motion.fps, skeleton=sk)["ratio"])
                     legs.append(leg_speed(p, res.motion.fps, sk))
-                row = {"skating": float(np.nanmean(skating)), "leg_speed": float(np.mean(legs)), **bench_stages.fids(positions, reference, 25.0, sk),
+                row = {"skating": float(np.nanmean(skating)), "leg_speed": float(np.mean(legs)),
+                       "skating_per_dance": {f.stem: float(v) for f, v in zip(files, skating)},
+                       **bench_stages.fids(positions, reference, 25.0, sk),
                        "dances": len(raw), "cpu_s": time.process_time() - cpu0, "wall_s": time.perf_counter() - t0}
                 report[f"{model}/{name}/lock_{lock}"] = row
                 print(f"{args.split} {model:<12} {name:<10} lock {lock:<3}  skating {row['skating']:.3f}  "

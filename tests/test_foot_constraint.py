@@ -325,3 +325,124 @@ def test_rootdelta_positions_is_decode_rootdelta_in_torch(rng):
     lower = set(lower_body_cols(SK))
     upper = [i for i in range(6, 155) if i not in lower]
     assert xt.grad[:, upper].abs().max() == 0 and xt.grad[:, sorted(lower)].abs().max() > 0  # only the legs move toes
+
+
+# --- the contact-gated two-head model (issue 13, fcm3) ---------------------------------------------------------
+
+def _contacts_input(model: FootConstraintModel, left: list[int], right: list[int], T: int) -> torch.Tensor:
+    """Random motion ``(1, T, 155)`` whose normalised contact columns read back as the 0/1 flags given."""
+    c = model.config
+    x = torch.randn(1, T, c.pose_dim, dtype=torch.float64)
+    for k, flags in enumerate((left, right)):
+        x[0, :, c.contact_idx[k]] = (torch.tensor(flags, dtype=torch.float64) - c.contact_mean[k]) / c.contact_std[k]
+    return x
+
+
+def test_gate_weights_known_answer():
+    """A left contact from frame 10 on, none on the right; raised-cosine window of 5 frames: sin²(πk/6),
+    k = 1..5, is (1/4, 3/4, 1, 3/4, 1/4), sum 3, so the weight climbs 0, 1/12, 1/3, 2/3, 11/12, 1 over
+    frames 7..12 (worked by hand)."""
+    T = 20
+    model = _model(gate=True, gate_frames=5, contact_mean=(0.4, 0.3), contact_std=(0.5, 0.45))
+    x = _contacts_input(model, [0] * 10 + [1] * 10, [0] * T, T)
+    w = model.gate_weights(x)[0]  # (T, lower)
+    sides = model.side
+    left, right, shared = (w[:, sides == k] for k in (0, 1, 2))
+    expect = torch.tensor([0.0] * 8 + [1 / 12, 1 / 3, 2 / 3, 11 / 12] + [1.0] * 8, dtype=torch.float64)
+    torch.testing.assert_close(left, expect[:, None].expand_as(left), rtol=0, atol=1e-6)
+    torch.testing.assert_close(shared, expect[:, None].expand_as(shared), rtol=0, atol=1e-6)  # gate_root "any"
+    assert right.abs().max() == 0
+    names = SK.rig().joint_names
+    lay = rootdelta_layout(SK)
+    knee = lay.rot_cols(names.index("left_knee"))[0]
+    assert int(sides[list(model.config.lower_idx).index(knee)]) == 0 and (sides == 2).sum() == 6 + 12
+    own = _model(gate=True, gate_frames=5, gate_root="swing", contact_mean=(0.4, 0.3), contact_std=(0.5, 0.45))
+    assert own.gate_weights(x)[0][:, sides == 2].abs().max() == 0  # the root follows the swing head
+
+
+def test_gated_increment_blends_the_two_heads():
+    """All contacts on: the plant head's increment x strength; all off: the swing head's x swing_strength;
+    in between the blend by the gate weights; the upper body is untouched either way."""
+    T = 30
+    model = _model(gate=True, strength=0.5, swing_strength=0.25, keep_root_path=False)
+    plant = FootConstraintModel(FootConstraintConfig(channels=8, keep_root_path=False)).double()
+    swing = FootConstraintModel(FootConstraintConfig(channels=8, keep_root_path=False)).double()
+    plant.convs.load_state_dict(model.convs.state_dict())
+    swing.convs.load_state_dict(model.swing_convs.state_dict())
+    for flags, expect in ((1, lambda x: 0.5 * plant.increment(x)), (0, lambda x: 0.25 * swing.increment(x))):
+        x = _contacts_input(model, [flags] * T, [flags] * T, T)
+        torch.testing.assert_close(model.increment(x), expect(x), rtol=0, atol=1e-12)
+    x = _contacts_input(model, [0] * 12 + [1] * 18, [1] * 5 + [0] * 25, T)
+    w = model.gate_weights(x)
+    assert ((w > 0) & (w < 1)).any()
+    torch.testing.assert_close(model.increment(x), w * 0.5 * plant.increment(x) + (1 - w) * 0.25 * swing.increment(x),
+                               rtol=0, atol=1e-12)
+    y = model(x)
+    others = [i for i in range(155) if i not in set(model.config.lower_idx)]
+    torch.testing.assert_close(y[..., others], x[..., others], rtol=0, atol=0)
+    assert y.shape == x.shape
+
+
+def test_compose_gated_checkpoint(tmp_path):
+    """Two saved foot models → one gated checkpoint whose pipeline model is their blend and whose config.json
+    records both heads; heads of other columns are refused."""
+    from dancekit.checkpoints import NormStats, save_pretrained
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines.foot_constraint import FootConstraintPipeline, compose_gated
+
+    rng = np.random.default_rng(0)
+    stats = NormStats(music_mean=np.zeros(15, np.float32), music_std=np.ones(15, np.float32),
+                      dance_mean=rng.normal(size=155).astype(np.float32),
+                      dance_std=rng.uniform(0.5, 1.5, 155).astype(np.float32))
+    meta = {"skeleton": SK.to_dict(), "fps": 25.0}
+    heads = {}
+    for k, name in enumerate(("plant", "swing")):
+        torch.manual_seed(k)
+        m = _model(keep_root_path=False).float()
+        save_pretrained(tmp_path / name, m, m.config, stats=stats, extra={**meta, "train": {"steps": 10 + k}})
+        heads[name] = m
+    out = compose_gated(tmp_path / "plant", tmp_path / "swing", tmp_path / "gated", gate_frames=3, strength=0.5)
+    pipe = FootConstraintPipeline.from_pretrained(out)
+    c = pipe.model.config
+    assert c.gate and c.gate_frames == 3 and c.strength == 0.5
+    np.testing.assert_allclose(c.contact_mean, stats.dance_mean[[153, 154]], rtol=1e-6)
+    import json
+    doc = json.loads((out / "config.json").read_text())
+    assert doc["heads"]["plant"]["train"]["steps"] == 10 and doc["heads"]["swing"]["train"]["steps"] == 11
+    x = _contacts_input(pipe.model.double(), [0] * 10 + [1] * 10, [1] * 20, 20).float()
+    pipe.model.float()
+    w = pipe.model.gate_weights(x)
+    expect = w * 0.5 * heads["plant"].increment(x) + (1 - w) * heads["swing"].increment(x)
+    torch.testing.assert_close(pipe.model.increment(x), expect, rtol=1e-5, atol=1e-6)
+    other = FootConstraintModel(FootConstraintConfig(channels=4))
+    save_pretrained(tmp_path / "other", other, other.config, stats=stats, extra=meta)
+    with pytest.raises(CheckpointError, match="swing head"):
+        compose_gated(tmp_path / "plant", tmp_path / "other", tmp_path / "bad")
+    assert not (tmp_path / "bad").exists()
+
+
+def test_objective_mse_to_the_input():
+    """``mse_target="input"``: an untrained model (the identity) on corrupted windows costs only its smoothness
+    term (it returns its input); with the clean target it also pays the corruption's MSE (logged as mse)."""
+    from dancekit.training import StepContext, TrainConfig
+    from dancekit.training.m2d import foot_constraint_step
+
+    rng = torch.Generator().manual_seed(3)
+    x = 0.3 * torch.randn(2, 40, 155, generator=rng, dtype=torch.float64)
+    x[..., -2:] = 0.0
+
+    def run(target: str, smooth: float) -> tuple[float, dict]:
+        ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0),
+                          config=TrainConfig())
+        model = FootConstraintModel(FootConstraintConfig(channels=8, clean_share=0.0, contact_weight=0.0,
+                                                         smooth_weight=smooth, mse_target=target)).double()
+        loss, logs = foot_constraint_step(model, {"dance": x}, ctx)
+        return float(loss.detach()), logs
+
+    loss, logs = run("input", 0.0)
+    assert loss == 0.0 and logs["mse"] > 1e-3  # the identity fits its input; the clean dance it does not
+    clean, clogs = run("clean", 0.0)
+    assert clean == pytest.approx(clogs["mse"], rel=1e-12) and clean == pytest.approx(logs["mse"], rel=1e-12)
+    assert run("input", 0.1)[0] > 0  # the smoothness term still counts
+    with pytest.raises(Exception, match="mse_target"):
+        FootConstraintConfig(mse_target="target")

@@ -16,6 +16,12 @@ Architecture
     the legs alone are corrected.
     The paper's baseline (Table 2, ``arch="lstm"``): one fully connected layer, an LSTM, one fully connected
     layer, predicting the same increment.
+    ``strength`` scales the increment. With ``gate`` the model has two conv heads of the same shape, "plant"
+    and "swing": each leg's columns take ``strength`` x the plant head's increment on the frames where that
+    leg's toe contact input is on and ``swing_strength`` x the swing head's elsewhere (the root and the branch
+    joints above the hips: either toe, ``gate_root``), blended over ``gate_frames`` frames by a raised-cosine
+    window (:meth:`FootConstraintModel.gate_weights`); ``dancekit.pipelines.foot_constraint.compose_gated``
+    builds one from two trained models (the embedded one: issue 13, docs/BENCHMARKS.md).
 Training (``dancekit.training.m2d.foot_constraint_step``)
     Ground-truth windows with simulated foot sliding; the target is the clean lower body. ``corruption=
     "glide"`` (default): a slow drift on every lower-body column (``glide_amp`` x unit-std noise smoothed over
@@ -44,6 +50,7 @@ from dancekit.errors import ParameterError
 
 ARCHS = ("conv", "lstm")
 CORRUPTIONS = ("glide", "paper")
+GATE_ROOTS = ("any", "swing")
 
 
 def _tang2018_columns() -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
@@ -84,6 +91,15 @@ class FootConstraintConfig:
     #                             representation's own contact columns (30 cm/s) are the input and the target
     fps: float = 25.0  # frame rate of the training data (the contact velocities)
     skeleton: str = "tang2018"  # the skeleton of the differentiable forward kinematics (the contact loss)
+    mse_target: str = "clean"  # the MSE's target: the clean dance (the paper) | the model's own (corrupted) input:
+    #                            change nothing but what the contact term asks for
+    strength: float = 1.0  # the increment is scaled by this (the plant head's with ``gate``)
+    gate: bool = False  # two heads: "plant" on a leg's contact frames, "swing" elsewhere (conv only)
+    gate_frames: int = 5  # width (frames, odd) of the raised-cosine window that blends the heads at contact edges
+    gate_root: str = "any"  # the root's and the hips' branch columns: plant head while any toe is planted | swing
+    swing_strength: float = 1.0  # the swing head's increment is scaled by this
+    contact_mean: tuple[float, ...] = (0.0, 0.0)  # the gate reads the contact inputs (normalised columns) back
+    contact_std: tuple[float, ...] = (1.0, 1.0)  # as 0/1 with these statistics (the checkpoint's, left, right)
 
     def __post_init__(self) -> None:
         if not self.lower_idx and not self.foot_idx and not self.contact_idx:
@@ -110,10 +126,27 @@ class FootConstraintConfig:
                self.contact_weight, self.contact_speed, self.swing_weight) < 0:
             raise ParameterError("FootConstraintConfig: noise_std, smooth_sigma, smooth_weight, glide_amp, glide_sigma, "
                                  "contact_weight, contact_speed and swing_weight must be >= 0")
+        if self.mse_target not in ("clean", "input"):
+            raise ParameterError(f"FootConstraintConfig.mse_target must be 'clean' or 'input', got {self.mse_target!r}")
         if self.corruption not in CORRUPTIONS:
             raise ParameterError(f"FootConstraintConfig.corruption must be one of {CORRUPTIONS}, got {self.corruption!r}")
         if not self.fps > 0:
             raise ParameterError(f"FootConstraintConfig.fps must be positive, got {self.fps!r}")
+        self.contact_mean, self.contact_std = (tuple(float(v) for v in a) for a in (self.contact_mean, self.contact_std))
+        if not (0.0 <= self.strength <= 1.0 and 0.0 <= self.swing_strength <= 1.0):
+            raise ParameterError("FootConstraintConfig: strength and swing_strength must be in [0, 1]")
+        if self.gate:
+            if self.arch != "conv":
+                raise ParameterError("FootConstraintConfig.gate needs arch='conv'")
+            if isinstance(self.gate_frames, bool) or not isinstance(self.gate_frames, int) or self.gate_frames < 1 \
+                    or self.gate_frames % 2 == 0:
+                raise ParameterError(f"FootConstraintConfig.gate_frames must be a positive odd integer, got {self.gate_frames!r}")
+            if self.gate_root not in GATE_ROOTS:
+                raise ParameterError(f"FootConstraintConfig.gate_root must be one of {GATE_ROOTS}, got {self.gate_root!r}")
+            if len(self.contact_idx) != 2 or len(self.contact_mean) != 2 or len(self.contact_std) != 2 \
+                    or min(self.contact_std) <= 0:
+                raise ParameterError("FootConstraintConfig.gate needs two contact columns (left, right) and their "
+                                     "statistics contact_mean, contact_std (std > 0)")
 
     @property
     def in_dim(self) -> int:
@@ -155,29 +188,90 @@ class FootConstraintModel(nn.Module):
             last = self.fc_out
         nn.init.zeros_(last.weight)
         nn.init.zeros_(last.bias)
+        if c.gate:
+            self.swing_convs = nn.ModuleList(
+                nn.Conv1d(widths[i], widths[i + 1], c.kernel, dilation=d, padding=d * (c.kernel // 2))
+                for i, d in enumerate(c.dilations))
+            nn.init.zeros_(self.swing_convs[-1].weight)
+            nn.init.zeros_(self.swing_convs[-1].bias)
+            self.register_buffer("side", torch.tensor(lower_body_sides(c)), persistent=False)
+
+    @staticmethod
+    def _convs(h: torch.Tensor, convs: nn.ModuleList) -> torch.Tensor:
+        h = h.transpose(1, 2)  # (B, in_dim, T)
+        for i, conv in enumerate(convs):
+            h = conv(h)
+            if i < len(convs) - 1:
+                h = F.relu(h)
+        return h.transpose(1, 2)  # (B, T, lower)
+
+    def gate_weights(self, x: torch.Tensor) -> torch.Tensor:
+        """The plant head's weight ``(B, T, len(lower_idx))`` in [0, 1] per lower-body column (``gate``): each
+        leg's columns follow its toe's contact input (read back as 0/1 with ``contact_mean``/``contact_std``),
+        the root's and the branch joints' the contact of either toe (``gate_root="any"``) or none (``"swing"``),
+        blended over ``gate_frames`` frames by a normalised raised-cosine window (edges replicated)."""
+        c = self.config
+        mean, std = (torch.tensor(v, dtype=x.dtype, device=x.device) for v in (c.contact_mean, c.contact_std))
+        planted = ((x[..., list(c.contact_idx)] * std + mean) > 0.5).to(x.dtype)  # (B, T, 2) left, right
+        either = planted.amax(-1, keepdim=True) if c.gate_root == "any" else torch.zeros_like(planted[..., :1])
+        g = torch.cat([planted, either], -1)  # (B, T, 3)
+        r = c.gate_frames // 2
+        h = F.pad(g.transpose(1, 2), (r, r), mode="replicate") if r else g.transpose(1, 2)
+        window = raised_cosine(c.gate_frames).to(x)
+        g = F.conv1d(h, window.expand(3, 1, -1), groups=3).transpose(1, 2)
+        return g[..., self.side]  # (B, T, lower)
 
     def increment(self, x: torch.Tensor) -> torch.Tensor:
         """``F_post``: the lower-body increment ``(B, T, len(lower_idx))`` for motion ``x (B, T, P)`` (zero on
-        the root's path columns with ``keep_root_path``)."""
+        the root's path columns with ``keep_root_path``), scaled by ``strength``; with ``gate`` the blend
+        ``w · strength · plant + (1 - w) · swing_strength · swing`` of the two heads (:meth:`gate_weights`)."""
         c = self.config
         if x.dim() != 3 or x.shape[-1] != c.pose_dim:
             raise ParameterError(f"motion must be (B, T, {c.pose_dim}), got {tuple(x.shape)}")
         h = x[..., self.inputs]  # (B, T, in_dim)
         if c.arch == "lstm":
             h, _ = self.lstm(self.fc_in(h))
-            return self.fc_out(h) * self.mask
-        h = h.transpose(1, 2)  # (B, in_dim, T)
-        for i, conv in enumerate(self.convs):
-            h = conv(h)
-            if i < len(self.convs) - 1:
-                h = F.relu(h)
-        return h.transpose(1, 2) * self.mask  # (B, T, lower)
+            return self.fc_out(h) * self.mask * c.strength
+        inc = self._convs(h, self.convs) * c.strength
+        if c.gate:
+            w = self.gate_weights(x)
+            inc = w * inc + (1.0 - w) * (self._convs(h, self.swing_convs) * c.swing_strength)
+        return inc * self.mask  # (B, T, lower)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Eq. 14: ``x`` with ``x[..., lower_idx] + F_post(...)``; every other column unchanged."""
         out = x.clone()
         out[..., self.lower] = x[..., self.lower] + self.increment(x)
         return out
+
+
+def raised_cosine(n: int) -> torch.Tensor:
+    """The normalised raised-cosine (Hann) window of ``n`` points without its zero ends, ``(n,)`` float64 summing to 1:
+    ``sin²(π k / (n + 1))``, k = 1…n. A 0/1 step convolved with it rises smoothly over ``n`` frames."""
+    k = torch.arange(1, n + 1, dtype=torch.float64)
+    w = torch.sin(torch.pi * k / (n + 1)) ** 2
+    return w / w.sum()
+
+
+def lower_body_sides(config: FootConstraintConfig) -> list[int]:
+    """Per ``lower_idx`` column, the leg it moves: 0 left (the left hip and below), 1 right, 2 neither (the
+    root's six columns and the branch joints the hips hang from), from the rig of ``config.skeleton``."""
+    from dancekit.motion import get_skeleton
+    from dancekit.motion.root_delta import rootdelta_layout
+
+    sk = get_skeleton(config.skeleton)
+    lay, parents = rootdelta_layout(sk), sk.rig().parents
+    hips = {sk.index("left_hip"): 0, sk.index("right_hip"): 1}
+    owner = {}
+    for j in lay.rot_joints:
+        side, a = 2, j
+        while a >= 0:
+            if a in hips:
+                side = hips[a]
+                break
+            a = parents[a]
+        owner.update({col: side for col in lay.rot_cols(j)})
+    return [owner.get(col, 2) for col in config.lower_idx]
 
 
 def gaussian_smooth(x: torch.Tensor, sigma: float) -> torch.Tensor:

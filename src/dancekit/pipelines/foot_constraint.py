@@ -120,3 +120,57 @@ class FootConstraintPipeline:
         tr0 = np.asarray(motion.root_translation if motion.root_translation is not None
                          else motion.positions[:, root], np.float64)[0]
         return decode_rootdelta(fixed, motion.skeleton, motion.fps, origin=(tr0[0], tr0[2], heading0))
+
+
+def compose_gated(plant: str | os.PathLike, swing: str | os.PathLike | None, out: str | os.PathLike, *,
+                  gate_frames: int = 5, gate_root: str = "any", strength: float = 1.0,
+                  swing_strength: float = 1.0) -> Path:
+    """Write one contact-gated Foot Constraint Model (``gate=True``, two heads) to the checkpoint folder ``out``.
+
+    ``plant``: a conv foot model whose increment is used on each leg's contact frames (one that plants the
+    feet); ``swing``: one used elsewhere (one that keeps the legs' speed), None for no increment there. Both
+    must be trained on the same columns and statistics. The heads are blended per leg by the model's own
+    contact inputs over ``gate_frames`` frames (see :meth:`FootConstraintModel.gate_weights`); ``strength``
+    and ``swing_strength`` scale the two increments. ``config.json`` records both heads' configurations and
+    training (``"heads"``).
+
+    Raises
+    ------
+    CheckpointError
+        For heads that are not conv foot models of the same columns and statistics.
+    """
+    import dataclasses
+
+    from dancekit.checkpoints import save_pretrained
+    from dancekit.models.foot_constraint import FootConstraintConfig
+
+    heads = {"plant": plant} if swing is None else {"plant": plant, "swing": swing}
+    loaded = {name: load_pretrained(resolve_model(folder)) for name, folder in heads.items()}
+    base_model, base_meta, base_arrays = loaded["plant"]
+    keys = ("pose_dim", "lower_idx", "foot_idx", "contact_idx", "arch", "channels", "kernel", "dilations",
+            "keep_root_path", "contact_speed", "fps", "skeleton")
+    for name, (model, _, arrays) in loaded.items():
+        bad = [k for k in keys if getattr(model.config, k) != getattr(base_model.config, k)]
+        if not isinstance(model, FootConstraintModel) or model.config.gate or model.config.arch != "conv" or bad:
+            raise CheckpointError(f"{heads[name]}: the {name} head must be an ungated conv Foot Constraint Model "
+                                  f"like {plant}" + (f" (differs in {', '.join(bad)})" if bad else ""))
+        if any(not np.array_equal(arrays[k], base_arrays[k]) for k in ("dance_mean", "dance_std")):
+            raise CheckpointError(f"{heads[name]}: the {name} head was trained with other statistics than {plant}")
+    c = base_model.config
+    stats = NormStats.from_arrays(base_arrays, source=str(plant))
+    ci = list(c.contact_idx)
+    cfg = FootConstraintConfig(**{**dataclasses.asdict(c), "gate": True, "gate_frames": gate_frames,
+                                  "gate_root": gate_root, "strength": strength, "swing_strength": swing_strength,
+                                  "contact_mean": tuple(np.asarray(stats.dance_mean)[ci].tolist()),
+                                  "contact_std": tuple(np.asarray(stats.dance_std)[ci].tolist())})
+    model = FootConstraintModel(cfg)
+    state = {k: v for k, v in base_model.state_dict().items() if k.startswith("convs.")}
+    if swing is not None:
+        state.update({"swing_" + k: v for k, v in loaded["swing"][0].state_dict().items() if k.startswith("convs.")})
+    else:
+        state.update({k: torch.zeros_like(v) for k, v in model.state_dict().items() if k.startswith("swing_convs.")})
+    model.load_state_dict(state)
+    extra = {k: v for k, v in base_meta.items() if k not in ("model", "config", "train", "init", "step", "components")}
+    extra["heads"] = {name: {"folder": str(heads[name]), **{k: meta.get(k) for k in ("config", "train", "init", "step")}}
+                      for name, (_, meta, _) in loaded.items()}
+    return save_pretrained(out, model, cfg, stats=stats, extra=extra)

@@ -230,7 +230,8 @@ def _kinematics(c, batch: Mapping[str, torch.Tensor], x: torch.Tensor):
 def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
                          ctx: StepContext) -> tuple[torch.Tensor, dict[str, float]]:
     """MSE + ``smooth_weight`` x acceleration² + ``contact_weight`` x contact velocity² of the Foot Constraint
-    Model correcting simulated foot sliding.
+    Model correcting simulated foot sliding. The MSE is to the clean dance, or with ``mse_target="input"`` to
+    the corrupted input (the model then changes only what the contact and swing terms ask for).
 
     Corruption (in a share ``1 - clean_share`` of the windows; the rest stay clean and their target is the
     identity): ``corruption="glide"`` adds a slow drift to every lower-body column, the root's path included
@@ -299,8 +300,12 @@ def foot_constraint_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
     pred = out[..., lower]  # (B, T, lower)
     target = x[..., lower]
     mse = F.mse_loss(pred, target)
+    if c.mse_target == "input":  # keep the input except where the contact term asks (logs still compare to clean)
+        fit = F.mse_loss(pred, corrupted[..., lower])
+    else:
+        fit = mse
     accel = pred[:, 2:] - 2 * pred[:, 1:-1] + pred[:, :-2]
-    loss = mse + c.smooth_weight * accel.pow(2).mean()
+    loss = fit + c.smooth_weight * accel.pow(2).mean()
     logs = {"mse": float(mse.detach()), "mse_input": float(F.mse_loss(corrupted[..., lower], target))}
     if c.contact_weight > 0 or not ctx.training:  # validation logs it for every model
         toe_joints = (sk.index("left_toe"), sk.index("right_toe"))
