@@ -108,8 +108,8 @@ def main() -> None:
             pos.append(np.asarray(res.motion.to_positions(), np.float64))
         cpu = time.process_time() - t0
         m = bench_feet.mean_rows([r for x in per.values() for r in x])
-        js = {s[6:][:8]: round(float(np.mean([r["jitter_ratio"] for r in x])), 2) for s, x in per.items()}
-        es = {s[6:][:8]: round(float(np.mean([r["energy_ratio"] for r in x])), 2) for s, x in per.items()}
+        js = {s[6:][:8]: round(float(np.mean([r["jitter_ratio"] for r in x])), 3) for s, x in per.items()}
+        es = {s[6:][:8]: round(float(np.mean([r["energy_ratio"] for r in x])), 3) for s, x in per.items()}
         st = max(float(np.mean([r["stillness"] for r in x])) for x in per.values())
         extra = ""
         if do_fid:

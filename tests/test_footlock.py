@@ -369,3 +369,57 @@ def test_the_smoothing_stage_takes_a_named_genres_target_from_the_checkpoint(tmp
     (folder / "config.json").write_text(json.dumps({"model": "x", "smoothing": {"genre_targets": {"chacha": "a"}}}))
     with pytest.raises(CheckpointError, match="smoothing"):
         stages.smooth(named)
+
+
+@pytest.mark.parametrize(("speed_cm", "planted"), [(3.8, True), (4.2, False)])
+def test_a_faster_contact_speed_finds_a_gliding_foot(speed_cm, planted):
+    """Both feet on the floor, sliding at 0.95 m/s (3.8 cm a frame at 25 fps) or 1.05 m/s (4.2 cm): with a
+    1.0-m/s contact speed (1.4 m/s to leave) the slower foot is a contact all along and the faster one never;
+    with the default 0.5 m/s neither is."""
+    _, _, p = _sliding_figure(T=40, speed_cm=speed_cm)
+    c = foot_contacts(p, skeleton=SK, fps=FPS, speed_on=1.0, speed_off=1.4)
+    assert c.all() if planted else not c.any()
+    assert not foot_contacts(p, skeleton=SK, fps=FPS).any()
+
+
+def _checkpoint(tmp_path, entry):
+    import json
+
+    folder = tmp_path / "m"
+    folder.mkdir(exist_ok=True)
+    (folder / "config.json").write_text(json.dumps({"model": "dual", **({"foot_lock": entry} if entry else {})}))
+    return str(folder)
+
+
+def test_the_stage_reads_contact_thresholds_from_the_checkpoint(tmp_path):
+    """A checkpoint's ``"foot_lock": {"speed_on": 1.0, "speed_off": 1.4}`` reaches the lock: a figure gliding
+    at 0.95 m/s has its feet held (the ankle still over the hold) where a checkpoint without the entry
+    leaves the dance as it was; the embedded dual carries its entry, music2dance none."""
+    from pathlib import Path
+
+    from dancekit.pipelines import stages
+    from dancekit.pipelines.base import DanceResult
+
+    _, _, p = _sliding_figure(T=60, speed_cm=3.8)
+    motion = Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32))
+    plain = stages.foot_lock(DanceResult(motion=motion, model=_checkpoint(tmp_path, None), seed=0))
+    np.testing.assert_array_equal(plain.motion.positions, motion.positions)
+    fast = _checkpoint(tmp_path, {"speed_on": 1.0, "speed_off": 1.4})
+    assert stages.foot_lock_options(fast) == {"speed_on": 1.0, "speed_off": 1.4}
+    locked = stages.foot_lock(DanceResult(motion=motion, model=fast, seed=0)).motion.positions
+    ankle = leg_chains(SK)[0][2]
+    step = np.linalg.norm(np.diff(locked[:, ankle], axis=0), axis=-1)
+    assert (step < 1e-3).sum() >= 3  # held: frames in which the ankle does not move (it slid 3.8 cm a frame)
+    folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+    assert set(stages.foot_lock_options(str(folder / "dual"))) & {"speed_on", "height_on", "max_drift_m"}
+
+
+@pytest.mark.parametrize("entry", [{"speed_on": 1.5}, {"speed_on": 1.0, "speed_off": 0.9}, {"height_on": -0.01},
+                                   {"height_off": 0.02}, {"speed_on": "fast"}, {"contact": 1.0}, [1.0]])
+def test_a_bad_foot_lock_entry_is_a_checkpoint_error(tmp_path, entry):
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines import stages
+
+    folder = _checkpoint(tmp_path, entry)
+    with pytest.raises(CheckpointError, match="config.json.*foot_lock"):
+        stages.foot_lock_options(folder)

@@ -37,7 +37,7 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish",
+__all__ = ["FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish",
            "foot_lock", "foot_lock_options", "genre_smoothing_targets", "settle", "settle_options", "smooth",
            "smoothing_target", "song_beats_for"]
 
@@ -337,14 +337,38 @@ def settle_options(model: str | os.PathLike | None) -> dict[str, float]:
     return {"cutoff": spec["cutoff_hz"]} if "cutoff_hz" in spec else {}
 
 
+#: The keys a checkpoint's ``"foot_lock"`` entry may carry (:func:`foot_lock_options`): the shortest hold (s),
+#: how far the original ankle may move from a held foot before it is re-planted (``max_drift_m``, m), the
+#: hand-over to and from a hold (``blend_s``, s) and the contact thresholds of
+#: :func:`dancekit.motion.footlock.foot_contacts` (metres above the local floor, m/s; a contact starts below
+#: ``*_on`` and lasts while the foot stays below ``*_off``).
+FOOT_LOCK_KEYS = ("min_hold_s", "max_drift_m", "blend_s", "height_on", "height_off", "speed_on", "speed_off")
+
+
 def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
     """The :func:`~dancekit.motion.footlock.lock_feet` settings a model's checkpoint folder carries in its
-    ``config.json`` (``"foot_lock": {"min_hold_s": s}``), chosen on the validation songs (docs/STAGES.md):
-    the embedded Dance Revolution's dances have many short stops near the floor, and holding them for
-    0.12-0.4 s makes the foot stop and go (jitter); the embedded music2dance's geometric FID rises without
-    its short holds, so it keeps the defaults. ``{}`` (the defaults) for a folder without the entry or that
-    is not a checkpoint."""
-    return _stage_entry(model, "foot_lock", {"min_hold_s"})
+    ``config.json`` (``"foot_lock": {"min_hold_s": s, "max_drift_m": m, "blend_s": s, "height_on": m,
+    "height_off": m, "speed_on": m/s, "speed_off": m/s}``, any of them, :data:`FOOT_LOCK_KEYS`), chosen on
+    the validation songs (docs/STAGES.md): the embedded Dance Revolution's dances have many short stops near
+    the floor, and holding them for 0.12-0.4 s makes the foot stop and go (jitter); the embedded dual
+    model's feet glide near the floor faster than the default 0.5 m/s contact speed, so it takes faster and
+    higher contacts, longer holds (re-planted after 0.6 m, at least 0.32 s) and a longer hand-over; the embedded
+    music2dance's geometric FID rises without its short holds, so it keeps the defaults. ``{}`` (the
+    defaults) for a folder without the entry or that is not a checkpoint. A value that is not a positive
+    number, or an ``*_on`` threshold above its ``*_off`` (either side taken from the defaults when absent),
+    is a :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
+    from dancekit.motion import footlock as fl
+
+    spec = _stage_entry(model, "foot_lock", set(FOOT_LOCK_KEYS))
+    default = {"height_on": fl.CONTACT_HEIGHT_ON_M, "height_off": fl.CONTACT_HEIGHT_OFF_M,
+               "speed_on": fl.CONTACT_SPEED_ON, "speed_off": fl.CONTACT_SPEED_OFF}
+    full = {**default, **spec}
+    bad = [k for k, v in spec.items() if not (np.isfinite(v) and v > 0)]
+    bad += [f"{q}_on > {q}_off" for q in ("height", "speed") if full[f"{q}_on"] > full[f"{q}_off"]]
+    if bad:
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'foot_lock' needs positive "
+                              f"numbers with *_on <= *_off, got {bad[0]} in {spec!r}")
+    return spec
 
 
 def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str]) -> dict[str, float]:
