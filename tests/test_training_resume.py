@@ -140,13 +140,17 @@ def test_train_config_is_the_generic_and_the_per_family_settings():
 
 @pytest.mark.parametrize("path", sorted(ASSETS.glob("**/config.json")), ids=lambda p: str(p.relative_to(ASSETS)))
 def test_the_embedded_checkpoints_training_settings_load(path):
-    saved = json.loads(path.read_text())["train"]
-    config = TrainConfig.from_saved(saved, source=path, defaults={"balance_genres": True})
-    assert {k: getattr(config, k) for k in saved} == saved
-    if "balance_genres" not in saved:  # older than the field: the family default fills it
-        assert config.balance_genres is True
-    with pytest.raises(CheckpointError, match="n_experts"):
-        TrainConfig.from_saved({**saved, "n_experts": 3}, source=path)
+    meta = json.loads(path.read_text())
+    # a checkpoint composed of trained heads (the contact-gated foot model) records each head's training
+    trains = [meta["train"]] if "train" in meta else [h["train"] for h in meta["heads"].values()]
+    assert trains
+    for saved in trains:
+        config = TrainConfig.from_saved(saved, source=path, defaults={"balance_genres": True})
+        assert {k: getattr(config, k) for k in saved} == saved
+        if "balance_genres" not in saved:  # older than the field: the family default fills it
+            assert config.balance_genres is True
+        with pytest.raises(CheckpointError, match="n_experts"):
+            TrainConfig.from_saved({**saved, "n_experts": 3}, source=path)
 
 
 # ---- the trainer's steps and hooks ------------------------------------------------------------------------
