@@ -232,6 +232,23 @@ def test_velocity_and_acceleration_terms_reach_g_m2d_only(self_feed):
     assert float(loss.detach()) == pytest.approx(expect, rel=1e-6)
 
 
+def test_rollout_term_reaches_g_m2d_only_and_rollout_is_free_running_generation():
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY, rollout_frames=4, rollout_weight=1.0))
+    music, dance = _batch()
+    _, parts = model(music, dance)
+    assert _reached(model, parts["dance_roll"]) == {"m2d.enc": True, "m2d.dec": True, "d2m.enc": False,
+                                                    "d2m.dec": False}
+    model.eval()
+    _, parts = model(music, dance)
+    assert "dance_roll" not in parts  # training only
+    with torch.no_grad():
+        torch.testing.assert_close(model.m2d.rollout(model.m2d.encode(music), dance[:, 0], 8),
+                                   model.m2d.generate_full(music, dance[:, 0]))
+    with pytest.raises(Exception, match="rollout_frames"):
+        DualConfig(**TINY, rollout_frames=8)  # not below the window
+
+
 def test_difference_loss_known_answers():
     g = torch.Generator().manual_seed(5)
     y = torch.randn(2, 6, 15, generator=g)

@@ -30,7 +30,7 @@ Losses (§3.4)
     * which loss updates which network, exactly as the paper's prescription::
 
           L_GW + L_dance^rec + L_dance^cycle  → G_M→D   (GW reaches Enc_M→D only: the dance embeddings are detached)
-          [L_dance^vel + L_dance^acc]         → G_M→D   (not the paper; off by default)
+          [L_dance^vel + L_dance^acc + L_roll] → G_M→D  (not the paper; off by default)
           L_music^rec + L_music^cycle         → G_D→M
 
       i.e. in the dance cycle G_M→D(G_D→M(y)) the composed music is detached, in the music cycle
@@ -51,8 +51,9 @@ G_M→D's teacher-forced decoder inputs (``decoder_noise``, against the freezing
 Against the flicker of the free-running G_M→D (docs/DUAL.md, "velocity term"): ``velocity_weight`` /
 ``accel_weight`` add L1 terms on the frame-to-frame first / second differences of the reconstructed dance
 (:func:`dance_difference_loss`, on G_M→D's teacher-forced output, so they reach G_M→D only), and ``self_feed``
-replaces a share of the decoder's inputs by its own detached predictions (scheduled sampling). All three
-default to 0: the paper's objective.
+replaces a share of the decoder's inputs by its own detached predictions (scheduled sampling);
+``rollout_frames`` / ``rollout_weight`` decode the first frames of each window free-running (fed back, with
+gradients) and score their velocities and accelerations. All default to 0: the paper's objective.
 ``DualConfig(beat_pos_weight=1, decoder_noise=0, gw_normalize="none", gw_marginals="uniform")`` is the paper.
 """
 
@@ -112,6 +113,8 @@ class DualConfig:
     velocity_weight: float = 0.0  # weight of the L1 on frame-to-frame differences of G_M→D's output (0: the paper)
     accel_weight: float = 0.0  # weight of the L1 on second differences of G_M→D's output (0: the paper)
     self_feed: float = 0.0  # share of G_M→D's decoder inputs replaced by its own (detached) outputs (0: the paper)
+    rollout_frames: int = 0  # frames G_M→D decodes free-running from each window's start in training (0: off)
+    rollout_weight: float = 0.0  # weight of the velocity + acceleration L1 on that free-running rollout
 
     def __post_init__(self) -> None:
         for name in ("music_dim", "pose_dim", "m2d_d_model", "m2d_layers", "m2d_heads", "m2d_ff", "d2m_d_model",
@@ -140,7 +143,11 @@ class DualConfig:
         if self.gw_normalize not in ("none", "mean") or self.gw_marginals not in ("uniform", "unit"):
             raise ParameterError(f"DualConfig.gw_normalize must be none|mean and gw_marginals uniform|unit, got "
                                  f"{self.gw_normalize!r}, {self.gw_marginals!r}")
-        for name in ("velocity_weight", "accel_weight"):
+        if isinstance(self.rollout_frames, bool) or not isinstance(self.rollout_frames, int) \
+                or not 0 <= self.rollout_frames < self.window:
+            raise ParameterError(f"DualConfig.rollout_frames must be an integer in [0, window), got "
+                                 f"{self.rollout_frames!r}")
+        for name in ("velocity_weight", "accel_weight", "rollout_weight"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
                 raise ParameterError(f"DualConfig.{name} must be a number >= 0, got {value!r}")
@@ -307,10 +314,14 @@ class Seq2Seq(nn.Module):
         self-attention keys and values), so a new frame costs one query per layer instead of a pass over the
         whole prefix. The same numbers as :meth:`decode` on the prefix (tests/test_dual.py), in eval mode.
         """
-        memory = self.encode(src)  # (B, T, d)
-        n = src.shape[1]
+        return self.rollout(self.encode(src), start, src.shape[1])
+
+    def rollout(self, memory: torch.Tensor, start: torch.Tensor, n: int) -> torch.Tensor:
+        """Free-running decoding from ``start (B, out)`` over ``memory (B, T, d)``: ``start`` then ``n - 1``
+        frames, each fed back as the next input → (B, n, out). Differentiable (used in training by
+        ``DualConfig.rollout_frames``); :meth:`generate` is this after encoding."""
         d = memory.shape[2]
-        pe = sinusoidal_encoding(n, d, device=memory.device, dtype=memory.dtype)  # (T, d)
+        pe = sinusoidal_encoding(n, d, device=memory.device, dtype=memory.dtype)  # (n, d)
         caches: list[torch.Tensor | None] = [None] * len(self.decoder.layers)
         frames = [start[:, None, :]]  # (B, 1, out) each
         for t in range(n - 1):
@@ -402,6 +413,12 @@ class DualModel(nn.Module):
                 parts["dance_vel"] = dance_difference_loss(dance_hat, dance, order=1)
             if c.accel_weight > 0:
                 parts["dance_acc"] = dance_difference_loss(dance_hat, dance, order=2)
+            if c.rollout_frames > 0 and c.rollout_weight > 0 and self.training:
+                # the closed loop of inference: frames fed back, scored on their first and second differences
+                roll = self.m2d.rollout(memory_x, dance[:, 0], c.rollout_frames + 1)  # (B, K + 1, P)
+                truth = dance[:, : c.rollout_frames + 1]
+                parts["dance_roll"] = dance_difference_loss(roll, truth, order=1) + \
+                    dance_difference_loss(roll, truth, order=2)
         if c.generators in ("both", "d2m"):
             memory_y = self.d2m.encode(dance)  # (B, T, d_y)
             music_hat = self.d2m.teacher_forced(dance, target_music, memory_y)  # (B, T, 13)
@@ -419,7 +436,7 @@ class DualModel(nn.Module):
             music_cyc = self.d2m.teacher_forced(dance_hat.detach(), target_music)
             parts["music_cycle"] = music_loss(music_cyc, target_music, beat_pos_weight=c.beat_pos_weight)
         weights = {"gw": c.gw_weight, "dance_cycle": c.cycle_weight, "music_cycle": c.cycle_weight,
-                   "dance_vel": c.velocity_weight, "dance_acc": c.accel_weight}
+                   "dance_vel": c.velocity_weight, "dance_acc": c.accel_weight, "dance_roll": c.rollout_weight}
         loss = sum(weights.get(k, 1.0) * v for k, v in parts.items())
         return loss, parts
 
