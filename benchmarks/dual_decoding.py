@@ -10,7 +10,9 @@ default stages of ``dancekit dance`` (clean-up, smoothing, foot lock, beat sync:
 stillness share, smoothed energy and jitter as ratios to the song's real dance, planted-foot share, foot
 skating and mean jerk. Also the raw output's motion power per frequency band against the real dance's
 (``--bands``). Writes ``OUT/decoding.json`` and prints one line per (model, filter) with the per-song worst
-values. Choices are made on ``--split val``; ``--split test`` scores final candidates.
+values. Choices are made on ``--split val``; ``--split test`` scores final candidates. ``--fid`` adds FID_k / FID_g
+of each (model, filter)'s finished dances against the training dances (10-s segments, as
+``benchmarks/tune_footlock.py`` with ``FID=1``).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import numpy as np
 import torch
 
 from dancekit.data import PreparedData
+from dancekit.metrics import fid as fid_mod
 from dancekit.metrics import smoothed_energy, stillness_share
 from dancekit.metrics.stability import body_relative, jitter, to_metres
 from dancekit.motion.representations import decode_motion
@@ -66,6 +69,7 @@ def main() -> None:
     ap.add_argument("--filters", nargs="+", default=["box13", "bw1.5"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0])
     ap.add_argument("--no-beat-sync", action="store_true")
+    ap.add_argument("--fid", action="store_true", help="FID_k / FID_g against the training dances")
     ap.add_argument("-o", "--out", required=True)
     args = ap.parse_args()
     torch.set_num_threads(1)
@@ -86,6 +90,20 @@ def main() -> None:
         audio[n] = (str(a.path), a.start, a.end)
         feats[n] = first.features(a.path, start=a.start, end=a.end)  # same preset / stats for every dual model
         beats[n] = None if args.no_beat_sync else stages.song_beats_for(a.path, start=a.start, end=a.end)
+    ref_features: dict[str, np.ndarray] = {}
+
+    def fids(dances: list[np.ndarray], sk, fps: float) -> dict[str, float]:
+        out = {}
+        for kind, short in (("kinetic", "k"), ("geometric", "g")):
+            if kind not in ref_features:
+                reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")]
+                ref_features[kind] = fid_mod.feature_sets(reference, fps=fps, skeleton=sk, kind=kind,
+                                                          segment_seconds=10.0)
+            fp = fid_mod.feature_sets(dances, fps=fps, skeleton=sk, kind=kind, segment_seconds=10.0)
+            fr_z, fp_z, _ = fid_mod.normalize_features(ref_features[kind], fp)
+            out[f"fid_{short}"] = float(fid_mod.frechet_distance(fp_z, fr_z))
+        return out
+
     results = []
     for model in args.models:
         pipe = DualPipeline.from_pretrained(model)
@@ -98,15 +116,16 @@ def main() -> None:
             raw[n] = pipe.model.generate_dance(f, start=s).cpu().numpy()
         gen_cpu = time.process_time() - t0
         for filt in args.filters:
-            rows = []
+            rows, finished = [], []
             for n in names:
                 for k, seed in enumerate(args.seeds):
                     y = apply_filter(raw[n][k], filt, pipe)
                     motion = decode_motion(pipe.stats.denormalize_dance(y), sk, fps, "rot6d")
-                    res = DanceResult(motion=motion, model=str(model), seed=seed)
+                    res = DanceResult(motion=motion, model=pipe.folder, seed=seed)  # the folder: its stage settings
                     res = stages.finish(res, audio[n][0], start=audio[n][1], end=audio[n][2],
                                         beat_sync_on=not args.no_beat_sync, beats=beats[n])
                     p = np.asarray(res.motion.to_positions(), np.float64)
+                    finished.append(p)
                     row = {"song": n, "seed": seed,
                            "stillness": stillness_share(p, fps=fps, skeleton=sk),
                            "energy_ratio": smoothed_energy(p, fps=fps, skeleton=sk) / real[n]["energy"],
@@ -132,12 +151,15 @@ def main() -> None:
                 "jerk": float(np.mean([r["jerk"] for r in rows])),
                 "real_planted": float(np.mean([real[n]["planted_foot_share"] for n in names])),
                 "per_song": per_song, "rows": rows,
+                **(fids(finished, sk, fps) if args.fid else {}),
             }
             results.append(summary)
             print(f"{model} {filt}: stillness max {summary['stillness_max']:.3f} | energy min {summary['energy_min']:.2f} "
                   f"mean {summary['energy_mean']:.2f} | jitter max {summary['jitter_max']:.2f} mean "
                   f"{summary['jitter_mean']:.2f} | planted {summary['planted']:.3f} (real {summary['real_planted']:.3f}) "
-                  f"skating {summary['skating']:.3f} jerk {summary['jerk']:.1f} | per song e/j "
+                  f"skating {summary['skating']:.3f} jerk {summary['jerk']:.1f} | "
+                  + (f"FID_k {summary['fid_k']:.1f} FID_g {summary['fid_g']:.0f} | " if args.fid else "")
+                  + "per song e/j "
                   + " ".join(f"{n[6:]}:{v['energy_ratio']:.2f}/{v['jitter_ratio']:.2f}" for n, v in per_song.items()),
                   flush=True)
             (out / "decoding.json").write_text(json.dumps(results, indent=1))

@@ -9,7 +9,15 @@ import numpy as np
 import pytest
 import torch
 
-from dancekit.models.dual import DualConfig, DualModel, chord_token, dance_loss, geodesic_squared, music_loss
+from dancekit.models.dual import (
+    DualConfig,
+    DualModel,
+    chord_token,
+    dance_difference_loss,
+    dance_loss,
+    geodesic_squared,
+    music_loss,
+)
 from dancekit.models.gromov import entropic_gromov_wasserstein, l1_cost_matrix
 from dancekit.motion.rotations import axis_angle_to_matrix, matrix_to_rotation_6d, rotation_6d_to_matrix
 
@@ -208,6 +216,90 @@ def test_each_loss_reaches_the_networks_the_paper_says():
     }
     for name, reached in expect.items():
         assert _reached(model, parts[name]) == reached, name
+
+
+@pytest.mark.parametrize("self_feed", [0.0, 0.5])
+def test_velocity_and_acceleration_terms_reach_g_m2d_only(self_feed):
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY, velocity_weight=2.0, accel_weight=0.5, self_feed=self_feed))
+    loss, parts = model(*_batch())
+    assert set(parts) == {"dance_rec", "music_rec", "gw", "dance_cycle", "music_cycle", "dance_vel", "dance_acc"}
+    only_m2d = {"m2d.enc": True, "m2d.dec": True, "d2m.enc": False, "d2m.dec": False}
+    for name in ("dance_vel", "dance_acc", "dance_rec"):
+        assert _reached(model, parts[name]) == only_m2d, name
+    weights = {"gw": 1.0, "dance_cycle": 1.0, "music_cycle": 1.0, "dance_vel": 2.0, "dance_acc": 0.5}
+    expect = sum(weights.get(k, 1.0) * float(v.detach()) for k, v in parts.items())
+    assert float(loss.detach()) == pytest.approx(expect, rel=1e-6)
+
+
+def test_rollout_term_reaches_g_m2d_only_and_rollout_is_free_running_generation():
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY, rollout_frames=4, rollout_weight=1.0))
+    music, dance = _batch()
+    _, parts = model(music, dance)
+    assert _reached(model, parts["dance_roll"]) == {"m2d.enc": True, "m2d.dec": True, "d2m.enc": False,
+                                                    "d2m.dec": False}
+    model.eval()
+    _, parts = model(music, dance)
+    assert "dance_roll" not in parts  # training only
+    with torch.no_grad():
+        torch.testing.assert_close(model.m2d.rollout(model.m2d.encode(music), dance[:, 0], 8),
+                                   model.m2d.generate_full(music, dance[:, 0]))
+    with pytest.raises(Exception, match="rollout_frames"):
+        DualConfig(**TINY, rollout_frames=8)  # not below the window
+
+
+def test_difference_loss_known_answers():
+    g = torch.Generator().manual_seed(5)
+    y = torch.randn(2, 6, 15, generator=g)
+    for order in (1, 2):
+        assert float(dance_difference_loss(y + 3.0, y, order=order)) < 1e-5  # a constant offset moves nothing
+    ramp = y.clone()
+    ramp[..., 4] += 0.25 * torch.arange(6)  # one column drifts by 0.25 per frame: velocity off by 0.25
+    assert float(dance_difference_loss(ramp, y, order=1)) == pytest.approx(0.25, rel=1e-5)
+    assert float(dance_difference_loss(ramp, y, order=2)) < 1e-5
+    flicker = y.clone()
+    flicker[..., 1] += 0.1 * (-1.0) ** torch.arange(6)  # ±0.1 around the truth: differences ±0.2, second ±0.4
+    assert float(dance_difference_loss(flicker, y, order=1)) == pytest.approx(0.2, rel=1e-5)
+    assert float(dance_difference_loss(flicker, y, order=2)) == pytest.approx(0.4, rel=1e-5)
+    assert float(dance_loss(flicker, y)) > 0  # L_Y (L1 on the translation) sees it as a
+    offset = y.clone()  # constant 0.1 offset, which moves nothing
+    offset[..., 1] += 0.1
+    assert float(dance_loss(offset, y)) == pytest.approx(float(dance_loss(flicker, y)), rel=1e-5)
+    assert float(dance_difference_loss(y[:, :1], y[:, :1], order=1)) == 0.0  # one frame: no difference
+
+
+def test_paper_objective_by_default_and_new_settings_checked():
+    from dancekit.errors import ParameterError
+
+    c = DualConfig()
+    assert (c.velocity_weight, c.accel_weight, c.self_feed) == (0.0, 0.0, 0.0)
+    _, parts = DualModel(DualConfig(**TINY))(*_batch())
+    assert "dance_vel" not in parts and "dance_acc" not in parts
+    for bad in (dict(velocity_weight=-1.0), dict(accel_weight=float("nan")), dict(self_feed=1.5),
+                dict(self_feed=True)):
+        with pytest.raises(ParameterError):
+            DualConfig(**TINY, **bad)
+
+
+def test_self_feed_replaces_decoder_inputs_by_the_models_predictions():
+    torch.manual_seed(0)
+    music, dance = _batch()
+    model = DualModel(DualConfig(**TINY, self_feed=1.0, decoder_noise=0.0))
+    model.train()
+    memory = model.m2d.encode(music)
+    fed = model._self_fed(dance, memory)
+    torch.testing.assert_close(fed[:, :1], dance[:, :1])  # the start token stays the true first frame
+    torch.testing.assert_close(fed[:, 1:], model.m2d.decode(dance[:, :-1], memory))
+    model.config.self_feed = 0.0
+    torch.testing.assert_close(model._self_fed(dance, memory), dance)
+    # in eval mode (validation) the inputs stay the true frames even with self_feed on
+    model.config.self_feed = 1.0
+    model.eval()
+    a, _ = model(music, dance)
+    model.config.self_feed = 0.0
+    b, _ = model(music, dance)
+    assert float(a.detach()) == pytest.approx(float(b.detach()), rel=1e-6)
 
 
 @pytest.mark.parametrize("gw,cycle,generators,parts", [

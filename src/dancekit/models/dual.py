@@ -30,6 +30,7 @@ Losses (§3.4)
     * which loss updates which network, exactly as the paper's prescription::
 
           L_GW + L_dance^rec + L_dance^cycle  → G_M→D   (GW reaches Enc_M→D only: the dance embeddings are detached)
+          [L_dance^vel + L_dance^acc + L_roll] → G_M→D  (not the paper; off by default)
           L_music^rec + L_music^cycle         → G_D→M
 
       i.e. in the dance cycle G_M→D(G_D→M(y)) the composed music is detached, in the music cycle
@@ -47,6 +48,12 @@ the printed Algorithm 1's unit marginals (``gw_normalize="mean"``, ``gw_marginal
 of a training encoder are hundreds of times ε and the term was noise); the beat frames of L_X weighted 5×
 (``beat_pos_weight``: with the plain L1 the sparse beat output collapsed to 0); Gaussian noise of std 0.1 on
 G_M→D's teacher-forced decoder inputs (``decoder_noise``, against the freezing of teacher-forced decoders).
+Against the flicker of the free-running G_M→D (docs/DUAL.md, "velocity term"): ``velocity_weight`` /
+``accel_weight`` add L1 terms on the frame-to-frame first / second differences of the reconstructed dance
+(:func:`dance_difference_loss`, on G_M→D's teacher-forced output, so they reach G_M→D only), and ``self_feed``
+replaces a share of the decoder's inputs by its own detached predictions (scheduled sampling);
+``rollout_frames`` / ``rollout_weight`` decode the first frames of each window free-running (fed back, with
+gradients) and score their velocities and accelerations. All default to 0: the paper's objective.
 ``DualConfig(beat_pos_weight=1, decoder_noise=0, gw_normalize="none", gw_marginals="uniform")`` is the paper.
 """
 
@@ -103,6 +110,11 @@ class DualConfig:
     beat_pos_weight: float = 15.0  # weight of the beat frames in L_X's beat term (1: the paper's plain L1)
     decoder_noise: float = 0.1  # std of Gaussian noise on G_M→D's teacher-forced decoder inputs (0: the paper)
     pool_size: int = 64  # start poses kept from the training windows (sampled at inference)
+    velocity_weight: float = 0.0  # weight of the L1 on frame-to-frame differences of G_M→D's output (0: the paper)
+    accel_weight: float = 0.0  # weight of the L1 on second differences of G_M→D's output (0: the paper)
+    self_feed: float = 0.0  # share of G_M→D's decoder inputs replaced by its own (detached) outputs (0: the paper)
+    rollout_frames: int = 0  # frames G_M→D decodes free-running from each window's start in training (0: off)
+    rollout_weight: float = 0.0  # weight of the velocity + acceleration L1 on that free-running rollout
 
     def __post_init__(self) -> None:
         for name in ("music_dim", "pose_dim", "m2d_d_model", "m2d_layers", "m2d_heads", "m2d_ff", "d2m_d_model",
@@ -131,6 +143,17 @@ class DualConfig:
         if self.gw_normalize not in ("none", "mean") or self.gw_marginals not in ("uniform", "unit"):
             raise ParameterError(f"DualConfig.gw_normalize must be none|mean and gw_marginals uniform|unit, got "
                                  f"{self.gw_normalize!r}, {self.gw_marginals!r}")
+        if isinstance(self.rollout_frames, bool) or not isinstance(self.rollout_frames, int) \
+                or not 0 <= self.rollout_frames < self.window:
+            raise ParameterError(f"DualConfig.rollout_frames must be an integer in [0, window), got "
+                                 f"{self.rollout_frames!r}")
+        for name in ("velocity_weight", "accel_weight", "rollout_weight"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+                raise ParameterError(f"DualConfig.{name} must be a number >= 0, got {value!r}")
+        if isinstance(self.self_feed, bool) or not isinstance(self.self_feed, (int, float)) \
+                or not 0.0 <= self.self_feed <= 1.0:
+            raise ParameterError(f"DualConfig.self_feed must be a share in [0, 1], got {self.self_feed!r}")
         if not self.beat_pos_weight > 0 or not self.decoder_noise >= 0:
             raise ParameterError(f"DualConfig.beat_pos_weight must be positive and decoder_noise >= 0, got "
                                  f"{self.beat_pos_weight!r}, {self.decoder_noise!r}")
@@ -174,6 +197,23 @@ def dance_loss(pred: torch.Tensor, target: torch.Tensor, *, raw_from: int = 3) -
     R1 = rotation_6d_to_matrix(pred[..., raw_from:].reshape(shape))  # (B, T, J, 3, 3)
     R2 = rotation_6d_to_matrix(target[..., raw_from:].reshape(shape))
     return (trans + geodesic_squared(R1, R2).sum(-1)).mean()
+
+
+def dance_difference_loss(pred: torch.Tensor, target: torch.Tensor, *, order: int = 1) -> torch.Tensor:
+    """L1 between the ``order``-th frame-to-frame differences of ``pred`` and ``target`` (B, T, P) (not the paper).
+
+    ``order=1``: velocities ``y_t - y_{t-1}``, ``order=2``: accelerations ``y_t - 2 y_{t-1} + y_{t-2}``, of every
+    column (the normalised root translation and the raw 6D rotation components, per frame at the data's fps),
+    summed over the columns of a frame and averaged over the ``T - order`` differences of each window and the
+    batch. L_Y scores each frame alone, so a prediction that flickers around the right poses costs as little as a
+    smooth one; this term makes the flicker cost what it moves. 0 when ``T <= order``.
+    """
+    if pred.shape[-2] <= order:
+        return pred.new_zeros(())
+    dp, dt = pred, target
+    for _ in range(order):
+        dp, dt = dp[..., 1:, :] - dp[..., :-1, :], dt[..., 1:, :] - dt[..., :-1, :]
+    return (dp - dt).abs().sum(-1).mean()
 
 
 def music_loss(pred: torch.Tensor, target: torch.Tensor, *, beat_pos_weight: float = 1.0) -> torch.Tensor:
@@ -274,10 +314,14 @@ class Seq2Seq(nn.Module):
         self-attention keys and values), so a new frame costs one query per layer instead of a pass over the
         whole prefix. The same numbers as :meth:`decode` on the prefix (tests/test_dual.py), in eval mode.
         """
-        memory = self.encode(src)  # (B, T, d)
-        n = src.shape[1]
+        return self.rollout(self.encode(src), start, src.shape[1])
+
+    def rollout(self, memory: torch.Tensor, start: torch.Tensor, n: int) -> torch.Tensor:
+        """Free-running decoding from ``start (B, out)`` over ``memory (B, T, d)``: ``start`` then ``n - 1``
+        frames, each fed back as the next input → (B, n, out). Differentiable (used in training by
+        ``DualConfig.rollout_frames``); :meth:`generate` is this after encoding."""
         d = memory.shape[2]
-        pe = sinusoidal_encoding(n, d, device=memory.device, dtype=memory.dtype)  # (T, d)
+        pe = sinusoidal_encoding(n, d, device=memory.device, dtype=memory.dtype)  # (n, d)
         caches: list[torch.Tensor | None] = [None] * len(self.decoder.layers)
         frames = [start[:, None, :]]  # (B, 1, out) each
         for t in range(n - 1):
@@ -362,8 +406,19 @@ class DualModel(nn.Module):
         parts: dict[str, torch.Tensor] = {}
         if c.generators in ("both", "m2d"):
             memory_x = self.m2d.encode(music)  # (B, T, d_x)
-            dance_hat = self.m2d.teacher_forced(music, dance, memory_x, noise=c.decoder_noise)  # (B, T, P)
+            dance_in = self._self_fed(dance, memory_x) if c.self_feed > 0 and self.training else dance
+            dance_hat = self.m2d.teacher_forced(music, dance_in, memory_x, noise=c.decoder_noise)  # (B, T, P)
             parts["dance_rec"] = dance_loss(dance_hat, dance, raw_from=c.dance_raw_from)
+            if c.velocity_weight > 0:
+                parts["dance_vel"] = dance_difference_loss(dance_hat, dance, order=1)
+            if c.accel_weight > 0:
+                parts["dance_acc"] = dance_difference_loss(dance_hat, dance, order=2)
+            if c.rollout_frames > 0 and c.rollout_weight > 0 and self.training:
+                # the closed loop of inference: frames fed back, scored on their first and second differences
+                roll = self.m2d.rollout(memory_x, dance[:, 0], c.rollout_frames + 1)  # (B, K + 1, P)
+                truth = dance[:, : c.rollout_frames + 1]
+                parts["dance_roll"] = dance_difference_loss(roll, truth, order=1) + \
+                    dance_difference_loss(roll, truth, order=2)
         if c.generators in ("both", "d2m"):
             memory_y = self.d2m.encode(dance)  # (B, T, d_y)
             music_hat = self.d2m.teacher_forced(dance, target_music, memory_y)  # (B, T, 13)
@@ -380,9 +435,19 @@ class DualModel(nn.Module):
             parts["dance_cycle"] = dance_loss(dance_cyc, dance, raw_from=c.dance_raw_from)
             music_cyc = self.d2m.teacher_forced(dance_hat.detach(), target_music)
             parts["music_cycle"] = music_loss(music_cyc, target_music, beat_pos_weight=c.beat_pos_weight)
-        weights = {"gw": c.gw_weight, "dance_cycle": c.cycle_weight, "music_cycle": c.cycle_weight}
+        weights = {"gw": c.gw_weight, "dance_cycle": c.cycle_weight, "music_cycle": c.cycle_weight,
+                   "dance_vel": c.velocity_weight, "dance_acc": c.accel_weight, "dance_roll": c.rollout_weight}
         loss = sum(weights.get(k, 1.0) * v for k, v in parts.items())
         return loss, parts
+
+    @torch.no_grad()
+    def _self_fed(self, dance: torch.Tensor, memory_x: torch.Tensor) -> torch.Tensor:
+        """Scheduled sampling in one extra pass (not the paper): G_M→D's teacher-forced prediction of ``dance``
+        (B, T, P), detached, replaces each frame t ≥ 1 of the decoder input with probability ``self_feed``, so the
+        decoder also learns from inputs that carry its own errors. Frame 0 (the start token) stays true."""
+        pred = self.m2d.decode(dance[:, :-1], memory_x)  # (B, T-1, P): ŷ_1..ŷ_{T-1}
+        use = torch.rand(dance.shape[0], dance.shape[1] - 1, 1, device=dance.device) < self.config.self_feed
+        return torch.cat([dance[:, :1], torch.where(use, pred, dance[:, 1:])], dim=1)
 
     @torch.no_grad()
     def remember_start_poses(self, dance: torch.Tensor) -> None:
