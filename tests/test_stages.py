@@ -312,3 +312,72 @@ def test_song_beats_are_cached(tmp_path):
     assert (first.tempo, first.clarity, first.has_beat) == (again.tempo, again.clarity, again.has_beat)
     fresh = song_beats_file(song, start=1.0, use_cache=False)
     np.testing.assert_array_equal(fresh.times, first.times)
+
+
+def test_between_tolerance_prefers_the_chain_whose_unpaired_beat_lands_on_a_beat():
+    # worked by hand (music beats 1, 2, 3 s; 4-s dance; ±15 % between pairs; candidates within 0.3 s):
+    # candidates A(1, 1.02) B(2, 1.85) C(2, 2.18) D(3, 3.03). Feasible chains of two pairs: A-D (rates 1.02,
+    # 1.005, 0.97) and C-D (rates 1.09, 0.85, 0.97); B pairs with nothing (to A 0.83, to D 1.18). Pairs only:
+    # A-D, the gentler. With a landing tolerance of 0.1 s: A-D's step A→D puts the unpaired 1.85 and 2.18 at
+    # 1 + 0.83/1.005 = 1.83 s and 1 + 1.16/1.005 = 2.15 s (0.17 and 0.15 s from a beat: misses), C-D's step
+    # start→C puts the unpaired 1.02 at 1.02/1.09 = 0.94 s (0.06 s from the beat at 1 s: a hit) and 1.85 at
+    # 1.70 s (a miss): C-D scores 2 + BETWEEN_WEIGHT, A-D 2.
+    kin, mus = np.array([1.02, 1.85, 2.18, 3.03]), np.array([1.0, 2.0, 3.0])
+    kw = {"kinematic": kin, "music": mus, "duration": 4.0, "pair_rate_change": 0.15, "max_shift": 0.3}
+    np.testing.assert_allclose(match_beats(**kw), [[1.0, 1.02], [3.0, 3.03]])
+    np.testing.assert_allclose(match_beats(**kw, between_tolerance=0.0), [[1.0, 1.02], [3.0, 3.03]])
+    np.testing.assert_allclose(match_beats(**kw, between_tolerance=0.1), [[2.0, 2.18], [3.0, 3.03]])
+    # a tolerance below the 0.064-s landing finds no hit: the pairs alone decide again
+    np.testing.assert_allclose(match_beats(**kw, between_tolerance=0.05), [[1.0, 1.02], [3.0, 3.03]])
+    from dancekit.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="between_tolerance"):
+        match_beats(**kw, between_tolerance=-0.1)
+
+
+def _beat_checkpoint(tmp_path, entry):
+    import json
+
+    folder = tmp_path / "m"
+    folder.mkdir(exist_ok=True)
+    (folder / "config.json").write_text(json.dumps({"model": "dual", **({"beat_sync": entry} if entry else {})}))
+    return str(folder)
+
+
+def test_the_beat_sync_stage_reads_its_settings_from_the_checkpoint(tmp_path):
+    """A checkpoint's ``"beat_sync"`` entry reaches the warp: with candidates at most 1 ms from a beat no
+    movement beat is paired and the dance is left as it was, where the defaults warp it; no embedded model
+    carries an entry (none qualified on validation, docs/STAGES.md)."""
+    from pathlib import Path
+
+    from dancekit.audio import save_wav
+    from dancekit.audio.synth import click_track
+    from dancekit.pipelines import stages
+
+    sr = 22050
+    result = _dance_result(12.0, np.random.default_rng(3))
+    clicks = tmp_path / "clicks.wav"
+    save_wav(clicks, click_track(bpm=100.0, duration=12.04, sr=sr), sr=sr)
+    plain = stages.beat_sync(dataclasses.replace(result, model=_beat_checkpoint(tmp_path, None)), clicks)
+    assert plain.summary().startswith("beat-synced (")
+    near = _beat_checkpoint(tmp_path, {"max_shift": 0.001, "max_rate_change": 0.2})
+    assert stages.beat_sync_options(near) == {"max_shift": 0.001, "max_rate_change": 0.2}
+    kept = stages.beat_sync(dataclasses.replace(result, model=near), clicks)
+    assert "not beat-synced: no movement beat" in kept.summary()
+    np.testing.assert_array_equal(kept.motion.positions, result.motion.positions)
+    folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+    for name in ("revolution", "music2dance", "dual", "style"):
+        assert stages.beat_sync_options(str(folder / name)) == {}
+    assert stages.beat_sync_options(None) == {} and stages.beat_sync_options("/somewhere/else") == {}
+
+
+@pytest.mark.parametrize("entry", [{"max_rate_change": 1.2}, {"pair_rate_change": 0.0}, {"pair_rate_change": 0.2},
+                                   {"max_rate_change": 0.3, "pair_rate_change": 0.35}, {"max_shift": -1.0},
+                                   {"smooth_s": 0.0}, {"between_tolerance": -0.1}, {"max_shift": "far"},
+                                   {"speed": 1.0}, [0.2]])
+def test_a_bad_beat_sync_entry_is_a_checkpoint_error(tmp_path, entry):
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines import stages
+
+    with pytest.raises(CheckpointError, match="config.json.*beat_sync"):
+        stages.beat_sync_options(_beat_checkpoint(tmp_path, entry))

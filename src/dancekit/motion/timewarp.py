@@ -38,9 +38,11 @@ if TYPE_CHECKING:  # pragma: no cover
     from dancekit.motion.skeleton import Skeleton
 
 __all__ = [
+    "BETWEEN_WEIGHT",
     "DEFAULT_MAX_RATE_CHANGE",
     "DEFAULT_MAX_SHIFT",
     "DEFAULT_PAIR_RATE_CHANGE",
+    "DEFAULT_SMOOTH_S",
     "beat_warp",
     "match_beats",
     "warp_bones",
@@ -53,8 +55,13 @@ __all__ = [
 DEFAULT_MAX_RATE_CHANGE = 0.15
 #: Bound on the mean rate between two matched beat pairs (room for the smoothing within the frame bound).
 DEFAULT_PAIR_RATE_CHANGE = 0.13
+#: Time scale of the warp's smoothness penalty on its rate, seconds (:func:`warp_rates`).
+DEFAULT_SMOOTH_S = 0.5
 #: A kinematic beat is paired only with music beats at most this many seconds away.
 DEFAULT_MAX_SHIFT = 0.6
+#: Weight of a kinematic beat that a step lands near a music beat without pairing it
+#: (``match_beats(between_tolerance=...)``), against 1 for a pair: a pair (landed exactly) counts more.
+BETWEEN_WEIGHT = 0.3
 
 
 def match_beats(
@@ -66,6 +73,7 @@ def match_beats(
     max_shift: float = DEFAULT_MAX_SHIFT,
     min_gap: float = 0.0,
     window: float = 30.0,
+    between_tolerance: float = 0.0,
 ) -> np.ndarray:
     """Pair kinematic beats with music beats by dynamic programming.
 
@@ -78,6 +86,11 @@ def match_beats(
     max_shift : only pairs with ``|k - m| <= max_shift`` seconds are candidates
     min_gap : consecutive pairs at least this many seconds apart (output time)
     window : a pair's predecessor lies at most ``window`` seconds before it (the start anchor always counts)
+    between_tolerance : seconds; when positive, a step from one pair to the next also scores every
+        kinematic beat strictly between them that the straight warp of the step (the line through the two
+        pairs) puts within this many seconds of a music beat, with weight :data:`BETWEEN_WEIGHT` (a pair:
+        1): among chains of nearly as many pairs, the one whose unpaired kinematic beats land on beats too
+        (the beat hit rate counts every kinematic beat). 0 (default): only the pairs count.
 
     Returns
     -------
@@ -88,6 +101,8 @@ def match_beats(
         raise ParameterError(f"pair_rate_change must be in (0, 1), got {pair_rate_change}")
     if not max_shift > 0:
         raise ParameterError(f"max_shift must be positive seconds, got {max_shift}")
+    if not between_tolerance >= 0:
+        raise ParameterError(f"between_tolerance must be >= 0 seconds, got {between_tolerance}")
     k = check_times(kinematic, "kinematic beats")
     m = check_times(music, "music beats")
     D = float(duration)
@@ -121,7 +136,9 @@ def match_beats(
         ok &= (rate >= lo_r - 1e-12) & (rate <= hi_r + 1e-12)
         if not ok.any():
             continue
-        gain = 0.0 if n == N - 1 else 1.0
+        gain = np.full(len(prev), 0.0 if n == N - 1 else 1.0)
+        if between_tolerance > 0:
+            gain += BETWEEN_WEIGHT * _landing_between(node[prev], node[n], rate, ok, k, m, between_tolerance)
         cand = np.where(ok, score[prev] + gain - 1e-3 * ((rate - 1.0) / pair_rate_change) ** 2, -np.inf)
         best = int(np.argmax(cand))
         score[n] = cand[best]
@@ -132,6 +149,30 @@ def match_beats(
         chain.append(node[n])
         n = int(back[n])
     return np.asarray(chain[::-1], dtype=np.float64).reshape(-1, 2)
+
+
+def _landing_between(prev: np.ndarray, pair: np.ndarray, rate: np.ndarray, ok: np.ndarray, k: np.ndarray,
+                     m: np.ndarray, tolerance: float) -> np.ndarray:
+    """For every step ``prev[i] → pair`` (``(m, k)`` rows, ``rate`` = dk / dm, only where ``ok``), the number of
+    kinematic beats ``k`` strictly between the two kinematic times whose time on the straight warp of the step,
+    ``m_prev + (k - k_prev) / rate``, is within ``tolerance`` seconds of a music beat in ``m``."""
+    out = np.zeros(len(prev))
+    if not ok.any() or len(m) == 0:
+        return out
+    idx = np.flatnonzero(ok)
+    lo = np.searchsorted(k, prev[idx, 1], side="right")
+    hi = np.searchsorted(k, pair[1], side="left")
+    width = int(np.max(hi - lo, initial=0))
+    if width <= 0:
+        return out
+    j = lo[:, None] + np.arange(width)[None]
+    inside = j < hi
+    kk = k[np.minimum(j, len(k) - 1)]
+    t = prev[idx, 0][:, None] + (kk - prev[idx, 1][:, None]) / rate[idx][:, None]
+    q = np.searchsorted(m, t)
+    d = np.minimum(np.abs(t - m[np.clip(q - 1, 0, len(m) - 1)]), np.abs(t - m[np.clip(q, 0, len(m) - 1)]))
+    out[idx] = np.sum(inside & (d <= tolerance), axis=1)
+    return out
 
 
 def _overlap_row(xa: float, xb: float, n_rates: int) -> tuple[np.ndarray, np.ndarray]:
@@ -339,7 +380,7 @@ def warp_rates(
     n_frames: int,
     fps: float,
     max_rate_change: float = DEFAULT_MAX_RATE_CHANGE,
-    smooth_s: float = 0.5,
+    smooth_s: float = DEFAULT_SMOOTH_S,
 ) -> np.ndarray:
     """The warp's source frame for every output frame, from matched beat pairs.
 
@@ -470,6 +511,8 @@ def beat_warp(
     pair_rate_change: float = DEFAULT_PAIR_RATE_CHANGE,
     max_shift: float = DEFAULT_MAX_SHIFT,
     smooth: float | None = None,
+    between_tolerance: float = 0.0,
+    smooth_s: float = DEFAULT_SMOOTH_S,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The beat-synchronous warp of a dance: its source frames and the matched beat pairs.
 
@@ -478,7 +521,8 @@ def beat_warp(
     positions : (T, J, 3) (or (T, J, 2)) joint positions at ``fps``, any units
     music_beats : (M,) music beat times, seconds from the dance's first frame
     fps : frames per second
-    max_rate_change, pair_rate_change, max_shift : see :func:`warp_rates` and :func:`match_beats`
+    max_rate_change, pair_rate_change, max_shift, between_tolerance, smooth_s : see :func:`warp_rates` and
+        :func:`match_beats`
     smooth : speed smoothing of the kinematic beats, seconds (default that of
         :func:`dancekit.motion.analysis.kinematic_beats`)
 
@@ -496,7 +540,8 @@ def beat_warp(
         return np.arange(T, dtype=np.float64), np.zeros((0, 2))
     kin = kinematic_beats(p, fps=fps, smooth=DEFAULT_BEAT_SMOOTH if smooth is None else smooth)
     pairs = match_beats(kinematic=kin, music=music_beats, duration=(T - 1) / fps,
-                        pair_rate_change=pair_rate_change, max_shift=max_shift)
+                        pair_rate_change=pair_rate_change, max_shift=max_shift,
+                        between_tolerance=between_tolerance)
     if len(pairs) == 0:
         return np.arange(T, dtype=np.float64), pairs
-    return warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change), pairs
+    return warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change, smooth_s=smooth_s), pairs

@@ -8,7 +8,8 @@ model's own output):
   (:func:`dancekit.features.pulse.song_beats`); a song without a clear pulse (speech, a bird, a whale's
   song) is left unwarped, with a note. Otherwise the dance is time-warped so that its kinematic beats
   (speed minima) land on the song's beats: :func:`dancekit.motion.timewarp.beat_warp` (dynamic
-  programming over candidate pairings, the local speed kept within ±15 %, a smooth rate).
+  programming over candidate pairings, the local speed kept within ±15 %, a smooth rate; a checkpoint's
+  ``"beat_sync"`` entry may set other bounds, :func:`beat_sync_options`).
 * **clean-up** (:func:`clean_up`): the figure's root path is kept within a dance floor (turned back
   toward its start beyond 4 m, never farther than 12 m) and its lowest joint put on the floor
   (:mod:`dancekit.motion.cleanup`).
@@ -37,8 +38,8 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "beat_sync", "clean_up", "finish",
-           "foot_lock", "foot_lock_options", "genre_smoothing_targets", "settle", "settle_options", "smooth",
+__all__ = ["BEAT_SYNC_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
+           "beat_sync", "beat_sync_options", "clean_up", "finish", "foot_lock", "foot_lock_options", "genre_smoothing_targets", "settle", "settle_options", "smooth",
            "smoothing_target", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
@@ -89,7 +90,8 @@ def beat_sync(result: DanceResult, audio_path: str | os.PathLike, *, start: floa
         why = (f"only {len(beats.times)} beats found" if len(beats.times) < MIN_BEATS
                else f"pulse clarity {clarity:.2f}")
         return _with_note(result, f"not beat-synced: the song has no clear beat ({why})")
-    source, pairs = beat_warp(motion.to_positions(), music_beats=beats.times, fps=motion.fps)
+    source, pairs = beat_warp(motion.to_positions(), music_beats=beats.times, fps=motion.fps,
+                              **beat_sync_options(result.model))
     n_music = int(np.sum((beats.times > 0) & (beats.times < motion.duration)))
     if len(pairs) == 0:
         return _with_note(result, f"not beat-synced: no movement beat near the song's {n_music} beats")
@@ -368,6 +370,40 @@ def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
     if bad:
         raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'foot_lock' needs positive "
                               f"numbers with *_on <= *_off, got {bad[0]} in {spec!r}")
+    return spec
+
+
+#: The keys a checkpoint's ``"beat_sync"`` entry may carry (:func:`beat_sync_options`), all
+#: :func:`dancekit.motion.timewarp.beat_warp` arguments: the bound on the warp's local speed change
+#: (``max_rate_change``, a fraction: the rate stays within ``1 ± it``), the bound between two matched beats
+#: (``pair_rate_change``, ≤ ``max_rate_change``), the farthest a kinematic beat is moved (``max_shift``, s), the
+#: landing tolerance of unpaired kinematic beats in the pairing (``between_tolerance``, s; 0: off) and the time
+#: scale of the rate's smoothness (``smooth_s``, s).
+BEAT_SYNC_KEYS = ("max_rate_change", "pair_rate_change", "max_shift", "between_tolerance", "smooth_s")
+
+
+def beat_sync_options(model: str | os.PathLike | None) -> dict[str, float]:
+    """The :func:`~dancekit.motion.timewarp.beat_warp` settings a model's checkpoint folder carries in its
+    ``config.json`` (``"beat_sync": {"max_rate_change": f, "pair_rate_change": f, "max_shift": s,
+    "between_tolerance": s, "smooth_s": s}``, any of them, :data:`BEAT_SYNC_KEYS`). No embedded model carries
+    one (docs/STAGES.md: none of the validation grid's settings met the rule): ``{}``, the defaults (speed
+    change ±15 %, ±13 % between matched beats, 0.6 s), for a folder without the entry or that is not a
+    checkpoint. A rate outside (0, 1), a ``pair_rate_change`` above the ``max_rate_change`` (either side from
+    the defaults when absent), a ``max_shift`` or ``smooth_s`` that is not positive or a negative
+    ``between_tolerance`` is a :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
+    from dancekit.motion import timewarp as tw
+
+    spec = _stage_entry(model, "beat_sync", set(BEAT_SYNC_KEYS))
+    full = {"max_rate_change": tw.DEFAULT_MAX_RATE_CHANGE, "pair_rate_change": tw.DEFAULT_PAIR_RATE_CHANGE, **spec}
+    bad = [k for k in ("max_rate_change", "pair_rate_change") if k in spec and not 0 < spec[k] < 1]
+    bad += [k for k in ("max_shift", "smooth_s") if k in spec and not (np.isfinite(spec[k]) and spec[k] > 0)]
+    bad += [k for k in ("between_tolerance",) if k in spec and not (np.isfinite(spec[k]) and spec[k] >= 0)]
+    if full["pair_rate_change"] > full["max_rate_change"]:
+        bad.append("pair_rate_change > max_rate_change")
+    if bad:
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'beat_sync' needs rates in "
+                              f"(0, 1) with pair_rate_change <= max_rate_change, positive max_shift and smooth_s "
+                              f"and between_tolerance >= 0, got {bad[0]} in {spec!r}")
     return spec
 
 
