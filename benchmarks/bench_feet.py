@@ -98,6 +98,14 @@ def variant(motion: Motion, name: str, audio, beats, model: str = "cached", **op
     return res.motion
 
 
+def song_audio(data: PreparedData, split: str, music: str | Path = "../shared/music") -> dict:
+    """Per song of ``split`` (``"song"``: the songs of ``bench_stages.SONGS`` in ``music``), the
+    ``(audio path, start s, end s)`` the stages track its beats on; keys as the cached dances' file names."""
+    if split == "song":
+        return {s.split(".")[0][:24]: (str(Path(music) / s), None, None) for s in bench_stages.SONGS}
+    return {n: (str(data.audio(n).path), data.audio(n).start, data.audio(n).end) for n in data.names(split)}
+
+
 def mean_rows(rows):
     keys = [k for k in rows[0] if isinstance(rows[0][k], float)]
     return {k: float(np.nanmean([r[k] for r in rows])) for k in keys}
@@ -130,14 +138,7 @@ def main() -> None:
         m = data.motion(n)
         real[n] = metrics(m, np.asarray(data.features(n, "revolution")["beat_times"], np.float64), None)
     real_mean = mean_rows(list(real.values()))
-    audio = {}
-    if args.split == "song":
-        for s in bench_stages.SONGS:
-            audio[s.split(".")[0][:24]] = (str(Path(args.music) / s), None, None)
-    else:
-        for n in data.names(args.split):
-            ref = data.audio(n)
-            audio[n] = (str(ref.path), ref.start, ref.end)
+    audio = song_audio(data, args.split, args.music)
     beats = {k: (stages.song_beats_for(a[0], start=a[1], end=a[2]) if not args.grid else None) for k, a in audio.items()}
 
     if args.grid:

@@ -54,14 +54,7 @@ def main() -> None:
     variants = {"stage": "stage"} if use_stage else json.loads(sys.argv[3])
     data = PreparedData("data/tang2018")
     files = sorted(Path(f"runs/feet_raw/{model}/{split}").glob("*__*.npz"))
-    audio = {}
-    if split == "song":
-        for s in bench_stages.SONGS:
-            audio[s.split(".")[0][:24]] = (str(Path("../shared/music") / s), None, None)
-    else:
-        for n in data.names(split):
-            ref = data.audio(n)
-            audio[n] = (str(ref.path), ref.start, ref.end)
+    audio = bench_feet.song_audio(data, split)
     reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")]
     folder = bench_feet.model_folder(model)
     t0 = time.process_time()

@@ -23,7 +23,6 @@ import time
 from pathlib import Path
 
 import bench_feet  # benchmarks/ is on the path when run as a script
-import bench_stages
 import numpy as np
 
 from dancekit.data import PreparedData
@@ -50,14 +49,7 @@ def main() -> None:
     files = sorted(Path(f"runs/feet_raw/{model}/{split}").glob("*__*.npz"))
     if songs:
         files = [f for f in files if any(f.stem.startswith(s) for s in songs)]
-    audio = {}
-    if split == "song":
-        for s in bench_stages.SONGS:
-            audio[s.split(".")[0][:24]] = (str(Path("../shared/music") / s), None, None)
-    else:
-        for n in data.names(split):
-            ref = data.audio(n)
-            audio[n] = (str(ref.path), ref.start, ref.end)
+    audio = bench_feet.song_audio(data, split)
     reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")] if do_fid else []
     ref_features: dict[str, np.ndarray] = {}
 
