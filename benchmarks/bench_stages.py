@@ -92,10 +92,16 @@ def dance_row(motion, beats: np.ndarray | None) -> dict[str, float]:
     return row
 
 
-def fids(dances: list[np.ndarray], reference: list[np.ndarray], fps: float, sk) -> dict[str, float]:
+def fids(dances: list[np.ndarray], reference: list[np.ndarray], fps: float, sk,
+         cache: dict[str, np.ndarray] | None = None) -> dict[str, float]:
+    """FID_k and FID_g of ``dances`` against ``reference``; ``cache``: a dict that keeps the reference's
+    feature sets between calls (the same reference, fps and skeleton each time)."""
     out = {}
+    cache = {} if cache is None else cache
     for kind, short in (("kinetic", "k"), ("geometric", "g")):
-        fr = fid_mod.feature_sets(reference, fps=fps, skeleton=sk, kind=kind, segment_seconds=10.0)
+        if kind not in cache:
+            cache[kind] = fid_mod.feature_sets(reference, fps=fps, skeleton=sk, kind=kind, segment_seconds=10.0)
+        fr = cache[kind]
         fp = fid_mod.feature_sets(dances, fps=fps, skeleton=sk, kind=kind, segment_seconds=10.0)
         fr_z, fp_z, _ = fid_mod.normalize_features(fr, fp)
         out[f"fid_{short}"] = float(fid_mod.frechet_distance(fp_z, fr_z))

@@ -27,7 +27,6 @@ import numpy as np
 import torch
 
 from dancekit.data import PreparedData
-from dancekit.metrics import fid as fid_mod
 from dancekit.metrics import smoothed_energy, stillness_share
 from dancekit.metrics.stability import body_relative, jitter, to_metres
 from dancekit.motion.representations import decode_motion
@@ -92,17 +91,11 @@ def main() -> None:
         beats[n] = None if args.no_beat_sync else stages.song_beats_for(a.path, start=a.start, end=a.end)
     ref_features: dict[str, np.ndarray] = {}
 
+    reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")] \
+        if args.fid else []
+
     def fids(dances: list[np.ndarray], sk, fps: float) -> dict[str, float]:
-        out = {}
-        for kind, short in (("kinetic", "k"), ("geometric", "g")):
-            if kind not in ref_features:
-                reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")]
-                ref_features[kind] = fid_mod.feature_sets(reference, fps=fps, skeleton=sk, kind=kind,
-                                                          segment_seconds=10.0)
-            fp = fid_mod.feature_sets(dances, fps=fps, skeleton=sk, kind=kind, segment_seconds=10.0)
-            fr_z, fp_z, _ = fid_mod.normalize_features(ref_features[kind], fp)
-            out[f"fid_{short}"] = float(fid_mod.frechet_distance(fp_z, fr_z))
-        return out
+        return bench_stages.fids(dances, reference, fps, sk, cache=ref_features)
 
     results = []
     for model in args.models:

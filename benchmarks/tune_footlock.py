@@ -23,10 +23,10 @@ import time
 from pathlib import Path
 
 import bench_feet  # benchmarks/ is on the path when run as a script
+import bench_stages
 import numpy as np
 
 from dancekit.data import PreparedData
-from dancekit.metrics import fid as fid_mod
 from dancekit.motion import Motion, get_skeleton
 from dancekit.motion import footlock as fl
 from dancekit.pipelines import stages
@@ -54,15 +54,7 @@ def main() -> None:
     ref_features: dict[str, np.ndarray] = {}
 
     def fids(dances):
-        out = {}
-        for kind, short in (("kinetic", "k"), ("geometric", "g")):
-            if kind not in ref_features:
-                ref_features[kind] = fid_mod.feature_sets(reference, fps=FPS, skeleton=SK, kind=kind,
-                                                          segment_seconds=10.0)
-            fp = fid_mod.feature_sets(dances, fps=FPS, skeleton=SK, kind=kind, segment_seconds=10.0)
-            fr_z, fp_z, _ = fid_mod.normalize_features(ref_features[kind], fp)
-            out[f"fid_{short}"] = float(fid_mod.frechet_distance(fp_z, fr_z))
-        return out
+        return bench_stages.fids(dances, reference, FPS, SK, cache=ref_features)
 
     beats = {}
     cleaned = {f: stages.clean_up(DanceResult(motion=bench_feet.load(f, SK), model="x", seed=0)) for f in files}
