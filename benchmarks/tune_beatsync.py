@@ -7,7 +7,7 @@ Arguments: model (an embedded model: its checkpoint's stages are applied as the 
 excepted), split (val / test / song), a JSON object ``name -> beat_warp keyword arguments`` (``max_rate_change``,
 ``pair_rate_change``, ``max_shift``, ``smooth``; ``null`` for the warp off), optionally ``--stage``: the variants
 are ignored and the dances go through ``stages.finish`` as the pipeline runs it (the checkpoint's ``"beat_sync"``
-entry read), next to beat sync off. Dances: ``runs/feet_raw/<model>/<split>/`` of ``benchmarks/feet_dances.py``.
+entry read), next to beat sync off; ``--per-song``: also BAS, hit rate and jerk per song. Dances: ``runs/feet_raw/<model>/<split>/`` of ``benchmarks/feet_dances.py``.
 Per variant: BAS, beat hit rate, kinematic beats per music beat, the share of kinematic beats matched by the warp,
 mean jerk, foot skating, FID_k / FID_g against the training dances; and for the unwarped dances where their
 kinematic beats lie (the diagnosis). Choose settings on ``val`` only.
@@ -51,6 +51,7 @@ def where_beats(kin: np.ndarray, music: np.ndarray) -> dict[str, float]:
 def main() -> None:
     model, split = sys.argv[1], sys.argv[2]
     use_stage = "--stage" in sys.argv
+    per_song = "--per-song" in sys.argv
     variants = {"stage": "stage"} if use_stage else json.loads(sys.argv[3])
     data = PreparedData("data/tang2018")
     files = sorted(Path(f"runs/feet_raw/{model}/{split}").glob("*__*.npz"))
@@ -74,7 +75,7 @@ def main() -> None:
     rows_out = {}
     for name, v in ({"off": None} | variants).items():
         t1 = time.process_time()
-        rows, pos, matched = [], [], []
+        rows, pos, matched, songs = [], [], [], []
         for f, res in pre.items():
             song = f.stem.rsplit("__", 1)[0]
             b = beats[song]
@@ -92,6 +93,7 @@ def main() -> None:
             row = bench_stages.dance_row(res.motion, None)
             bm = beat_metrics(p, b.times, fps=FPS, skeleton=SK)
             row.update(bas=bm["bas_bailando"], hit_rate=bm["beat_hit_rate"], coverage=bm["beat_coverage"])
+            songs.append(song)
             rows.append(row)
             pos.append(p)
         m = bench_stages.mean_rows(rows)
@@ -102,6 +104,10 @@ def main() -> None:
         print(f"{name:28s} BAS {out['bas']:.3f} hit {out['hit']:.3f} kin/music {out['coverage']:.2f} "
               f"matched {out['matched']:.2f} jerk {out['jerk']:.2f} skate {out['skating']:.4f} "
               f"FID_k {out['fid_k']:.2f} FID_g {out['fid_g']:.2f} cpu {time.process_time() - t1:.0f}s", flush=True)
+        if per_song:
+            for song in dict.fromkeys(songs):
+                ms = bench_stages.mean_rows([r for r, s in zip(rows, songs, strict=True) if s == song])
+                print(f"    {song:26s} BAS {ms['bas']:.3f} hit {ms['hit_rate']:.3f} jerk {ms['jerk']:.2f}", flush=True)
     off = rows_out["off"]
     for name, out in rows_out.items():
         if name != "off":

@@ -346,8 +346,8 @@ def _beat_checkpoint(tmp_path, entry):
 
 def test_the_beat_sync_stage_reads_its_settings_from_the_checkpoint(tmp_path):
     """A checkpoint's ``"beat_sync"`` entry reaches the warp: with candidates at most 1 ms from a beat no
-    movement beat is paired and the dance is left as it was, where the defaults warp it; no embedded model
-    carries an entry (none qualified on validation, docs/STAGES.md)."""
+    movement beat is paired and the dance is left as it was, where the defaults warp it. Revolution and
+    the style classifier carry no entry; dual and music2dance do (test below)."""
     from pathlib import Path
 
     from dancekit.audio import save_wav
@@ -366,7 +366,7 @@ def test_the_beat_sync_stage_reads_its_settings_from_the_checkpoint(tmp_path):
     assert "not beat-synced: no movement beat" in kept.summary()
     np.testing.assert_array_equal(kept.motion.positions, result.motion.positions)
     folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
-    for name in ("revolution", "music2dance", "dual", "style"):
+    for name in ("revolution", "style"):
         assert stages.beat_sync_options(str(folder / name)) == {}
     assert stages.beat_sync_options(None) == {} and stages.beat_sync_options("/somewhere/else") == {}
 
@@ -381,3 +381,18 @@ def test_a_bad_beat_sync_entry_is_a_checkpoint_error(tmp_path, entry):
 
     with pytest.raises(CheckpointError, match="config.json.*beat_sync"):
         stages.beat_sync_options(_beat_checkpoint(tmp_path, entry))
+
+
+@pytest.mark.parametrize("name", ["dual", "music2dance"])
+def test_the_embedded_dual_and_music2dance_beat_sync_entries_are_read(name):
+    """The embedded dual and music2dance carry a ``"beat_sync"`` entry (chosen on validation, docs/STAGES.md):
+    it is read from the folder the loaded pipeline stamps on its dances (what ``stages.beat_sync`` reads), its
+    rates are in (0, 1) with the pair bound at most the speed bound, and it widens the default ±15 % bound."""
+    from dancekit.motion import timewarp
+    from dancekit.pipelines import load_pipeline, stages
+
+    spec = stages.beat_sync_options(load_pipeline(name).folder)
+    assert set(spec) <= set(stages.BEAT_SYNC_KEYS) and {"max_rate_change", "pair_rate_change"} <= set(spec)
+    assert 0 < spec["pair_rate_change"] <= spec["max_rate_change"] < 1
+    assert spec["max_rate_change"] > timewarp.DEFAULT_MAX_RATE_CHANGE
+    assert spec.get("between_tolerance", 0.0) >= 0

@@ -385,10 +385,9 @@ BEAT_SYNC_KEYS = ("max_rate_change", "pair_rate_change", "max_shift", "between_t
 def beat_sync_options(model: str | os.PathLike | None) -> dict[str, float]:
     """The :func:`~dancekit.motion.timewarp.beat_warp` settings a model's checkpoint folder carries in its
     ``config.json`` (``"beat_sync": {"max_rate_change": f, "pair_rate_change": f, "max_shift": s,
-    "between_tolerance": s, "smooth_s": s}``, any of them, :data:`BEAT_SYNC_KEYS`). No embedded model carries
-    one (docs/STAGES.md: none of the validation grid's settings met the rule): ``{}``, the defaults (speed
-    change ±15 %, ±13 % between matched beats, 0.6 s), for a folder without the entry or that is not a
-    checkpoint. A rate outside (0, 1), a ``pair_rate_change`` above the ``max_rate_change`` (either side from
+    "between_tolerance": s, "smooth_s": s}``, any of them, :data:`BEAT_SYNC_KEYS`). The embedded dual
+    and music2dance carry one (±30 % and ±35 %, docs/STAGES.md); ``{}``, the defaults (speed change ±15 %,
+    ±13 % between matched beats, 0.6 s), for a folder without the entry or that is not a checkpoint. A rate outside (0, 1), a ``pair_rate_change`` above the ``max_rate_change`` (either side from
     the defaults when absent), a ``max_shift`` or ``smooth_s`` that is not positive or a negative
     ``between_tolerance`` is a :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
     from dancekit.motion import timewarp as tw
