@@ -60,6 +60,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--seed-list", type=int, nargs="+", default=None,
+                    help="dance these seeds (default: 0 .. SEEDS-1); the first is the one the between-song distance uses")
     ap.add_argument("--split", default="val")
     ap.add_argument("-o", "--out", required=True)
     ap.add_argument("--clip", type=float, default=None, help="dance only the first CLIP seconds (openings)")
@@ -81,6 +83,7 @@ def main() -> None:
         pipe.genre_models = {}
     out = Path(args.out)
     rows = []
+    seed_list = list(range(args.seeds)) if args.seed_list is None else args.seed_list
     draws = [None] if args.genre_draw is None else args.genre_draw
     for spec, draw_spec in [(g, d) for g in args.grid for d in draws]:
         phrase_s, a, sigma, tau, style, share = ([float(v) for v in spec.split(":")] + [0.0] * 3)[:6]
@@ -95,13 +98,13 @@ def main() -> None:
             ref = data.audio(name)
             end = ref.end if args.clip is None else (ref.start or 0.0) + args.clip
             if draw_spec is None:
-                results = dance_batch(pipe, ref.path, seeds=range(args.seeds), start=ref.start, end=end,
+                results = dance_batch(pipe, ref.path, seeds=seed_list, start=ref.start, end=end,
                                       variety=variety, stages=args.stages == "on")
             else:
                 g_tau, g_alone, g_s0 = ([float(v) for v in draw_spec.split(":")] + [0.0])[:3]
                 pipe.variety, pipe.genre_draw = variety, GenreDraw(temperature=g_tau, alone=g_alone,
                                                                    seed0=bool(g_s0))
-                results = pipe.dances(ref.path, seeds=list(range(args.seeds)), start=ref.start, end=end,
+                results = pipe.dances(ref.path, seeds=seed_list, start=ref.start, end=end,
                                       beat_sync=args.stages == "on", cleanup=args.stages == "on")
                 drawn[name] = [r.genre or "alone" for r in results]
             for k, res in enumerate(results):
