@@ -7,7 +7,7 @@ seed-to-seed distance.
 
 Left: multimodality (style features) against FID_k of every setting tried on the validation songs
 (``benchmarks/tune_variety.py`` rows, ``phrase_s:state_noise:latent_noise:dance_latent``; red: the chosen
-one), with the +10 % FID_k line of the no-variety setting ``0:0:0`` (dashed) and its multimodality ×3
+one), with the +10 % FID_k line of the no-variety setting ``0:0:0`` (or ``--base SPEC``; dashed) and its multimodality ×3
 (dotted). Right: per second, the mean per-frame distance between two seeds' dances of a song
 (``seed_distance.seed_cm`` of each ``dancekit evaluate`` report, solid) and half the distance between two
 songs' dances (thin), one colour per report.
@@ -62,6 +62,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--rows", nargs="+", required=True)
     ap.add_argument("--chosen", default=None)
+    ap.add_argument("--base", default="0:0:0", help="the row whose FID_k +10 %% and multimodality x3 are drawn")
     ap.add_argument("--report", action="append", default=[], help="LABEL=report.json")
     ap.add_argument("--fid-max", type=float, default=130.0, help="right end of the FID_k axis (beyond: clipped)")
     ap.add_argument("--right-title", default="test songs, 5 seeds: two seeds (thick) vs half of two songs (thin)")
@@ -77,7 +78,7 @@ def main() -> None:
     mm_max = max(50.0, max(r["style_multimodality"] for r in rows.values()) * 1.1)
     to_px = _axes(draw, 0, "validation songs, 5 seeds, stages on: settings tried", "FID_k",
                   "multimodality", (30.0, args.fid_max), (0.0, mm_max))
-    base = rows.get("0:0:0")
+    base = rows.get(args.base)
     if base is not None:
         _dashed(draw, to_px(1.1 * base["fid_k"], 0), to_px(1.1 * base["fid_k"], mm_max), (120, 120, 120))
         _dashed(draw, to_px(30, 3 * base["style_multimodality"]), to_px(args.fid_max, 3 * base["style_multimodality"]),

@@ -8,6 +8,11 @@ one batch (one generator per row: the same draws as one call per seed), and the 
     PYTHONPATH=src python benchmarks/tune_variety.py --data data/tang2018 --seeds 5 -o runs/tune_variety \\
         --grid "2:0.5:0" "4:1:0" "3:0:0.5" ...      # phrase_s:state_noise:latent_noise[:dance_latent[:style[:share]]]
 
+``--genre-draw "τ:w[:s0]" ...`` (issue 15, third attempt) lets the seed draw the genre model (the checkpoint's
+``"sampling"`` keys ``genre_temperature`` τ, ``genre_alone`` w, ``genre_draw_seed0`` s0 ∈ {0, 1}): every grid
+setting is then danced once per draw setting through ``pipe.dances`` (what ``dancekit evaluate`` calls), and the
+row records the genre each seed danced.
+
 ``--model FOLDER`` tunes another checkpoint than the embedded default (e.g. a fine-tuned candidate with a style
 latent, ``style_dim > 0``: the 5th and 6th grid fields are the style temperature and its per-dance share).
 """
@@ -29,6 +34,7 @@ from dancekit.motion import write_motion
 from dancekit.motion.representations import decode_motion
 from dancekit.pipelines import load_pipeline
 from dancekit.pipelines.base import DanceResult, clean_motion
+from dancekit.pipelines.revolution import GenreDraw
 from dancekit.pipelines.stages import finish
 
 
@@ -54,6 +60,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--seed-list", type=int, nargs="+", default=None,
+                    help="dance these seeds (default: 0 .. SEEDS-1); the first is the one the between-song distance uses")
     ap.add_argument("--split", default="val")
     ap.add_argument("-o", "--out", required=True)
     ap.add_argument("--clip", type=float, default=None, help="dance only the first CLIP seconds (openings)")
@@ -63,6 +71,8 @@ def main() -> None:
                     help="off: the model's raw dances (no clean-up, smoothing, foot lock, beat sync)")
     ap.add_argument("--genre-models", choices=("on", "off"), default="on",
                     help="off: the model itself dances every song (not its genre models)")
+    ap.add_argument("--genre-draw", nargs="+", default=None,
+                    help="τ:w[:s0] genre draws (genre_temperature, genre_alone, genre_draw_seed0); danced by pipe.dances")
     ap.add_argument("--model", default=None, help="checkpoint folder or embedded name (default: the default model)")
     args = ap.parse_args()
     if args.split == "test":
@@ -73,18 +83,31 @@ def main() -> None:
         pipe.genre_models = {}
     out = Path(args.out)
     rows = []
-    for spec in args.grid:
+    seed_list = list(range(args.seeds)) if args.seed_list is None else args.seed_list
+    draws = [None] if args.genre_draw is None else args.genre_draw
+    for spec, draw_spec in [(g, d) for g in args.grid for d in draws]:
         phrase_s, a, sigma, tau, style, share = ([float(v) for v in spec.split(":")] + [0.0] * 3)[:6]
         variety = SeedVariety(phrase=int(round(phrase_s * pipe.fps)), state_noise=a, latent_noise=sigma,
                               dance_latent=tau, style=style, style_share=share)
-        pred = out / spec.replace(":", "_") / "pred"
+        label = spec if draw_spec is None else f"{spec}_g{draw_spec}"
+        pred = out / label.replace(":", "_") / "pred"
         pred.mkdir(parents=True, exist_ok=True)
+        drawn: dict[str, list] = {}
         t0 = time.perf_counter()
         for name in data.names(args.split):
             ref = data.audio(name)
             end = ref.end if args.clip is None else (ref.start or 0.0) + args.clip
-            for k, res in enumerate(dance_batch(pipe, ref.path, seeds=range(args.seeds), start=ref.start,
-                                                end=end, variety=variety, stages=args.stages == "on")):
+            if draw_spec is None:
+                results = dance_batch(pipe, ref.path, seeds=seed_list, start=ref.start, end=end,
+                                      variety=variety, stages=args.stages == "on")
+            else:
+                g_tau, g_alone, g_s0 = ([float(v) for v in draw_spec.split(":")] + [0.0])[:3]
+                pipe.variety, pipe.genre_draw = variety, GenreDraw(temperature=g_tau, alone=g_alone,
+                                                                   seed0=bool(g_s0))
+                results = pipe.dances(ref.path, seeds=seed_list, start=ref.start, end=end,
+                                      beat_sync=args.stages == "on", cleanup=args.stages == "on")
+                drawn[name] = [r.genre or "alone" for r in results]
+            for k, res in enumerate(results):
                 write_motion(pred / f"{name}{SAMPLE_SEP}{k}.npz", res.motion)
         gen_s = time.perf_counter() - t0
         rep = evaluate_dirs(pred, args.data, data=args.data, split=args.split)
@@ -92,7 +115,7 @@ def main() -> None:
         sd = rep["seed_distance"]
         n = min(len(sd["seed_cm"]), len(sd["song_cm"]))
         ratio = np.asarray(sd["seed_cm"][:n]) / np.maximum(np.asarray(sd["song_cm"][:n]), 1e-9)
-        row = {"spec": spec, "model": args.model or "default", "stages": args.stages, "genre_models": args.genre_models, "fid_k": rep["metrics"]["fid_k"] if "metrics" in rep else rep.get("fid_k"),
+        row = {"spec": label, "genres_danced": drawn, "model": args.model or "default", "stages": args.stages, "genre_models": args.genre_models, "fid_k": rep["metrics"]["fid_k"] if "metrics" in rep else rep.get("fid_k"),
                "gen_s": round(gen_s, 1)}
         flat = rep.get("metrics", rep)
         for key in ("fid_k", "fid_g", "style_multimodality", "style_diversity", "style_fid", "style_acc",

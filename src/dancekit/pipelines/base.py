@@ -44,6 +44,9 @@ class DanceResult:
     looks_like_music : False when ``beat_strength`` is below :data:`dancekit.features.MUSIC_BEAT_STRENGTH`
         (silence, noise, speech, a bird or a whale): the input was danced calmly (:func:`calm_motion`)
         and no genre was read from it
+    genre_drawn_p : the probability with which the seed drew ``genre`` (or the model alone, ``genre`` None)
+        from the music's genre posterior (:class:`~dancekit.pipelines.revolution.GenreDraw`); None: not
+        drawn (the most likely genre, the genre asked for, or no genre)
     notes : what the pipeline stages did (:mod:`dancekit.pipelines.stages`), e.g. ``"beat-synced (52 of
         109 beats at 129 BPM)"`` or why the dance was left unwarped; part of :meth:`summary`
     """
@@ -58,6 +61,7 @@ class DanceResult:
     beat_strength: float | None = None
     looks_like_music: bool = True
     notes: list[str] = field(default_factory=list)
+    genre_drawn_p: float | None = None
 
     @property
     def genre_source(self) -> str | None:
@@ -73,7 +77,10 @@ class DanceResult:
         from dancekit.features import MUSIC_BEAT_STRENGTH
 
         parts = []
-        if self.genre is not None and self.genre_source == "music":
+        if self.genre_drawn_p is not None:
+            what = f"as {self.genre}" if self.genre is not None else "by the model alone"
+            parts.append(f"{what} (drawn by seed {self.seed}, p = {self.genre_drawn_p:.2f})")
+        elif self.genre is not None and self.genre_source == "music":
             parts.append(f"as {self.genre} (read from the music, p = {self.genre_probs[self.genre]:.2f})")
         elif self.genre is not None:
             parts.append(f"as {self.genre}")

@@ -17,11 +17,21 @@ With ``genre="auto"`` (the default) the genre is read from the music when the fo
 music attribute classifier (``"components": {"genre_reader": "music_attributes"}``, the classifier of
 Music2Dance): the song is danced by the genre model of the genre the classifier finds. Without one, or
 with ``genre="none"``, the model itself dances from the music alone.
+
+The dance type is a latent the music does not fully determine (a waltz song can be danced as a rumba), so
+the checkpoint may let the *seed* draw it (:class:`GenreDraw`, ``"sampling": {"genre_temperature": τ,
+"genre_alone": w, "genre_draw_seed0": false}``): with ``genre="auto"`` every seed but 0 (seed 0 keeps the most
+likely genre unless ``genre_draw_seed0``) draws the genre model from the classifier's posterior sharpened or
+softened by τ, ``q_g ∝ p_g^(1/τ)``, with the model alone as one more option of weight w. The draw depends on
+the seed and the song's posterior only (:func:`draw_genre`), so it is the same in a batch and alone; the
+result says what was drawn (:meth:`DanceResult.summary`: ``"as rumba (drawn by seed 3, p = 0.31)"``).
+``genre="waltz"`` still forces the waltz model, and ``genre="none"`` the model alone.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -81,6 +91,9 @@ class RevolutionPipeline:
         #: checkpoint's ``"sampling": {"phrase_s": s, "state_noise": a, "latent_noise": σ, "dance_latent": τ}``; none: the paper's
         #: decoding (the seed draws the initial decoder state only). Genre models dance with their parent's.
         self.variety = variety_from_meta(meta, self.fps, folder=str(folder))
+        #: how the seed draws the genre model for ``genre="auto"`` (:class:`GenreDraw`, from the checkpoint's
+        #: ``"sampling"`` entry; none: every seed dances the most likely genre)
+        self.genre_draw = genre_draw_from_meta(meta, folder=str(folder))
         self.genre_models = dict(genre_models or {})  # genre → checkpoint folder, loaded on first use
         self._genre_pipelines: dict[str, RevolutionPipeline] = {}
         self.genre_reader = genre_reader  # reads the genre from the music for genre="auto" (or None)
@@ -239,30 +252,41 @@ class RevolutionPipeline:
                                     start=start, end=end).beat_strength
         music = not strength < MUSIC_BEAT_STRENGTH  # NaN (not measured): as music
         probs: dict[str, float] = {}
+        # per seed: (genre danced or None for the model alone, the probability it was drawn with or None)
+        choices: list[tuple[str | None, float | None]]
         if requested == "auto" and music:  # no genre is read from what is not music
             probs = self.read_genre(audio_path, start=start, end=end)
-            genre = max(probs, key=probs.get) if probs else None
-        genre_index = self._genre_index(genre)
-        genre = None if genre_index is None else genre
-        vary = self.variety if variety else SeedVariety()
-        if genre is not None and self.genre_models:
-            motions = self.genre_pipeline(genre).generate_many(audio_path, seeds=seeds, start=start, end=end,
-                                                               progress=progress, postprocess=postprocess,
-                                                               variety=vary)
-            danced_by = str(self.genre_models[genre])
+            choices = [draw_genre(probs, seed=s, draw=self.genre_draw) for s in seeds]
         else:
-            motions = self.generate_many(audio_path, seeds=seeds, start=start, end=end, progress=progress,
-                                         postprocess=postprocess, genre_index=genre_index, variety=vary)
-            danced_by = self.folder
+            choices = [(genre, None)] * len(seeds)
+        choices = [(None if self._genre_index(g) is None else g, p) for g, p in choices]
+        vary = self.variety if variety else SeedVariety()
+        motions: list[Motion | None] = [None] * len(seeds)
+        danced_by: dict[str | None, str] = {}
+        for genre_k in dict.fromkeys(g for g, _ in choices):  # one batch per genre danced, in order of first use
+            rows = [i for i, (g, _) in enumerate(choices) if g == genre_k]
+            batch = [seeds[i] for i in rows]
+            if genre_k is not None and self.genre_models:
+                done = self.genre_pipeline(genre_k).generate_many(audio_path, seeds=batch, start=start, end=end,
+                                                                  progress=progress, postprocess=postprocess,
+                                                                  variety=vary)
+                danced_by[genre_k] = str(self.genre_models[genre_k])
+            else:
+                done = self.generate_many(audio_path, seeds=batch, start=start, end=end, progress=progress,
+                                          postprocess=postprocess, genre_index=self._genre_index(genre_k),
+                                          variety=vary)
+                danced_by[genre_k] = self.folder
+            for i, motion in zip(rows, done):
+                motions[i] = motion
         beats = song_beats_for(audio_path, start=start, end=end) if beat_sync and music else None
         results = []
-        for seed, motion in zip(seeds, motions):
+        for seed, motion, (genre_k, drawn_p) in zip(seeds, motions, choices):
             if not music and self.representation == "positions3d":
                 motion = calm_motion(motion)
                 motion = clean_motion(motion) if postprocess else motion
             result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
-                                 genre=genre, genre_probs=probs, danced_by=danced_by, beat_strength=float(strength),
-                                 looks_like_music=music)
+                                 genre=genre_k, genre_probs=probs, danced_by=danced_by[genre_k],
+                                 beat_strength=float(strength), looks_like_music=music, genre_drawn_p=drawn_p)
             results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
                                   cleanup_on=cleanup, beats=beats))
         return results
@@ -360,5 +384,99 @@ def variety_from_meta(meta: dict[str, Any], fps: float, *, folder: str = "?") ->
                            dance_latent=float(spec.get("dance_latent", 0.0)),
                            style=float(spec.get("style", 0.0)),
                            style_share=float(spec.get("style_share", 0.0)))
+    except (TypeError, ValueError, ParameterError) as exc:
+        raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None
+
+
+@dataclass(frozen=True)
+class GenreDraw:
+    """How the seed draws the genre model for ``genre="auto"`` (inference only; issue 15).
+
+    * ``temperature`` τ ≥ 0: seed k draws genre g with probability ``q_g ∝ p_g^(1/τ)`` from the music attribute
+      classifier's posterior p (τ = 1: the posterior itself; τ < 1 sharper; τ > 1 flatter; τ = 0: no draw,
+      the most likely genre, as without a draw — also the limit τ → 0).
+    * ``alone`` w ∈ [0, 1): the model alone (no genre model) is one more option with probability w (the
+      genres share 1 − w).
+    * ``seed0``: False — seed 0 dances the most likely genre (so the default dance is the most likely one);
+      True — seed 0 draws too.
+
+    ``GenreDraw()`` (all off) is the dance of every seed by the most likely genre's model.
+    """
+
+    temperature: float = 0.0
+    alone: float = 0.0
+    seed0: bool = False
+
+    def __post_init__(self):
+        if not (np.isfinite(self.temperature) and self.temperature >= 0):
+            raise ParameterError(f"genre_temperature must be a finite number ≥ 0, got {self.temperature!r}")
+        if not (np.isfinite(self.alone) and 0 <= self.alone < 1):
+            raise ParameterError(f"genre_alone must be in [0, 1), got {self.alone!r}")
+        if not isinstance(self.seed0, bool):
+            raise ParameterError(f"genre_draw_seed0 must be true or false, got {self.seed0!r}")
+
+    @property
+    def active(self) -> bool:
+        return self.temperature > 0 or self.alone > 0
+
+
+#: mixed into the seed of the genre draw's generator, so that it is a stream of its own (not the decoder's)
+GENRE_DRAW_STREAM = 0x67656E72  # "genr"
+
+
+def genre_options(probs: dict[str, float], draw: GenreDraw) -> dict[str | None, float]:
+    """The options a seed draws from: genre → q_g (``q ∝ p^(1/τ)``, times 1 − w) and None (the model alone) → w;
+    with τ = 0 the most likely genre carries all of 1 − w. The probabilities sum to 1."""
+    names = list(probs)
+    p = np.array([probs[g] for g in names], np.float64)
+    if draw.temperature > 0:
+        with np.errstate(divide="ignore"):
+            logq = np.log(np.maximum(p, 0.0)) / draw.temperature
+        q = np.exp(logq - logq.max())
+    else:
+        q = np.zeros(len(names))
+        q[names.index(max(probs, key=probs.get))] = 1.0
+    q = q / q.sum() * (1.0 - draw.alone)
+    options: dict[str | None, float] = {g: float(v) for g, v in zip(names, q)}
+    if draw.alone > 0:
+        options[None] = float(draw.alone)
+    return options
+
+
+def draw_genre(probs: dict[str, float], *, seed: int, draw: GenreDraw) -> tuple[str | None, float | None]:
+    """The genre seed ``seed`` dances for a song whose genre posterior is ``probs`` (genre → p, from
+    :meth:`RevolutionPipeline.read_genre`): ``(genre, q)`` with genre None for the model alone and q the
+    probability the draw gave it, or ``(most likely genre, None)`` when nothing is drawn (no ``draw``, seed 0
+    without ``draw.seed0``). No posterior: ``(None, None)``.
+
+    Deterministic per (posterior, seed): one uniform number from a generator seeded by (stream, seed) alone,
+    inverted through the options' cumulative probabilities (:func:`genre_options`, in the posterior's genre
+    order, the model alone last)."""
+    if not probs:
+        return None, None
+    best = max(probs, key=probs.get)
+    if not draw.active or (seed == 0 and not draw.seed0):
+        return best, None
+    options = genre_options(probs, draw)
+    u = np.random.default_rng([GENRE_DRAW_STREAM, int(seed) % (1 << 64)]).random()
+    cdf = np.cumsum(list(options.values()))
+    k = int(np.searchsorted(cdf, u * cdf[-1], side="right"))
+    keys = list(options)
+    k = min(k, len(keys) - 1)
+    while options[keys[k]] <= 0:  # never an option of probability 0 (u on an edge of the cumulative sum)
+        k -= 1
+    return keys[k], options[keys[k]]
+
+
+def genre_draw_from_meta(meta: dict[str, Any], *, folder: str = "?") -> GenreDraw:
+    """The checkpoint's genre draw: ``meta["sampling"]`` with ``genre_temperature`` τ, ``genre_alone`` w and
+    ``genre_draw_seed0``; none of them: no draw (``GenreDraw()``)."""
+    spec = meta.get("sampling") or {}
+    if not isinstance(spec, dict):
+        raise CheckpointError(f"checkpoint {folder}: config.json 'sampling' must be an object, got {spec!r}")
+    try:
+        return GenreDraw(temperature=float(spec.get("genre_temperature", 0.0)),
+                         alone=float(spec.get("genre_alone", 0.0)),
+                         seed0=spec.get("genre_draw_seed0", False))
     except (TypeError, ValueError, ParameterError) as exc:
         raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None

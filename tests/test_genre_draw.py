@@ -1,0 +1,169 @@
+"""The seed draws the genre model for ``genre="auto"`` (issue 15, third attempt): :class:`GenreDraw`,
+:func:`draw_genre` and :meth:`RevolutionPipeline.dances` with a draw (deterministic per seed, a batch equals
+one call per seed, τ → 0 is the most likely genre bit-identically, a forced genre is not drawn)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+
+from dancekit.audio import save_wav
+from dancekit.audio.synth import ode_to_joy
+from dancekit.checkpoints import declare_components, read_config, save_pretrained
+from dancekit.errors import CheckpointError, ParameterError
+from dancekit.models.revolution import RevolutionConfig, RevolutionModel
+from dancekit.motion import get_skeleton
+from dancekit.pipelines.revolution import GenreDraw, RevolutionPipeline, draw_genre, genre_draw_from_meta
+
+PROBS = {"waltz": 0.6, "rumba": 0.3, "chacha": 0.1}
+
+
+def frequencies(probs, draw, n=4000):
+    counts: dict = {}
+    for seed in range(1, n + 1):
+        g, _ = draw_genre(probs, seed=seed, draw=draw)
+        counts[g] = counts.get(g, 0) + 1
+    return {g: c / n for g, c in counts.items()}
+
+
+def test_the_draw_follows_the_tempered_posterior():
+    # τ = 0.5 squares the posterior: 0.36, 0.09, 0.01 of 0.46 (worked by hand)
+    f = frequencies(PROBS, GenreDraw(temperature=0.5))
+    for g, q in {"waltz": 0.36 / 0.46, "rumba": 0.09 / 0.46, "chacha": 0.01 / 0.46}.items():
+        assert f.get(g, 0.0) == pytest.approx(q, abs=0.025), (g, f)
+    # τ = 1: the posterior itself; w = 0.25: the model alone a quarter of the time, the genres share 0.75
+    f = frequencies(PROBS, GenreDraw(temperature=1.0, alone=0.25))
+    for g, q in {"waltz": 0.45, "rumba": 0.225, "chacha": 0.075, None: 0.25}.items():
+        assert f.get(g, 0.0) == pytest.approx(q, abs=0.025), (g, f)
+    # the probability reported with the draw is the option's
+    q = draw_genre(PROBS, seed=5, draw=GenreDraw(temperature=1.0, alone=0.25))[1]
+    assert min(abs(q - v) for v in (0.45, 0.225, 0.075, 0.25)) < 1e-12
+
+
+def test_the_draw_is_deterministic_per_seed_and_seed_0_keeps_the_most_likely_genre():
+    draw = GenreDraw(temperature=2.0)
+    assert [draw_genre(PROBS, seed=s, draw=draw) for s in range(50)] == \
+        [draw_genre(PROBS, seed=s, draw=draw) for s in range(50)]
+    assert len({draw_genre(PROBS, seed=s, draw=draw)[0] for s in range(1, 50)}) == 3
+    assert draw_genre(PROBS, seed=0, draw=draw) == ("waltz", None)
+    assert draw_genre(PROBS, seed=0, draw=GenreDraw(temperature=2.0, seed0=True))[1] is not None
+    assert draw_genre({}, seed=3, draw=draw) == (None, None)
+    assert draw_genre(PROBS, seed=-7, draw=draw) == draw_genre(PROBS, seed=-7, draw=draw)  # negative seeds too
+
+
+def test_a_vanishing_temperature_is_the_most_likely_genre():
+    for seed in range(1, 200):
+        assert draw_genre(PROBS, seed=seed, draw=GenreDraw(temperature=1e-6))[0] == "waltz"
+        assert draw_genre(PROBS, seed=seed, draw=GenreDraw())[0] == "waltz"
+
+
+def test_bad_settings_are_named_errors():
+    with pytest.raises(ParameterError, match="genre_temperature"):
+        GenreDraw(temperature=-1.0)
+    with pytest.raises(ParameterError, match="genre_alone"):
+        GenreDraw(alone=1.0)
+    assert genre_draw_from_meta({}) == GenreDraw()
+    assert genre_draw_from_meta({"sampling": {"phrase_s": 3.0, "genre_temperature": 2, "genre_alone": 0.1,
+                                              "genre_draw_seed0": True}}) == GenreDraw(2.0, 0.1, True)
+    for bad in ({"genre_temperature": "hot"}, {"genre_temperature": float("nan")}, {"genre_alone": 1.5},
+                {"genre_draw_seed0": "yes"}):
+        with pytest.raises(CheckpointError, match="ckpt: bad 'sampling' entry in config.json"):
+            genre_draw_from_meta({"sampling": bad}, folder="ckpt")
+
+
+# ---- the pipeline: tiny untrained models with two genre models ------------------------------------------------
+
+
+def tiny(seed: int) -> RevolutionModel:
+    torch.manual_seed(seed)
+    return RevolutionModel(RevolutionConfig(d_model=16, n_heads=2, d_ff=32, decoder_hidden=16))
+
+
+@pytest.fixture(scope="module")
+def parent(tmp_path_factory):
+    skel = get_skeleton("tang2018")
+    rest = np.zeros((skel.num_joints, 3))
+    for j in skel.topological_order:
+        if skel.parents[j] >= 0:
+            rest[j] = rest[skel.parents[j]] + skel.offsets[j]
+    stats = {"music_mean": np.zeros(438, np.float32), "music_std": np.ones(438, np.float32),
+             "dance_mean": np.concatenate([(rest - rest[skel.root]).ravel(), [0.0, 0.0, 95.0]]).astype(np.float32),
+             "dance_std": np.full(72, 5.0, np.float32)}
+    meta = {"fps": 25.0, "preset": "revolution", "representation": "positions3d", "hop_length": 512,
+            "skeleton": skel.to_dict(), "genres": ["waltz", "rumba", "chacha", "tango"]}
+    root = tmp_path_factory.mktemp("draw") / "parent"
+    model = tiny(0)
+    save_pretrained(root, model, model.config, stats=stats, extra=meta)
+    for k, g in enumerate(("waltz", "rumba")):
+        m = tiny(k + 1)
+        save_pretrained(root / "genres" / g, m, m.config, stats=stats, extra=meta)
+    declare_components(root, {"genres": {"waltz": "genres/waltz", "rumba": "genres/rumba"}})
+    return root
+
+
+@pytest.fixture(scope="module")
+def song(tmp_path_factory):
+    path = tmp_path_factory.mktemp("song") / "ode.wav"
+    save_wav(path, ode_to_joy(sr=22050, bpm=120)[: 3 * 22050], sr=22050)
+    return path
+
+
+def pipeline(parent, monkeypatch, draw: GenreDraw) -> RevolutionPipeline:
+    pipe = RevolutionPipeline.from_pretrained(parent)
+    pipe.genre_draw = draw
+    # the classifier's reading (a tiny folder has none): a song between waltz and rumba
+    monkeypatch.setattr(pipe, "read_genre", lambda *a, **k: {"waltz": 0.55, "rumba": 0.45})
+    return pipe
+
+
+SEEDS = [0, 1, 2, 3, 4, 5, 6, 7]
+
+
+def test_a_batch_of_seeds_equals_one_call_per_seed_and_says_what_was_drawn(parent, song, monkeypatch):
+    pipe = pipeline(parent, monkeypatch, GenreDraw(temperature=1.0, alone=0.2))
+    batch = pipe.dances(song, seeds=SEEDS, end=2.0)
+    danced = [r.genre for r in batch]
+    assert len(set(danced)) >= 2, danced  # the seeds dance different genre models
+    assert danced[0] == "waltz" and batch[0].genre_drawn_p is None  # seed 0: the most likely genre
+    for seed, res in zip(SEEDS, batch):
+        alone = pipe(song, seed=seed, end=2.0)
+        assert (alone.genre, alone.genre_drawn_p, alone.danced_by) == (res.genre, res.genre_drawn_p, res.danced_by)
+        np.testing.assert_allclose(res.motion.to_positions(), alone.motion.to_positions(), atol=1e-3)
+        if seed:
+            what = f"as {res.genre}" if res.genre else "by the model alone"
+            assert res.summary().startswith(f"{what} (drawn by seed {seed}, p = {res.genre_drawn_p:.2f})")
+        if res.genre is not None:  # the drawn genre's own model danced it
+            forced = pipe(song, seed=seed, end=2.0, genre=res.genre)
+            np.testing.assert_allclose(res.motion.to_positions(), forced.motion.to_positions(), atol=1e-3)
+
+
+def test_a_vanishing_temperature_is_todays_dance_bit_for_bit(parent, song, monkeypatch):
+    today = pipeline(parent, monkeypatch, GenreDraw()).dances(song, seeds=SEEDS, end=2.0)
+    cold = pipeline(parent, monkeypatch, GenreDraw(temperature=1e-6)).dances(song, seeds=SEEDS, end=2.0)
+    for a, b in zip(today, cold):
+        assert a.genre == b.genre == "waltz"
+        np.testing.assert_array_equal(a.motion.to_positions(), b.motion.to_positions())
+
+
+def test_a_forced_genre_is_not_drawn(parent, song, monkeypatch):
+    pipe = pipeline(parent, monkeypatch, GenreDraw(temperature=5.0, alone=0.5))
+    for res in pipe.dances(song, seeds=SEEDS, end=2.0, genre="rumba"):
+        assert res.genre == "rumba" and res.genre_drawn_p is None
+    assert all(r.genre is None for r in pipe.dances(song, seeds=SEEDS, end=2.0, genre="none"))
+
+
+def test_the_checkpoint_entry_is_read_and_a_bad_one_refused(parent, tmp_path):
+    folder = tmp_path / "p"
+    shutil.copytree(parent, folder)
+    meta = read_config(folder)
+    meta["sampling"] = {"genre_temperature": 1.5, "genre_alone": 0.1}
+    (folder / "config.json").write_text(json.dumps(meta))
+    assert RevolutionPipeline.from_pretrained(folder).genre_draw == GenreDraw(1.5, 0.1)
+    meta["sampling"] = {"genre_temperature": -2}
+    (folder / "config.json").write_text(json.dumps(meta))
+    with pytest.raises(CheckpointError, match="config.json.*genre_temperature"):
+        RevolutionPipeline.from_pretrained(folder)
