@@ -239,3 +239,50 @@ def test_a_calmed_dance_of_an_input_that_is_not_music_stays_calm():
     motion = _swing(0.1)
     res = dataclasses.replace(_result(motion), looks_like_music=False)
     assert stages.lift_energy(res, floor=3 * _energy(motion)) is res
+
+
+def test_a_dual_checkpoint_with_a_genre_reader_reads_the_genre_for_the_energy_floor(tmp_path):
+    """A dual checkpoint that declares a ``"genre_reader"`` component and a genre-table energy entry gets the
+    music's genre probabilities on its results (the model itself has no genre input); without the entry the
+    reader is not run; an unknown component is a CheckpointError."""
+    import shutil
+    from pathlib import Path
+
+    import torch
+
+    from dancekit.audio import save_wav
+    from dancekit.audio.synth import ode_to_joy
+    from dancekit.checkpoints import save_pretrained
+    from dancekit.errors import CheckpointError
+    from dancekit.models.dual import DualConfig, DualModel
+    from dancekit.pipelines import stages
+    from dancekit.pipelines.dual import DualPipeline
+
+    sk = get_skeleton("tang2018")
+    cfg = DualConfig(music_dim=53, music_raw_from=40, pose_dim=171, window=10, m2d_d_model=16, m2d_layers=1,
+                     m2d_heads=2, m2d_ff=16, d2m_d_model=16, d2m_layers=1, d2m_heads=2, d2m_ff=16)
+    torch.manual_seed(0)
+    stats = {"music_mean": np.zeros(53, np.float32), "music_std": np.ones(53, np.float32),
+             "dance_mean": np.zeros(171, np.float32), "dance_std": np.ones(171, np.float32)}
+    folder = tmp_path / "dual"
+    save_pretrained(folder, DualModel(cfg), cfg, stats=stats, extra={
+        "representation": "rot6d", "preset": "dual", "fps": 25.0, "hop_length": 512, "skeleton": sk.to_dict()})
+    models = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+    shutil.copytree(models / "music2dance" / "music_attributes", folder / "music_attributes")
+    meta = json.loads((folder / "config.json").read_text())
+    song = tmp_path / "ode.wav"
+    save_wav(song, ode_to_joy(sr=22050, bpm=120)[: 4 * 22050], sr=22050)
+
+    (folder / "config.json").write_text(json.dumps({**meta, "components": {"genre_reader": "music_attributes"}}))
+    pipe = DualPipeline.from_pretrained(folder)
+    assert pipe.genre_reader is not None
+    assert pipe(song, seed=0, beat_sync=False).genre_probs == {}  # no energy entry: the reader is not run
+    entry = {"fraction": 0.6, "genre_energy": {"waltz": 0.44, "rumba": 0.59, "chacha": 0.79, "tango": 0.91}}
+    (folder / "config.json").write_text(json.dumps({**meta, "components": {"genre_reader": "music_attributes"},
+                                                    "energy": entry}))
+    result = DualPipeline.from_pretrained(folder)(song, seed=0, beat_sync=False)
+    assert set(result.genre_probs) == {"waltz", "rumba", "chacha", "tango"}
+    assert sum(result.genre_probs.values()) == pytest.approx(1.0, abs=1e-5) and result.genre is None
+    (folder / "config.json").write_text(json.dumps({**meta, "components": {"style": "music_attributes"}}))
+    with pytest.raises(CheckpointError, match="unknown components"):
+        DualPipeline.from_pretrained(folder)
