@@ -7,7 +7,8 @@ the chosen entry scored on the test songs and the songs of ``../shared/music``, 
 
 Each setting runs the default stages on every cached dance of the split, as ``stages.finish`` does (clean-up,
 smoothing, the energy lift with the setting given here instead of the checkpoint's entry — ``null``: none —,
-the checkpoint's foot lock and settle, beat sync), with the embedded model's folder as the result's model so
+the checkpoint's foot lock and settle, beat sync; a ``"settle"`` key in a setting, e.g. ``{"settle":
+{"ratio_target": 0.07}}``, replaces the checkpoint's settle entry), with the embedded model's folder as the result's model so
 its other entries apply. Per setting: per song (seeds averaged) smoothed energy, jitter (speed residual) and
 their ratios to the song's real dance (``--split song``: the real test dances' mean), stillness; over all
 dances planted share, skating, jerk, floor, BAS / hit rate, the gains, and with ``--fid`` FID_k / FID_g
@@ -53,11 +54,14 @@ def finish(motion, model: str, audio, beats, energy: dict | None, probs: dict[st
     res = stages.clean_up(res)
     res = stages.smooth(res)
     before = res.motion
-    if energy is not None:
+    energy = dict(energy or {})
+    settle = energy.pop("settle", None)  # a "settle" entry in the setting replaces the checkpoint's
+    if energy:
         res = stages.lift_energy(res, **energy)
     gain = next((float(n.split("gain ")[1].split()[0]) for n in res.notes if n.startswith("energy lifted")), 1.0)
     res = stages.foot_lock(res)
-    res = stages.settle(res, **stages.settle_options(res.model))
+    res = stages.settle(res, **(stages.settle_options(res.model) if settle is None else
+                                {("cutoff" if k == "cutoff_hz" else k): v for k, v in settle.items()}))
     if beats is not None:
         res = stages.beat_sync(res, audio[0], start=audio[1], end=audio[2], beats=beats)
     return res.motion, gain, before

@@ -286,3 +286,69 @@ def test_a_dual_checkpoint_with_a_genre_reader_reads_the_genre_for_the_energy_fl
     (folder / "config.json").write_text(json.dumps({**meta, "components": {"style": "music_attributes"}}))
     with pytest.raises(CheckpointError, match="unknown components"):
         DualPipeline.from_pretrained(folder)
+
+
+def _jitter_ratio(motion: Motion) -> float:
+    from dancekit.metrics import jitter
+
+    p = np.asarray(motion.to_positions(), np.float64)
+    return jitter(p, fps=motion.fps, skeleton=motion.skeleton)["speed_residual"] / smoothed_energy(
+        p, fps=motion.fps, skeleton=motion.skeleton)
+
+
+def test_a_per_dance_settle_filters_only_a_jittery_dance_down_to_its_target():
+    from dancekit.pipelines import stages
+
+    calm = _swing(0.3)
+    calm = Motion(skeleton=calm.skeleton, fps=FPS, positions=calm.positions)
+    res = _result(calm)
+    r0 = _jitter_ratio(calm)
+    assert r0 < 0.1
+    assert stages.settle(res, ratio_target=1.05 * r0) is res  # already under the target: left alone
+    # frame-to-frame noise on every joint's rotation (bone lengths stay fixed, as a model's dance's do)
+    swing = _swing(0.3)
+    noise = rotation_exp(np.random.default_rng(2).normal(scale=0.03, size=swing.rotations.shape[:2] + (3,)))
+    noisy = Motion(skeleton=swing.skeleton, fps=FPS, rotations=(swing.rotations @ noise).astype(np.float32),
+                   root_translation=swing.root_translation)
+    noisy = Motion(skeleton=swing.skeleton, fps=FPS, positions=noisy.to_positions())
+    assert _jitter_ratio(noisy) > 1.0
+    light = _jitter_ratio(stages.settle(_result(noisy), ratio_target=0.3).motion)
+    strong = _jitter_ratio(stages.settle(_result(noisy), ratio_target=0.2).motion)
+    # the metrics' own ratio: at the target (the bones restored after), and a lower target filters harder
+    assert 0.2 < light <= 0.3 * 1.05 and strong <= 0.2 * 1.05 and strong < 0.8 * light
+
+
+@pytest.mark.parametrize("entry", [{"ratio_target": 0.0}, {"ratio_target": -0.1}, {"cutoff_hz": -1.0},
+                                   {"cutoff_hz": 3.0, "ratio_target": 0.07}, {"ratio_target": "low"}])
+def test_a_bad_settle_entry_is_a_checkpoint_error(tmp_path, entry):
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines import stages
+
+    folder = tmp_path / "m"
+    folder.mkdir()
+    (folder / "config.json").write_text(json.dumps({"model": "music2dance", "settle": entry}))
+    with pytest.raises(CheckpointError, match="config.json.*'settle'"):
+        stages.settle_options(str(folder))
+    (folder / "config.json").write_text(json.dumps({"model": "music2dance", "settle": {"ratio_target": 0.07}}))
+    assert stages.settle_options(str(folder)) == {"ratio_target": 0.07}
+
+
+
+def test_a_long_dance_is_lifted_piece_by_piece_with_the_numbers_of_one_pass(monkeypatch):
+    """Over :data:`dancekit.motion.footlock.CHUNK` frames the positions path works piece by piece (margins over
+    the filters' reach): the same dance as one pass, and the same energy as the metrics'."""
+    from dancekit.motion import energy as en
+    from dancekit.motion import footlock
+
+    swing = _swing(0.2, seconds=400.0)  # 10,000 frames: three pieces
+    p = np.asarray(swing.positions)
+    sk = swing.skeleton
+    assert en.smoothed_energy(p, skeleton=sk, fps=FPS) == pytest.approx(
+        smoothed_energy(p.astype(np.float64), fps=FPS, skeleton=sk), rel=1e-9)
+    floor = 1.4 * smoothed_energy(p.astype(np.float64), fps=FPS, skeleton=sk)
+    pieces, gain = en.lift_positions(p, skeleton=sk, fps=FPS, floor=floor, max_gain=3.0)
+    monkeypatch.setattr(footlock, "CHUNK", 100_000)
+    whole, gain1 = en.lift_positions(p, skeleton=sk, fps=FPS, floor=floor, max_gain=3.0)
+    assert gain == pytest.approx(gain1, rel=1e-6) and gain > 1.3
+    np.testing.assert_allclose(pieces, whole, atol=1e-3)  # cm
+    assert smoothed_energy(pieces.astype(np.float64), fps=FPS, skeleton=sk) == pytest.approx(floor, rel=0.01)

@@ -53,17 +53,32 @@ ENERGY_FRAMES = 5
 def smoothed_energy(positions: np.ndarray, *, skeleton: Skeleton, fps: float) -> float:
     """Mean body-relative joint speed (m/s) after a :data:`ENERGY_FRAMES`-frame centred moving average of the
     positions (edge frames repeated; speeds by central differences): the number
-    :func:`dancekit.metrics.smoothed_energy` gives, computed here without importing the metrics."""
+    :func:`dancekit.metrics.smoothed_energy` gives, computed here without importing the metrics, piece by
+    piece (:func:`dancekit.motion.footlock.chunks`, a 3-frame margin: the same sums)."""
+    from dancekit.motion.footlock import chunks
+
+    p = np.asarray(positions)
+    if len(p) < 2:
+        return 0.0
+    return _chunked_energy(lambda a, b: np.asarray(p[a:b], np.float64), len(p), skeleton=skeleton, fps=fps,
+                           chunks=chunks)
+
+
+def _chunked_energy(rows: Callable[[int, int], np.ndarray], n: int, *, skeleton: Skeleton, fps: float,
+                    chunks) -> float:
+    """:func:`smoothed_energy` of the dance whose frames ``[a, b)`` ``rows(a, b)`` gives (float64 (b - a, J, 3)),
+    ``n`` frames, piece by piece."""
     from dancekit.motion._filters import uniform_filter1d
 
-    p = np.asarray(positions, np.float64)
-    b = p - p[:, skeleton.root: skeleton.root + 1]
-    if len(b) < 2:
-        return 0.0
-    # the metrics' moving average puts (w - 1) // 2 frames before; uniform_filter1d puts w // 2 (the same for odd w)
-    s = uniform_filter1d(b, ENERGY_FRAMES, axis=0)
-    v = np.gradient(s, axis=0) * float(fps)
-    return float(np.linalg.norm(v, axis=-1).mean() * skeleton.unit_scale)
+    total, m = 0.0, ENERGY_FRAMES // 2 + 1
+    for a, b in chunks(n):
+        lo, hi = max(0, a - m), min(n, b + m)
+        x = rows(lo, hi)
+        x = x - x[:, skeleton.root: skeleton.root + 1]
+        # the metrics' moving average puts (w - 1) // 2 frames before; uniform_filter1d w // 2 (equal for odd w)
+        v = np.gradient(uniform_filter1d(x, ENERGY_FRAMES, axis=0), axis=0)[a - lo: b - lo]
+        total += float(np.linalg.norm(v, axis=-1).sum())
+    return total / (n * skeleton.num_joints) * float(fps) * skeleton.unit_scale
 
 
 def rotation_log(r: np.ndarray) -> np.ndarray:
@@ -160,32 +175,52 @@ def lift_positions(positions: np.ndarray, *, skeleton: Skeleton, fps: float, flo
     The body-relative positions (every joint minus the root of the frame) are split into their
     ``mean_s``-second moving mean and the deviation from it; the deviation's ``band_hz`` low band is scaled by
     the gain (:func:`energy_gain`), the root kept where it was, and each frame's bone lengths restored (bone
-    directions from the lifted dance, parents first). Returns ``(positions float64 (T, J, 3), gain)``; gain 1
-    returns the input unchanged (as float64)."""
-    from dancekit.motion._filters import uniform_filter1d
+    directions from the lifted dance, parents first). Piece by piece (:func:`dancekit.motion.footlock.chunks`,
+    with margins over the filters' reach: the same numbers as one pass), so an hour-long dance needs two float32
+    copies of itself (the low band and the result), not float64 ones. Returns ``(positions float32 (T, J, 3),
+    gain)``; gain 1: ``(positions, 1.0)``, the input itself."""
+    from dancekit.motion._filters import lowpass_kernel, uniform_filter1d
+    from dancekit.motion.footlock import chunks, lowpass_rows
 
     _check(mean_s, band_hz, fps)
-    p = np.asarray(positions, np.float64)
+    p = np.asarray(positions)
+    n = len(p)
     e = smoothed_energy(p, skeleton=skeleton, fps=fps)
-    if not e < floor or len(p) < 3:
-        return p.copy(), 1.0
-    root = p[:, skeleton.root: skeleton.root + 1]
-    b = p - root
+    if not e < floor or n < 3:
+        return p, 1.0
     size = max(1, int(round(mean_s * fps)))
-    dev = b - uniform_filter1d(b, size, axis=0)
-    low = _split(dev, fps=fps, mean_s=mean_s, band_hz=band_hz)
-    high = dev - low
-    if not legs:  # the legs (hips down) where they were relative to the root
-        kept = leg_joints(skeleton)
-        low[:, kept] = 0.0
-        high[:, kept] = 0.0
+    h = lowpass_kernel(band_hz, fps=fps)
+    margin = size // 2 + len(h) // 2 + 2
+    kept = [] if legs else leg_joints(skeleton)
+    low = np.empty(p.shape, np.float32)  # the deviation's low band, body-relative (the root's row is 0)
+    high = np.empty(p.shape, np.float32) if damp else None
+    for a, b in chunks(n):
+        lo, hi = max(0, a - margin), min(n, b + margin)
+        x = np.asarray(p[lo:hi], np.float64)
+        x -= x[:, skeleton.root: skeleton.root + 1]
+        dev = x - uniform_filter1d(x, size, axis=0)
+        band = lowpass_rows(dev, h, a - lo, b - lo)  # odd reflection only at the song's own ends
+        band[:, kept] = 0.0  # the legs (hips down) where they were relative to the root
+        low[a:b] = band
+        if high is not None:
+            rest = dev[a - lo: b - lo] - band
+            rest[:, kept] = 0.0
+            high[a:b] = rest
 
-    def lifted(g: float) -> np.ndarray:
-        return _bones(b + (g - 1.0) * low + (g ** -damp - 1.0) * high + root, p, skeleton)
+    def rows(g: float, a: int, b: int) -> np.ndarray:
+        q = np.asarray(p[a:b], np.float64) + (g - 1.0) * low[a:b]
+        if high is not None:
+            q += (g ** -damp - 1.0) * high[a:b]
+        return _bones(q, np.asarray(p[a:b], np.float64), skeleton)
 
-    gain = energy_gain(lambda g: smoothed_energy(lifted(g), skeleton=skeleton, fps=fps), energy=e, floor=floor,
-                       max_gain=max_gain)
-    return (lifted(gain), gain) if gain > 1.0 else (p.copy(), 1.0)
+    gain = energy_gain(lambda g: _chunked_energy(lambda a, b: rows(g, a, b), n, skeleton=skeleton, fps=fps,
+                                                 chunks=chunks), energy=e, floor=floor, max_gain=max_gain)
+    if not gain > 1.0:
+        return p, 1.0
+    out = np.empty(p.shape, np.float32)
+    for a, b in chunks(n):
+        out[a:b] = rows(gain, a, b)
+    return out, gain
 
 
 def leg_joints(skeleton: Skeleton) -> list[int]:

@@ -295,7 +295,8 @@ def foot_lock(result: DanceResult) -> DanceResult:
     return dataclasses.replace(result, motion=out)
 
 
-def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = True) -> DanceResult:
+def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = True,
+           ratio_target: float | None = None) -> DanceResult:
     """The result with a light zero-phase low-pass (:func:`dancekit.motion._filters.lowpass_kernel` at
     ``cutoff`` Hz, default :data:`SETTLE_HZ`; ``0``: off) on every joint's position, run after the foot lock:
     the lock's stop-and-go (a foot handed over between holds, the knee solved frame by frame) is softened,
@@ -303,12 +304,20 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     hold's first and last few frames are eased). Each frame's bone lengths are kept (bone directions from the
     filtered dance, parents first), piece by piece (:func:`dancekit.motion.footlock.chunks`); a motion with
     rotations has its rotations and root translation filtered instead (re-orthonormalised, whole-song, as
-    :func:`smooth` does) and its positions recomputed from them, so a held foot moves a little there."""
+    :func:`smooth` does) and its positions recomputed from them, so a held foot moves a little there.
+    ``ratio_target`` (and no ``cutoff``): the cut-off is chosen per dance, the highest of
+    :data:`dancekit.motion.footlock.CUTOFFS_HZ` that brings the dance's jitter-to-energy ratio to the target
+    (:func:`dancekit.motion.footlock.lowpass_cutoff`); a dance already at or under it is left alone."""
     from dancekit.motion._filters import lowpass_kernel
     from dancekit.motion.footlock import chunks, lowpass_rows
 
-    cutoff = SETTLE_HZ if cutoff is None else float(cutoff)
     motion = result.motion
+    if ratio_target is not None and cutoff is None and _is_3d(motion):  # per dance: only a jittery one
+        from dancekit.motion.footlock import lowpass_cutoff
+
+        cutoff = lowpass_cutoff(motion.to_positions(), skeleton=motion.skeleton, fps=motion.fps,
+                                target=float(ratio_target))
+    cutoff = SETTLE_HZ if cutoff is None else float(cutoff)
     if not cutoff or not _is_3d(motion):
         return result
     sk, fps = motion.skeleton, motion.fps
@@ -335,12 +344,20 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
 
 def settle_options(model: str | os.PathLike | None) -> dict[str, float]:
     """The :func:`settle` settings a model's checkpoint folder carries in its ``config.json`` (``"settle":
-    {"cutoff_hz": hz}``), chosen on the validation songs (docs/STAGES.md): the embedded Dance Revolution's
-    dances take a 3-Hz low-pass after the lock; the embedded music2dance's geometric FID rises with any
-    (+3-28 % on validation), so it has none. ``{}`` (no low-pass, :data:`SETTLE_HZ`) for a folder without
-    the entry or that is not a checkpoint."""
-    spec = _stage_entry(model, "settle", {"cutoff_hz"})
-    return {"cutoff": spec["cutoff_hz"]} if "cutoff_hz" in spec else {}
+    {"cutoff_hz": hz}`` or ``{"ratio_target": r}``, the cut-off chosen per dance), chosen on the validation
+    songs (docs/STAGES.md): the embedded Dance Revolution's dances take a 3-Hz low-pass after the lock; the
+    embedded music2dance's geometric FID rises with any fixed one (+3-28 % on validation). ``{}`` (no
+    low-pass, :data:`SETTLE_HZ`) for a folder without the entry or that is not a checkpoint. A negative or
+    non-finite cut-off, a non-positive ratio or both keys is a :class:`~dancekit.errors.CheckpointError`
+    naming the ``config.json``."""
+    spec = _stage_entry(model, "settle", {"cutoff_hz", "ratio_target"})
+    bad = [k for k, v in spec.items() if not (np.isfinite(v) and (v > 0 or (k == "cutoff_hz" and v == 0)))]
+    bad += ["both cutoff_hz and ratio_target"] if len(spec) > 1 else []
+    if bad:
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'settle' takes a cutoff_hz "
+                              f"(Hz, 0: none) or a positive ratio_target, not both; got {bad[0]} in {spec!r}")
+    out = {"cutoff": spec["cutoff_hz"]} if "cutoff_hz" in spec else {}
+    return {**out, "ratio_target": spec["ratio_target"]} if "ratio_target" in spec else out
 
 
 #: The keys a checkpoint's ``"foot_lock"`` entry may carry (:func:`foot_lock_options`): the shortest hold (s),
@@ -544,7 +561,7 @@ def lift_energy(result: DanceResult, *, floor: float | None = None, fraction: fl
         tr = tr.copy()
         tr[:, sk.up_index] -= offset
         rot, tr = rot.astype(motion.rotations.dtype), tr.astype(np.float32)
-    lifted = Motion(skeleton=sk, fps=fps, positions=p.astype(np.float32), rotations=rot, root_translation=tr)
+    lifted = Motion(skeleton=sk, fps=fps, positions=np.asarray(p, np.float32), rotations=rot, root_translation=tr)
     return _with_note(dataclasses.replace(result, motion=lifted), f"energy lifted (gain {gain:.2f} to {floor:.2f} m/s)")
 
 
