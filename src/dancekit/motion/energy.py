@@ -24,8 +24,9 @@ quiet passage stays quieter than a loud one. The root translation is not touched
 clean-up's), nor are the bone lengths (rotations: positions by forward kinematics; positions: each frame's
 bone lengths restored, bone directions from the lifted dance).
 
-All functions are pure NumPy on float64 copies: positions ``(T, J, 3)`` in skeleton units, rotations
-``(T, J_rig, 3, 3)`` local, ``fps`` frames per second.
+All functions are pure NumPy (float64 arithmetic; the positions path piece by piece, keeping float32 copies):
+positions ``(T, J, 3)`` in skeleton units, rotations ``(T, J_rig, 3, 3)`` local, ``fps`` frames per second,
+energies in m/s.
 """
 
 from __future__ import annotations
@@ -37,8 +38,8 @@ import numpy as np
 from dancekit.errors import ParameterError
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["DEFAULT_BAND_HZ", "DEFAULT_MAX_GAIN", "DEFAULT_MEAN_S", "ENERGY_FRAMES", "energy_gain",
-           "lift_positions", "lift_rotations", "rotation_exp", "rotation_log", "smoothed_energy"]
+__all__ = ["DEFAULT_BAND_HZ", "DEFAULT_MAX_GAIN", "DEFAULT_MEAN_S", "ENERGY_FRAMES", "energy_gain", "leg_joints",
+           "leg_rotations", "lift_positions", "lift_rotations", "rotation_exp", "rotation_log", "smoothed_energy"]
 
 #: The moving mean (s) the deviation is taken from.
 DEFAULT_MEAN_S = 1.5

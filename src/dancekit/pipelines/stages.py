@@ -591,12 +591,12 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
     a jittery dance is filtered), the energy lift the model's checkpoint asks for (:func:`lift_energy`,
     :func:`energy_options`: only a dance under its floor; after the smoothing, so the flicker it removed is
-    not measured as energy, and before the lock, so the lock holds the lifted feet), the foot lock (after the smoothing, so a pinned foot stays pinned) and,
-    with it, the light low-pass after the lock that the model's checkpoint asks for (:func:`settle`,
-    :func:`settle_options`: a held foot stays held), then the beat sync (so the speed minima it aligns are those of the final dance). ``foot_lock_on`` and
-    ``smooth_on`` and ``energy_on`` follow ``cleanup_on`` unless given. ``beats``: the song's
-    :class:`~dancekit.features.pulse.SongBeats` when already tracked (many dances of one song), else tracked
-    here when needed."""
+    not measured as energy), the foot lock (after the smoothing and the lift, so a pinned foot stays pinned)
+    and, with it, the light low-pass after the lock that the model's checkpoint asks for (:func:`settle`,
+    :func:`settle_options`: a held foot stays held), then the beat sync (so the speed minima it aligns are
+    those of the final dance). ``foot_lock_on``, ``smooth_on`` and ``energy_on`` follow ``cleanup_on`` unless
+    given. ``beats``: the song's :class:`~dancekit.features.pulse.SongBeats` when already tracked (many
+    dances of one song), else tracked here when needed."""
     if cleanup_on:
         result = clean_up(result)
     if cleanup_on if smooth_on is None else smooth_on:
