@@ -357,5 +357,7 @@ def test_the_embedded_default_model_dances_every_tang2018_genre_and_reads_it_fro
     probs = pipe.read_genre(song, end=2.0)
     assert set(probs) == set(pipe.genres) and sum(probs.values()) == pytest.approx(1.0)
     read = max(probs, key=probs.get)
-    np.testing.assert_array_equal(pipe(song, seed=0, end=2.0).motion.to_positions(),
-                                  pipe(song, seed=0, end=2.0, genre=read).motion.to_positions())
+    # (the model's own dances: the energy stage's floor differs by design, the mixture of the genres read
+    # for "auto", the one genre asked for by name)
+    np.testing.assert_array_equal(pipe(song, seed=0, end=2.0, cleanup=False).motion.to_positions(),
+                                  pipe(song, seed=0, end=2.0, genre=read, cleanup=False).motion.to_positions())

@@ -19,14 +19,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from dancekit.checkpoints import NormStats, load_pretrained, resolve_model
+from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
 from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, encode_motion
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
-from dancekit.pipelines.stages import finish, song_beats_for
+from dancekit.pipelines.stages import energy_options, finish, song_beats_for
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -51,8 +51,13 @@ def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, 
 class DualPipeline:
     """Music → dance with G_M→D: a song → :class:`~dancekit.pipelines.DanceResult`."""
 
-    def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?"):
+    def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
+                 genre_reader=None):
         self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
+        #: a :class:`~dancekit.pipelines.music_attributes.MusicAttributePipeline` (the checkpoint's
+        #: ``"genre_reader"`` component) or None: the model has no genre input, but the energy stage's floor
+        #: follows the genre the music calls for (``stages.energy_floor``)
+        self.genre_reader = genre_reader
         self.fps = float(meta["fps"])
         self.hop_length = int(meta.get("hop_length", 512))
         self.preset = str(meta.get("preset", "dual"))
@@ -67,7 +72,17 @@ class DualPipeline:
         ``"fp32"``, ``"bf16"`` or ``"int8"`` for G_M→D (:func:`dancekit.models.precision.to_precision`)."""
         check_precision(precision)
         model, meta, stats, folder = _load(folder, device)
-        pipe = cls(to_precision(model, precision), meta=meta, stats=stats, folder=str(folder))
+        parts = components(folder, meta)
+        unknown = sorted(set(parts) - {"genre_reader"})
+        if unknown:
+            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a dual-learning model "
+                                  "(it understands 'genre_reader')")
+        reader = None
+        if "genre_reader" in parts:
+            from dancekit.pipelines.music_attributes import MusicAttributePipeline
+
+            reader = MusicAttributePipeline.from_pretrained(parts["genre_reader"], device=device)
+        pipe = cls(to_precision(model, precision), meta=meta, stats=stats, folder=str(folder), genre_reader=reader)
         pipe.precision = precision
         return pipe
 
@@ -128,10 +143,13 @@ class DualPipeline:
         s = torch.stack([self.start_pose(start_pose, seed) for seed in seeds])  # (B, P)
         y = self.model.generate_dance(feats.expand(len(seeds), -1, -1), start=s).cpu().numpy()  # (B, T, P)
         results, beats = [], None
+        probs = {}  # the genres the music calls for, read only where the energy stage's floor needs them
+        if cleanup and self.genre_reader is not None and energy_options(self.folder).get("genre_energy"):
+            probs = self.genre_reader(audio_path, start=start, end=end)
         for k, seed in enumerate(seeds):
             motion = decode_motion(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
                                    self.skeleton, self.fps, "rot6d")
-            result = DanceResult(motion=motion, model=self.folder, seed=seed,
+            result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_probs=dict(probs),
                                  genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
             result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
                                        hop_length=self.hop_length, start=start, end=end)
@@ -186,8 +204,13 @@ class ComposeResult:
 class ComposePipeline:
     """Dance → music with G_D→M: a :class:`Motion` on the model's skeleton → :class:`ComposeResult`."""
 
-    def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?"):
+    def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
+                 genre_reader=None):
         self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
+        #: a :class:`~dancekit.pipelines.music_attributes.MusicAttributePipeline` (the checkpoint's
+        #: ``"genre_reader"`` component) or None: the model has no genre input, but the energy stage's floor
+        #: follows the genre the music calls for (``stages.energy_floor``)
+        self.genre_reader = genre_reader
         self.fps = float(meta["fps"])
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         # beat picking, the checkpoint's composing settings (chosen on the validation dances, docs/DUAL.md)

@@ -19,10 +19,14 @@ model's own output):
   (:func:`genre_smoothing_targets`: real cha-chas and tangos have 2-4x the high-frequency motion of waltzes).
 * **foot lock** (:func:`foot_lock`): planted feet held where they were planted, the legs solved by two-bone
   IK, the body lowered where a held foot is out of reach, blended in and out (:mod:`dancekit.motion.footlock`).
+* **energy** (:func:`lift_energy`): for a model whose checkpoint asks for it (an ``"energy"`` entry,
+  :func:`energy_options`), a dance whose smoothed energy is under the entry's floor (m/s) has the slow
+  band of its deviation from its moving-mean pose scaled up until it reaches it (:mod:`dancekit.motion.energy`:
+  one gain per dance, at most ``max_gain``; the flicker band untouched), then put back on the floor.
 * **settle** (:func:`settle`): for a model whose checkpoint asks for it, a light zero-phase windowed-sinc
   low-pass of the whole body after the lock (Dance Revolution: 3 Hz), softening the lock's stop and go.
 
-:func:`finish` runs them (clean-up, smoothing, foot lock, then the warp) and records what happened in
+:func:`finish` runs them (clean-up, smoothing, energy, foot lock, settle, then the warp) and records what happened in
 ``result.notes`` (the summary line).
 """
 
@@ -38,8 +42,8 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["BEAT_SYNC_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
-           "beat_sync", "beat_sync_options", "clean_up", "finish", "foot_lock", "foot_lock_options", "genre_smoothing_targets", "settle", "settle_options", "smooth",
+__all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
+           "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_smoothing_targets", "lift_energy", "settle", "settle_options", "smooth",
            "smoothing_target", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
@@ -291,7 +295,8 @@ def foot_lock(result: DanceResult) -> DanceResult:
     return dataclasses.replace(result, motion=out)
 
 
-def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = True) -> DanceResult:
+def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = True,
+           ratio_target: float | None = None) -> DanceResult:
     """The result with a light zero-phase low-pass (:func:`dancekit.motion._filters.lowpass_kernel` at
     ``cutoff`` Hz, default :data:`SETTLE_HZ`; ``0``: off) on every joint's position, run after the foot lock:
     the lock's stop-and-go (a foot handed over between holds, the knee solved frame by frame) is softened,
@@ -299,12 +304,20 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     hold's first and last few frames are eased). Each frame's bone lengths are kept (bone directions from the
     filtered dance, parents first), piece by piece (:func:`dancekit.motion.footlock.chunks`); a motion with
     rotations has its rotations and root translation filtered instead (re-orthonormalised, whole-song, as
-    :func:`smooth` does) and its positions recomputed from them, so a held foot moves a little there."""
+    :func:`smooth` does) and its positions recomputed from them, so a held foot moves a little there.
+    ``ratio_target`` (and no ``cutoff``): the cut-off is chosen per dance, the highest of
+    :data:`dancekit.motion.footlock.CUTOFFS_HZ` that brings the dance's jitter-to-energy ratio to the target
+    (:func:`dancekit.motion.footlock.lowpass_cutoff`); a dance already at or under it is left alone."""
     from dancekit.motion._filters import lowpass_kernel
     from dancekit.motion.footlock import chunks, lowpass_rows
 
-    cutoff = SETTLE_HZ if cutoff is None else float(cutoff)
     motion = result.motion
+    if ratio_target is not None and cutoff is None and _is_3d(motion):  # per dance: only a jittery one
+        from dancekit.motion.footlock import lowpass_cutoff
+
+        cutoff = lowpass_cutoff(motion.to_positions(), skeleton=motion.skeleton, fps=motion.fps,
+                                target=float(ratio_target))
+    cutoff = SETTLE_HZ if cutoff is None else float(cutoff)
     if not cutoff or not _is_3d(motion):
         return result
     sk, fps = motion.skeleton, motion.fps
@@ -331,12 +344,20 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
 
 def settle_options(model: str | os.PathLike | None) -> dict[str, float]:
     """The :func:`settle` settings a model's checkpoint folder carries in its ``config.json`` (``"settle":
-    {"cutoff_hz": hz}``), chosen on the validation songs (docs/STAGES.md): the embedded Dance Revolution's
-    dances take a 3-Hz low-pass after the lock; the embedded music2dance's geometric FID rises with any
-    (+3-28 % on validation), so it has none. ``{}`` (no low-pass, :data:`SETTLE_HZ`) for a folder without
-    the entry or that is not a checkpoint."""
-    spec = _stage_entry(model, "settle", {"cutoff_hz"})
-    return {"cutoff": spec["cutoff_hz"]} if "cutoff_hz" in spec else {}
+    {"cutoff_hz": hz}`` or ``{"ratio_target": r}``, the cut-off chosen per dance), chosen on the validation
+    songs (docs/STAGES.md): the embedded Dance Revolution's dances take a 3-Hz low-pass after the lock; the
+    embedded music2dance's geometric FID rises with any fixed one (+3-28 % on validation). ``{}`` (no
+    low-pass, :data:`SETTLE_HZ`) for a folder without the entry or that is not a checkpoint. A negative or
+    non-finite cut-off, a non-positive ratio or both keys is a :class:`~dancekit.errors.CheckpointError`
+    naming the ``config.json``."""
+    spec = _stage_entry(model, "settle", {"cutoff_hz", "ratio_target"})
+    bad = [k for k, v in spec.items() if not (np.isfinite(v) and (v > 0 or (k == "cutoff_hz" and v == 0)))]
+    bad += ["both cutoff_hz and ratio_target"] if len(spec) > 1 else []
+    if bad:
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'settle' takes a cutoff_hz "
+                              f"(Hz, 0: none) or a positive ratio_target, not both; got {bad[0]} in {spec!r}")
+    out = {"cutoff": spec["cutoff_hz"]} if "cutoff_hz" in spec else {}
+    return {**out, "ratio_target": spec["ratio_target"]} if "ratio_target" in spec else out
 
 
 #: The keys a checkpoint's ``"foot_lock"`` entry may carry (:func:`foot_lock_options`): the shortest hold (s),
@@ -406,6 +427,143 @@ def beat_sync_options(model: str | os.PathLike | None) -> dict[str, float]:
     return spec
 
 
+#: The keys a checkpoint's ``"energy"`` entry may carry (:func:`energy_options`): a fixed smoothed-energy
+#: ``floor`` (m/s), or a ``fraction`` of the real dances' smoothed energy per genre (``genre_energy``: {genre:
+#: m/s}, the genre read from the music; the fixed floor, when given too, applies where no genre is known), the
+#: largest gain ``max_gain`` (>= 1), the moving mean the deviation is taken from (``mean_s``, s) and the cut-off
+#: of the deviation's band that the gain scales (``band_hz``, Hz, below the motion's Nyquist frequency).
+#: :mod:`dancekit.motion.energy`.
+ENERGY_KEYS = ("floor", "fraction", "genre_energy", "max_gain", "mean_s", "band_hz", "damp", "root", "legs")
+
+
+def energy_options(model: str | os.PathLike | None) -> dict:
+    """The :func:`lift_energy` settings a model's checkpoint folder carries in its ``config.json`` (``"energy":
+    {"floor": m/s}`` or ``{"fraction": f, "genre_energy": {genre: m/s}}`` (or both), plus any of ``"max_gain":
+    g, "mean_s": s, "band_hz": hz``, defaults :mod:`dancekit.motion.energy`'s), chosen per model on the
+    validation songs (docs/STAGES.md). ``{}`` (no lift) for a folder without the entry or that is not a
+    checkpoint. An unknown key, a non-number, a non-positive ``floor``, ``fraction``, ``mean_s``, ``band_hz`` or
+    genre energy, a ``max_gain`` under 1, or neither a floor nor a fraction with genre energies is a
+    :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
+    from dancekit.checkpoints.hub import read_meta
+
+    if not model:
+        return {}
+    try:
+        spec = read_meta(model).get("energy") or {}
+    except (CheckpointError, OSError):
+        return {}
+    if not spec:
+        return {}
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+    table = spec.get("genre_energy", {}) if isinstance(spec, dict) else None
+    bad = [] if isinstance(spec, dict) else ["not a mapping"]
+    if not bad:
+        bad += [f"unknown key {k!r}" for k in sorted(set(spec) - set(ENERGY_KEYS))]
+        bad += [f"{k} not a positive number" for k in ("floor", "fraction", "mean_s", "band_hz")
+                if k in spec and not (number(spec[k]) and spec[k] > 0)]
+        bad += ["damp outside [0, 1]"] if "damp" in spec and not (number(spec["damp"]) and 0 <= spec["damp"] <= 1) \
+            else []
+        bad += [f"{k} not 0 or 1" for k in ("root", "legs") if k in spec and spec[k] not in (0, 1)]
+        bad += ["max_gain < 1"] if "max_gain" in spec and not (number(spec["max_gain"]) and spec["max_gain"] >= 1) \
+            else []
+        bad += [] if isinstance(table, dict) and all(number(v) and v > 0 for v in table.values()) \
+            else ["genre_energy not {genre: positive m/s}"]
+        bad += [] if "floor" in spec or ("fraction" in spec and table) else ["neither a floor nor a fraction with "
+                                                                               "genre_energy"]
+    if bad:
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'energy' takes a positive "
+                              f"floor (m/s) or fraction with genre_energy {{genre: m/s}}, max_gain >= 1 and positive "
+                              f"mean_s and band_hz; {bad[0]} in {spec!r}")
+    out = {k: float(v) for k, v in spec.items() if k != "genre_energy"}
+    if table:
+        out["genre_energy"] = {str(g): float(v) for g, v in table.items()}
+    return out
+
+
+def energy_floor(result: DanceResult, *, floor: float | None = None, fraction: float | None = None,
+                 genre_energy: dict[str, float] | None = None) -> float | None:
+    """The smoothed-energy floor (m/s) :func:`lift_energy` lifts ``result`` to: ``fraction`` × the genre's real
+    energy (``genre_energy``) weighted by the genre probabilities read from the music (``result.genre_probs``,
+    over the genres of the table, renormalised), or of the genre danced (``result.genre``) when none were read;
+    else ``floor``; None (no lift) when neither applies."""
+    if fraction is not None and genre_energy:
+        probs = {g: p for g, p in (result.genre_probs or {}).items() if g in genre_energy and p > 0}
+        if probs:
+            total = sum(probs.values())
+            return float(fraction * sum(p * genre_energy[g] for g, p in probs.items()) / total)
+        if result.genre in genre_energy:
+            return float(fraction * genre_energy[result.genre])
+    return None if floor is None else float(floor)
+
+
+def lift_energy(result: DanceResult, *, floor: float | None = None, fraction: float | None = None,
+                genre_energy: dict[str, float] | None = None, max_gain: float | None = None,
+                mean_s: float | None = None, band_hz: float | None = None, damp: float | None = None,
+                root: float | None = None, legs: float | None = None) -> DanceResult:
+    """The result with its motion lifted towards the floor of :func:`energy_floor` (``floor`` m/s, or
+    ``fraction`` of the real energy of the genres read from the music) of smoothed energy
+    (:mod:`dancekit.motion.energy`: the ``band_hz`` low band of each joint's deviation from its ``mean_s``
+    moving mean scaled by one gain per dance in ``[1, max_gain]``, the band above it by ``gain ** -damp``; the
+    root translation kept, bone lengths exact; ``root`` 0: the root's orientation not lifted (rotation
+    motions); ``legs`` 0: the legs not lifted), then the change the lift made to the clean-up's ground offset
+    (:func:`~dancekit.motion.cleanup.ground_offset`) taken off, so the lowest joint stays on the floor. No
+    floor (no ``"energy"`` entry in the checkpoint, :func:`energy_options`, or no genre known for a
+    genre-only entry), a 2D dance, a dance already at the floor or one calmed because its input does not look
+    like music (``result.looks_like_music`` False): the result itself, unchanged. A motion with
+    rotations has its local rotations lifted and its positions recomputed by forward kinematics. A note gives
+    the gain and the floor. A ``band_hz`` at or above half the frame rate is a
+    :class:`~dancekit.errors.CheckpointError` naming the model's ``config.json``."""
+    from dancekit.motion import energy as en
+    from dancekit.motion.analysis import up_sign
+    from dancekit.motion.cleanup import ground_offset
+
+    motion = result.motion
+    floor = energy_floor(result, floor=floor, fraction=fraction, genre_energy=genre_energy)
+    if floor is None or not _is_3d(motion) or not result.looks_like_music:  # a calmed non-music dance stays calm
+        return result
+    sk, fps = motion.skeleton, motion.fps
+    opts = {"max_gain": en.DEFAULT_MAX_GAIN if max_gain is None else float(max_gain),
+            "mean_s": en.DEFAULT_MEAN_S if mean_s is None else float(mean_s),
+            "band_hz": en.DEFAULT_BAND_HZ if band_hz is None else float(band_hz),
+            "damp": 0.0 if damp is None else float(damp)}
+    if not opts["band_hz"] < fps / 2:
+        raise CheckpointError(f"corrupt checkpoint file {Path(result.model) / 'config.json'}: 'energy' band_hz "
+                              f"must be below {fps / 2:g} Hz (half the {fps:g}-fps frame rate), got {opts['band_hz']}")
+    rot = tr = None
+    if motion.rotations is None:
+        p, gain = en.lift_positions(motion.to_positions(), skeleton=sk, fps=fps, floor=float(floor),
+                                    legs=legs is None or bool(legs), **opts)
+    else:
+        import torch
+
+        from dancekit.motion.kinematics import rig_forward_kinematics
+
+        tr = np.asarray(motion.root_translation, np.float64)
+
+        def fk(r: np.ndarray) -> np.ndarray:
+            return rig_forward_kinematics(torch.from_numpy(r), torch.from_numpy(tr), sk).numpy()
+
+        rot, gain = en.lift_rotations(motion.rotations, fk=fk, skeleton=sk, fps=fps, floor=float(floor),
+                                      root=root is None or bool(root), legs=legs is None or bool(legs), **opts)
+        p = fk(rot) if gain > 1.0 else None
+    if gain <= 1.0:
+        return result
+    # the lowest joint kept where it was relative to the floor: only the change the lift made to the
+    # clean-up's ground offset is taken off (a dance whose feet the lift did not move stays at its height)
+    offset = up_sign(sk) * (ground_offset(p, skeleton=sk, fps=fps)
+                            - ground_offset(motion.to_positions(), skeleton=sk, fps=fps))
+    p[..., sk.up_index] -= offset[:, None]
+    if rot is not None:
+        tr = tr.copy()
+        tr[:, sk.up_index] -= offset
+        rot, tr = rot.astype(motion.rotations.dtype), tr.astype(np.float32)
+    lifted = Motion(skeleton=sk, fps=fps, positions=np.asarray(p, np.float32), rotations=rot, root_translation=tr)
+    return _with_note(dataclasses.replace(result, motion=lifted), f"energy lifted (gain {gain:.2f} to {floor:.2f} m/s)")
+
+
 def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str]) -> dict[str, float]:
     """The checkpoint folder's ``config.json`` entry ``key`` (a dict of numbers whose keys are in
     ``allowed``); ``{}`` for no model, a folder without the entry, or one that is not a checkpoint. A
@@ -427,18 +585,23 @@ def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str]) -
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
            end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
-           foot_lock_on: bool | None = None, smooth_on: bool | None = None, beats=None) -> DanceResult:
+           foot_lock_on: bool | None = None, smooth_on: bool | None = None, energy_on: bool | None = None,
+           beats=None) -> DanceResult:
     """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
-    a jittery dance is filtered), the foot lock (after the smoothing, so a pinned foot stays pinned) and,
-    with it, the light low-pass after the lock that the model's checkpoint asks for (:func:`settle`,
-    :func:`settle_options`: a held foot stays held), then the beat sync (so the speed minima it aligns are those of the final dance). ``foot_lock_on`` and
-    ``smooth_on`` follow ``cleanup_on`` unless given. ``beats``: the song's
-    :class:`~dancekit.features.pulse.SongBeats` when already tracked (many dances of one song), else tracked
-    here when needed."""
+    a jittery dance is filtered), the energy lift the model's checkpoint asks for (:func:`lift_energy`,
+    :func:`energy_options`: only a dance under its floor; after the smoothing, so the flicker it removed is
+    not measured as energy), the foot lock (after the smoothing and the lift, so a pinned foot stays pinned)
+    and, with it, the light low-pass after the lock that the model's checkpoint asks for (:func:`settle`,
+    :func:`settle_options`: a held foot stays held), then the beat sync (so the speed minima it aligns are
+    those of the final dance). ``foot_lock_on``, ``smooth_on`` and ``energy_on`` follow ``cleanup_on`` unless
+    given. ``beats``: the song's :class:`~dancekit.features.pulse.SongBeats` when already tracked (many
+    dances of one song), else tracked here when needed."""
     if cleanup_on:
         result = clean_up(result)
     if cleanup_on if smooth_on is None else smooth_on:
         result = smooth(result)
+    if cleanup_on if energy_on is None else energy_on:
+        result = lift_energy(result, **energy_options(result.model))
     if cleanup_on if foot_lock_on is None else foot_lock_on:
         result = foot_lock(result)
         result = settle(result, **settle_options(result.model))

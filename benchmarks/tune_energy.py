@@ -1,0 +1,149 @@
+"""The energy stage (issues 14 and 15): its ``"energy"`` entry chosen per model on the validation songs, and
+the chosen entry scored on the test songs and the songs of ``../shared/music``, on cached raw dances of
+``benchmarks/feet_dances.py``.
+
+    PYTHONPATH=src:benchmarks python benchmarks/tune_energy.py dual val \
+        '{"none": null, "f0.45": {"floor": 0.45}, "f0.45 b2": {"floor": 0.45, "band_hz": 2.0}}' [--fid] [-o OUT.json]
+
+Each setting runs the default stages on every cached dance of the split, as ``stages.finish`` does (clean-up,
+smoothing, the energy lift with the setting given here instead of the checkpoint's entry — ``null``: none —,
+the checkpoint's foot lock and settle, beat sync; a ``"settle"`` key in a setting, e.g. ``{"settle":
+{"ratio_target": 0.07}}``, replaces the checkpoint's settle entry), with the embedded model's folder as the result's model so
+its other entries apply. Per setting: per song (seeds averaged) smoothed energy, jitter (speed residual) and
+their ratios to the song's real dance (``--split song``: the real test dances' mean), stillness; over all
+dances planted share, skating, jerk, floor, BAS / hit rate, the gains, and with ``--fid`` FID_k / FID_g
+against the training dances (10-s segments). Prints one block per setting.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import bench_feet  # benchmarks/ is on the path when run as a script
+import bench_stages
+import numpy as np
+
+from dancekit.data import PreparedData
+from dancekit.features import MUSIC_BEAT_STRENGTH
+from dancekit.metrics import smoothed_energy
+from dancekit.motion import get_skeleton
+from dancekit.pipelines import stages
+from dancekit.pipelines.base import DanceResult, song_feature_set
+from dancekit.pipelines.music_attributes import MusicAttributePipeline
+
+GENRES = {"W": "waltz", "R": "rumba", "C": "chacha", "T": "tango"}
+
+
+def genre_energy(data: PreparedData) -> dict[str, float]:
+    """Per genre, the median smoothed energy (m/s) of the real training dances (what a checkpoint's
+    ``"energy": {"genre_energy": ...}`` holds)."""
+    per: dict[str, list[float]] = {}
+    for n in data.names("train"):
+        m = data.motion(n)
+        per.setdefault(GENRES[n.split("_")[1]], []).append(
+            smoothed_energy(np.asarray(m.to_positions(), np.float64), fps=m.fps, skeleton=m.skeleton))
+    return {g: round(float(np.median(v)), 3) for g, v in per.items()}
+
+
+def finish(motion, model: str, audio, beats, energy: dict | None, probs: dict[str, float], music: bool = True):
+    res = DanceResult(motion=motion, model=bench_feet.model_folder(model), seed=0, genre_probs=probs,
+                      looks_like_music=bool(music))
+    res = stages.clean_up(res)
+    res = stages.smooth(res)
+    before = res.motion
+    energy = dict(energy or {})
+    settle = energy.pop("settle", None)  # a "settle" entry in the setting replaces the checkpoint's
+    if energy:
+        res = stages.lift_energy(res, **energy)
+    gain = next((float(n.split("gain ")[1].split()[0]) for n in res.notes if n.startswith("energy lifted")), 1.0)
+    res = stages.foot_lock(res)
+    res = stages.settle(res, **(stages.settle_options(res.model) if settle is None else
+                                {("cutoff" if k == "cutoff_hz" else k): v for k, v in settle.items()}))
+    if beats is not None:
+        res = stages.beat_sync(res, audio[0], start=audio[1], end=audio[2], beats=beats)
+    return res.motion, gain, before
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("model")
+    ap.add_argument("split", choices=("val", "test", "song"))
+    ap.add_argument("settings", help="JSON: name -> energy entry (or null)")
+    ap.add_argument("--data", default="data/tang2018")
+    ap.add_argument("--raw", default="runs/feet_raw")
+    ap.add_argument("--music", default="../shared/music")
+    ap.add_argument("--fid", action="store_true")
+    ap.add_argument("-o", "--out")
+    args = ap.parse_args()
+    data = PreparedData(args.data)
+    table = genre_energy(data)
+    print("genre energy (median of the real training dances, m/s):", json.dumps(table))
+    settings = json.loads(args.settings)
+    for entry in settings.values():
+        if entry and "fraction" in entry and "genre_energy" not in entry:
+            entry["genre_energy"] = table
+    sk = get_skeleton("tang2018")
+    fps = 25.0
+    real_split = "test" if args.split == "song" else args.split
+    real = {n: bench_feet.metrics(data.motion(n), np.asarray(data.features(n, "revolution")["beat_times"],
+                                                            np.float64), None) for n in data.names(real_split)}
+    real_mean = bench_feet.mean_rows(list(real.values()))
+    audio = bench_feet.song_audio(data, args.split, args.music)
+    beats = {k: stages.song_beats_for(a[0], start=a[1], end=a[2]) for k, a in audio.items()}
+    reader = MusicAttributePipeline.from_pretrained(bench_feet.model_folder("music2dance") + "/music_attributes")
+    probs = {k: reader(a[0], start=a[1], end=a[2]) for k, a in audio.items()}
+    music = {k: not song_feature_set(a[0], fps=fps, preset="dual", hop_length=512, start=a[1],
+                                     end=a[2]).beat_strength < MUSIC_BEAT_STRENGTH for k, a in audio.items()}
+    print("looks like music:", music)
+    files = sorted((Path(args.raw) / args.model / args.split).glob("*__*.npz"))
+    reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")] if args.fid else []
+    cache: dict = {}
+    report = {}
+    for name, entry in settings.items():
+        t0, c0 = time.perf_counter(), time.process_time()
+        rows, per_song, positions, gains = [], {}, [], []
+        for f in files:
+            song = f.stem.rsplit("__", 1)[0]
+            m, gain, _ = finish(bench_feet.load(f, sk), args.model, audio[song], beats[song], entry, probs[song],
+                                music[song])
+            r = bench_feet.metrics(m, beats[song].times, real.get(song, real_mean))
+            r["gain"] = gain
+            rows.append(r)
+            gains.append(gain)
+            per_song.setdefault(song, []).append(r)
+            positions.append(np.asarray(m.to_positions(), np.float64))
+        summary = bench_feet.mean_rows(rows)
+        if args.fid:
+            summary.update(bench_stages.fids(positions, reference, fps, sk, cache=cache))
+        summary["per_song"] = {s: bench_feet.mean_rows(v) for s, v in per_song.items()}
+        summary["seconds"], summary["cpu_seconds"] = time.perf_counter() - t0, time.process_time() - c0
+        report[name] = summary
+        ps = summary["per_song"]
+        print(f"== {args.model} {args.split} {name}: {json.dumps(entry)}  ({summary['seconds']:.0f} s, "
+              f"cpu {summary['cpu_seconds']:.0f} s)")
+        for s, v in ps.items():
+            fl = None if entry is None else stages.energy_floor(
+                DanceResult(motion=None, model="", seed=0, genre_probs=probs[s]),
+                **{k: entry[k] for k in ("floor", "fraction", "genre_energy") if k in entry})
+            v["floor_m_s"] = fl
+            print(f"   {s[:26]:26s} floor {fl or 0:.3f} energy {v['energy']:.3f} ({v['energy_ratio']:.3f}x) jitter {v['jitter']:.4f} "
+                  f"({v['jitter_ratio']:.3f}x) still {v['stillness']:.3f} gain {v['gain']:.2f} "
+                  f"planted {v['planted_foot_share']:.3f} skate {v['foot_skating']:.3f}")
+        print(f"   ALL energy min {min(v['energy_ratio'] for v in ps.values()):.3f} mean {summary['energy_ratio']:.3f} "
+              f"| jitter max {max(v['jitter_ratio'] for v in ps.values()):.3f} mean {summary['jitter_ratio']:.3f} | "
+              f"still max {max(v['stillness'] for v in ps.values()):.3f} | planted {summary['planted_foot_share']:.3f} "
+              f"skate {summary['foot_skating']:.3f} | jerk {summary['jerk']:.1f} | floor "
+              f"{summary['floor_median_cm']:.2f}/{summary['floor_within_2cm']:.2f} | BAS {summary['bas']:.3f} hit "
+              f"{summary['hit_rate']:.3f} | gain {min(gains):.2f}-{max(gains):.2f}"
+              + (f" | FID_k {summary['fid_k']:.2f} FID_g {summary['fid_g']:.2f}" if args.fid else ""), flush=True)
+    print(f"real {real_split}: planted {real_mean['planted_foot_share']:.3f} skate {real_mean['foot_skating']:.3f}")
+    if args.out:
+        Path(args.out).write_text(json.dumps({"real": real_mean, "settings": settings, "report": report}, indent=1,
+                                             default=float))
+
+
+if __name__ == "__main__":
+    main()
