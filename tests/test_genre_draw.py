@@ -232,7 +232,7 @@ def test_a_bad_min_ratio_is_a_named_error(parent, tmp_path):
     folder = tmp_path / "p"
     shutil.copytree(parent, folder)
     meta = read_config(folder)
-    for bad, says in ((1.2, "genre_min_ratio must be in"), ("most", "'most'")):
+    for bad, says in ((1.2, "genre_min_ratio must be in"), ("most", "genre_min_ratio must be a number, got 'most'")):
         meta["sampling"] = {"genre_temperature": 1.0, "genre_min_ratio": bad}
         (folder / "config.json").write_text(json.dumps(meta))
         with pytest.raises(CheckpointError, match=f"bad 'sampling' entry in config.json: .*{says}"):

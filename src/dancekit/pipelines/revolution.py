@@ -483,10 +483,14 @@ def genre_draw_from_meta(meta: dict[str, Any], *, folder: str = "?") -> GenreDra
     spec = meta.get("sampling") or {}
     if not isinstance(spec, dict):
         raise CheckpointError(f"checkpoint {folder}: config.json 'sampling' must be an object, got {spec!r}")
+    def number(key: str) -> float:
+        try:
+            return float(spec.get(key, 0.0))
+        except (TypeError, ValueError):
+            raise ParameterError(f"{key} must be a number, got {spec[key]!r}") from None
+
     try:
-        return GenreDraw(temperature=float(spec.get("genre_temperature", 0.0)),
-                         alone=float(spec.get("genre_alone", 0.0)),
-                         seed0=spec.get("genre_draw_seed0", False),
-                         min_ratio=float(spec.get("genre_min_ratio", 0.0)))
-    except (TypeError, ValueError, ParameterError) as exc:
+        return GenreDraw(temperature=number("genre_temperature"), alone=number("genre_alone"),
+                         seed0=spec.get("genre_draw_seed0", False), min_ratio=number("genre_min_ratio"))
+    except ParameterError as exc:
         raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None
