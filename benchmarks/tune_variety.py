@@ -8,8 +8,9 @@ one batch (one generator per row: the same draws as one call per seed), and the 
     PYTHONPATH=src python benchmarks/tune_variety.py --data data/tang2018 --seeds 5 -o runs/tune_variety \\
         --grid "2:0.5:0" "4:1:0" "3:0:0.5" ...      # phrase_s:state_noise:latent_noise[:dance_latent[:style[:share]]]
 
-``--genre-draw "τ:w[:s0]" ...`` (issue 15, third attempt) lets the seed draw the genre model (the checkpoint's
-``"sampling"`` keys ``genre_temperature`` τ, ``genre_alone`` w, ``genre_draw_seed0`` s0 ∈ {0, 1}): every grid
+``--genre-draw "τ:w[:s0[:ρ]]" ...`` (issue 15, third and fourth attempts) lets the seed draw the genre model (the
+checkpoint's ``"sampling"`` keys ``genre_temperature`` τ, ``genre_alone`` w, ``genre_draw_seed0`` s0 ∈ {0, 1},
+``genre_min_ratio`` ρ: only genres with p ≥ ρ · max p are drawn): every grid
 setting is then danced once per draw setting through ``pipe.dances`` (what ``dancekit evaluate`` calls), and the
 row records the genre each seed danced.
 
@@ -72,7 +73,8 @@ def main() -> None:
     ap.add_argument("--genre-models", choices=("on", "off"), default="on",
                     help="off: the model itself dances every song (not its genre models)")
     ap.add_argument("--genre-draw", nargs="+", default=None,
-                    help="τ:w[:s0] genre draws (genre_temperature, genre_alone, genre_draw_seed0); danced by pipe.dances")
+                    help="τ:w[:s0[:ρ]] genre draws (genre_temperature, genre_alone, genre_draw_seed0, "
+                         "genre_min_ratio); danced by pipe.dances")
     ap.add_argument("--model", default=None, help="checkpoint folder or embedded name (default: the default model)")
     args = ap.parse_args()
     if args.split == "test":
@@ -101,9 +103,9 @@ def main() -> None:
                 results = dance_batch(pipe, ref.path, seeds=seed_list, start=ref.start, end=end,
                                       variety=variety, stages=args.stages == "on")
             else:
-                g_tau, g_alone, g_s0 = ([float(v) for v in draw_spec.split(":")] + [0.0])[:3]
+                g_tau, g_alone, g_s0, g_rho = ([float(v) for v in draw_spec.split(":")] + [0.0, 0.0])[:4]
                 pipe.variety, pipe.genre_draw = variety, GenreDraw(temperature=g_tau, alone=g_alone,
-                                                                   seed0=bool(g_s0))
+                                                                   seed0=bool(g_s0), min_ratio=g_rho)
                 results = pipe.dances(ref.path, seeds=seed_list, start=ref.start, end=end,
                                       beat_sync=args.stages == "on", cleanup=args.stages == "on")
                 drawn[name] = [r.genre or "alone" for r in results]

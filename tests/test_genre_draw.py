@@ -1,6 +1,7 @@
 """The seed draws the genre model for ``genre="auto"`` (issue 15, third attempt): :class:`GenreDraw`,
 :func:`draw_genre` and :meth:`RevolutionPipeline.dances` with a draw (deterministic per seed, a batch equals
-one call per seed, τ → 0 is the most likely genre bit-identically, a forced genre is not drawn)."""
+one call per seed, τ → 0 is the most likely genre bit-identically, a forced genre is not drawn); the fourth
+attempt's ``genre_min_ratio`` ρ (only genres with p ≥ ρ · max p are drawn; ρ = 0 is the third attempt's draw)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,13 @@ from dancekit.checkpoints import declare_components, read_config, save_pretraine
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.revolution import RevolutionConfig, RevolutionModel
 from dancekit.motion import get_skeleton
-from dancekit.pipelines.revolution import GenreDraw, RevolutionPipeline, draw_genre, genre_draw_from_meta
+from dancekit.pipelines.revolution import (
+    GenreDraw,
+    RevolutionPipeline,
+    draw_genre,
+    genre_draw_from_meta,
+    genre_options,
+)
 
 PROBS = {"waltz": 0.6, "rumba": 0.3, "chacha": 0.1}
 
@@ -167,3 +174,78 @@ def test_the_checkpoint_entry_is_read_and_a_bad_one_refused(parent, tmp_path):
     (folder / "config.json").write_text(json.dumps(meta))
     with pytest.raises(CheckpointError, match="config.json.*genre_temperature"):
         RevolutionPipeline.from_pretrained(folder)
+
+
+# ---- the fourth attempt: only the song's plausible genres are drawn (``genre_min_ratio`` ρ) --------------------
+
+FOUR = {"waltz": 0.40, "rumba": 0.30, "chacha": 0.20, "tango": 0.10}
+
+
+def variety3_draw(probs, *, seed, temperature, alone):
+    """The third attempt's draw, written out again: q ∝ p^(1/τ) over every genre, times 1 − w, the model alone
+    last with w; one uniform number from the (stream, seed) generator, inverted through the cumulative sum."""
+    names = list(probs)
+    weights = [probs[g] ** (1.0 / temperature) for g in names]
+    q = [v / sum(weights) * (1.0 - alone) for v in weights] + ([alone] if alone > 0 else [])
+    keys = names + ([None] if alone > 0 else [])
+    u = np.random.default_rng([0x67656E72, seed]).random()
+    acc = 0.0
+    for key, v in zip(keys, q):
+        acc += v
+        if u * sum(q) < acc:
+            return key
+    return keys[-1]
+
+
+def test_only_plausible_genres_are_candidates_worked_by_hand():
+    # ρ = 0.7: the threshold is 0.7 · 0.40 = 0.28, so waltz and rumba; τ = 1: 0.40 / 0.70 and 0.30 / 0.70
+    opts = genre_options(FOUR, GenreDraw(temperature=1.0, min_ratio=0.7))
+    assert opts == pytest.approx({"waltz": 4 / 7, "rumba": 3 / 7, "chacha": 0.0, "tango": 0.0})
+    # ρ = 0.45: threshold 0.18, so tango (0.10) drops; τ = 2: √0.4, √0.3, √0.2 over their sum, times 1 − w
+    opts = genre_options(FOUR, GenreDraw(temperature=2.0, alone=0.25, min_ratio=0.45))
+    root = {"waltz": 0.6324555, "rumba": 0.5477226, "chacha": 0.4472136}
+    total = sum(root.values())
+    want = {g: 0.75 * v / total for g, v in root.items()} | {"tango": 0.0, None: 0.25}
+    assert opts == pytest.approx(want, abs=1e-6)
+    f = frequencies(FOUR, GenreDraw(temperature=2.0, alone=0.25, min_ratio=0.45))
+    assert "tango" not in f
+    for g, q in want.items():
+        assert f.get(g, 0.0) == pytest.approx(q, abs=0.025), (g, f)
+    # ρ = 1: the most likely genre only (or the model alone)
+    assert set(frequencies(FOUR, GenreDraw(temperature=2.0, alone=0.25, min_ratio=1.0))) == {"waltz", None}
+    assert set(frequencies(FOUR, GenreDraw(temperature=2.0, min_ratio=1.0))) == {"waltz"}
+
+
+def test_rho_0_is_the_third_attempts_draw():
+    for tau, w in ((1.0, 0.0), (2.0, 0.25), (0.5, 0.1)):
+        for seed in range(1, 400):
+            got = draw_genre(FOUR, seed=seed, draw=GenreDraw(temperature=tau, alone=w, min_ratio=0.0))[0]
+            assert got == variety3_draw(FOUR, seed=seed, temperature=tau, alone=w), (tau, w, seed)
+
+
+def test_a_bad_min_ratio_is_a_named_error(parent, tmp_path):
+    for bad in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ParameterError, match="genre_min_ratio"):
+            GenreDraw(temperature=1.0, min_ratio=bad)
+    assert genre_draw_from_meta({"sampling": {"genre_temperature": 2, "genre_min_ratio": 0.7}}) == \
+        GenreDraw(2.0, 0.0, False, 0.7)
+    folder = tmp_path / "p"
+    shutil.copytree(parent, folder)
+    meta = read_config(folder)
+    for bad, says in ((1.2, "genre_min_ratio must be in"), ("most", "genre_min_ratio must be a number, got 'most'")):
+        meta["sampling"] = {"genre_temperature": 1.0, "genre_min_ratio": bad}
+        (folder / "config.json").write_text(json.dumps(meta))
+        with pytest.raises(CheckpointError, match=f"bad 'sampling' entry in config.json: .*{says}"):
+            RevolutionPipeline.from_pretrained(folder)
+
+
+def test_an_implausible_genre_is_never_danced(parent, song, monkeypatch):
+    # the posterior is waltz 0.55, rumba 0.45: rumba is 0.82 of waltz, so ρ = 0.9 leaves waltz alone and every
+    # seed dances today's dance bit for bit; ρ = 0.8 lets rumba back in
+    today = pipeline(parent, monkeypatch, GenreDraw()).dances(song, seeds=SEEDS, end=2.0)
+    strict = pipeline(parent, monkeypatch, GenreDraw(temperature=1.0, min_ratio=0.9)).dances(song, seeds=SEEDS, end=2.0)
+    for a, b in zip(today, strict):
+        assert b.genre == "waltz"
+        np.testing.assert_array_equal(a.motion.to_positions(), b.motion.to_positions())
+    loose = pipeline(parent, monkeypatch, GenreDraw(temperature=1.0, min_ratio=0.8)).dances(song, seeds=SEEDS, end=2.0)
+    assert {r.genre for r in loose} == {"waltz", "rumba"}

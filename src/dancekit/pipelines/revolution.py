@@ -20,9 +20,10 @@ with ``genre="none"``, the model itself dances from the music alone.
 
 The dance type is a latent the music does not fully determine (a waltz song can be danced as a rumba), so
 the checkpoint may let the *seed* draw it (:class:`GenreDraw`, ``"sampling": {"genre_temperature": τ,
-"genre_alone": w, "genre_draw_seed0": false}``): with ``genre="auto"`` every seed but 0 (seed 0 keeps the most
-likely genre unless ``genre_draw_seed0``) draws the genre model from the classifier's posterior sharpened or
-softened by τ, ``q_g ∝ p_g^(1/τ)``, with the model alone as one more option of weight w. The draw depends on
+"genre_alone": w, "genre_draw_seed0": false, "genre_min_ratio": ρ}``): with ``genre="auto"`` every seed but 0
+(seed 0 keeps the most likely genre unless ``genre_draw_seed0``) draws the genre model from the classifier's
+posterior sharpened or softened by τ, ``q_g ∝ p_g^(1/τ)``, among the song's plausible genres only
+(``p_g ≥ ρ · max(p)``), with the model alone as one more option of weight w. The draw depends on
 the seed and the song's posterior only (:func:`draw_genre`), so it is the same in a batch and alone; the
 result says what was drawn (:meth:`DanceResult.summary`: ``"as rumba (drawn by seed 3, p = 0.31)"``).
 ``genre="waltz"`` still forces the waltz model, and ``genre="none"`` the model alone.
@@ -399,6 +400,9 @@ class GenreDraw:
       genres share 1 − w).
     * ``seed0``: False — seed 0 dances the most likely genre (so the default dance is the most likely one);
       True — seed 0 draws too.
+    * ``min_ratio`` ρ ∈ [0, 1]: only the song's *plausible* genres are drawn — genre g is a candidate when
+      ``p_g ≥ ρ · max(p)`` (ρ = 0: every genre, the third attempt's draw; ρ = 1: the most likely genre(s)
+      only). The most likely genre is always a candidate.
 
     ``GenreDraw()`` (all off) is the dance of every seed by the most likely genre's model.
     """
@@ -406,6 +410,7 @@ class GenreDraw:
     temperature: float = 0.0
     alone: float = 0.0
     seed0: bool = False
+    min_ratio: float = 0.0
 
     def __post_init__(self):
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -414,6 +419,8 @@ class GenreDraw:
             raise ParameterError(f"genre_alone must be in [0, 1), got {self.alone!r}")
         if not isinstance(self.seed0, bool):
             raise ParameterError(f"genre_draw_seed0 must be true or false, got {self.seed0!r}")
+        if not (np.isfinite(self.min_ratio) and 0 <= self.min_ratio <= 1):
+            raise ParameterError(f"genre_min_ratio must be in [0, 1], got {self.min_ratio!r}")
 
     @property
     def active(self) -> bool:
@@ -425,14 +432,16 @@ GENRE_DRAW_STREAM = 0x67656E72  # "genr"
 
 
 def genre_options(probs: dict[str, float], draw: GenreDraw) -> dict[str | None, float]:
-    """The options a seed draws from: genre → q_g (``q ∝ p^(1/τ)``, times 1 − w) and None (the model alone) → w;
-    with τ = 0 the most likely genre carries all of 1 − w. The probabilities sum to 1."""
+    """The options a seed draws from: genre → q_g (``q ∝ p^(1/τ)`` over the candidates ``p_g ≥ ρ · max(p)``,
+    0 for the others, times 1 − w) and None (the model alone) → w; with τ = 0 the most likely genre carries all
+    of 1 − w. The probabilities sum to 1."""
     names = list(probs)
     p = np.array([probs[g] for g in names], np.float64)
     if draw.temperature > 0:
         with np.errstate(divide="ignore"):
             logq = np.log(np.maximum(p, 0.0)) / draw.temperature
         q = np.exp(logq - logq.max())
+        q[p < draw.min_ratio * p.max()] = 0.0  # not a plausible genre for this song
     else:
         q = np.zeros(len(names))
         q[names.index(max(probs, key=probs.get))] = 1.0
@@ -469,14 +478,19 @@ def draw_genre(probs: dict[str, float], *, seed: int, draw: GenreDraw) -> tuple[
 
 
 def genre_draw_from_meta(meta: dict[str, Any], *, folder: str = "?") -> GenreDraw:
-    """The checkpoint's genre draw: ``meta["sampling"]`` with ``genre_temperature`` τ, ``genre_alone`` w and
-    ``genre_draw_seed0``; none of them: no draw (``GenreDraw()``)."""
+    """The checkpoint's genre draw: ``meta["sampling"]`` with ``genre_temperature`` τ, ``genre_alone`` w,
+    ``genre_draw_seed0`` and ``genre_min_ratio`` ρ; none of them: no draw (``GenreDraw()``)."""
     spec = meta.get("sampling") or {}
     if not isinstance(spec, dict):
         raise CheckpointError(f"checkpoint {folder}: config.json 'sampling' must be an object, got {spec!r}")
+    def number(key: str) -> float:
+        try:
+            return float(spec.get(key, 0.0))
+        except (TypeError, ValueError):
+            raise ParameterError(f"{key} must be a number, got {spec[key]!r}") from None
+
     try:
-        return GenreDraw(temperature=float(spec.get("genre_temperature", 0.0)),
-                         alone=float(spec.get("genre_alone", 0.0)),
-                         seed0=spec.get("genre_draw_seed0", False))
-    except (TypeError, ValueError, ParameterError) as exc:
+        return GenreDraw(temperature=number("genre_temperature"), alone=number("genre_alone"),
+                         seed0=spec.get("genre_draw_seed0", False), min_ratio=number("genre_min_ratio"))
+    except ParameterError as exc:
         raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None
