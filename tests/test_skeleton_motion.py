@@ -294,3 +294,15 @@ def test_project_2d(rng):
         m.project_2d(view="top")
     with pytest.raises(ParameterError, match="3D"):
         p2.project_2d()
+
+
+def test_keep_bone_lengths_known_answer():
+    """A chain root → a → b: directions from the moved positions, lengths from the reference, parents first."""
+    from dancekit.motion.skeleton import keep_bone_lengths
+
+    sk = Skeleton(name="chain", joint_names=("root", "a", "b"), parents=(-1, 0, 1),
+                  offsets=np.array([[0.0, 0, 0], [0, 1, 0], [0, 1, 0]]))
+    x = np.array([[[0.0, 0, 0], [0, 3, 0], [0, 3, 4]]])  # reference: bones 3 and 4 long
+    q = np.array([[[1.0, 1, 1], [3, 1, 1], [3, 1, 1.5]]])  # moved: a along +x, b along +z from a
+    out = keep_bone_lengths(q, x, sk)
+    np.testing.assert_allclose(out, [[[1, 1, 1], [4, 1, 1], [4, 1, 5]]], atol=1e-12)

@@ -36,7 +36,7 @@ from collections.abc import Callable
 import numpy as np
 
 from dancekit.errors import ParameterError
-from dancekit.motion.skeleton import Skeleton
+from dancekit.motion.skeleton import Skeleton, keep_bone_lengths
 
 __all__ = ["DEFAULT_BAND_HZ", "DEFAULT_MAX_GAIN", "DEFAULT_MEAN_S", "ENERGY_FRAMES", "energy_gain", "leg_joints",
            "leg_rotations", "lift_positions", "lift_rotations", "rotation_exp", "rotation_log", "smoothed_energy"]
@@ -212,7 +212,7 @@ def lift_positions(positions: np.ndarray, *, skeleton: Skeleton, fps: float, flo
         q = np.asarray(p[a:b], np.float64) + (g - 1.0) * low[a:b]
         if high is not None:
             q += (g ** -damp - 1.0) * high[a:b]
-        return _bones(q, np.asarray(p[a:b], np.float64), skeleton)
+        return keep_bone_lengths(q, p[a:b], skeleton)
 
     gain = energy_gain(lambda g: _chunked_energy(lambda a, b: rows(g, a, b), n, skeleton=skeleton, fps=fps,
                                                  chunks=chunks), energy=e, floor=floor, max_gain=max_gain)
@@ -247,18 +247,6 @@ def leg_rotations(skeleton: Skeleton, n_rotations: int) -> list[int]:
     real = skeleton.num_joints  # rig joints past the real ones are branch joints (they coincide with their parent)
     moved = {j: {k for k in d if k < real} for j, d in below.items()}
     return [j for j, d in moved.items() if d and d <= legs]
-
-
-def _bones(q: np.ndarray, x: np.ndarray, skeleton: Skeleton) -> np.ndarray:
-    """``q`` (T, J, 3) with each frame's bone lengths of ``x``: bone directions from ``q``, parents first."""
-    o = q.copy()
-    for j in skeleton.topological_order:
-        parent = skeleton.parents[j]
-        if parent >= 0:
-            d = q[:, j] - q[:, parent]
-            length = np.linalg.norm(x[:, j] - x[:, parent], axis=-1, keepdims=True)
-            o[:, j] = o[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
-    return o
 
 
 def lift_rotations(rotations: np.ndarray, *, fk: Callable[[np.ndarray], np.ndarray], skeleton: Skeleton,

@@ -57,6 +57,7 @@ __all__ = [
     "branch_joint_name",
     "body25_skeleton",
     "get_skeleton",
+    "keep_bone_lengths",
     "smpl_skeleton",
     "tang2018_skeleton",
 ]
@@ -410,6 +411,24 @@ class Skeleton:
     def __repr__(self) -> str:
         return (f"Skeleton(name={self.name!r}, joints={self.num_joints}, root={self.joint_names[self.root]!r}, "
                 f"units={self.units!r}, up_axis={self.up_axis!r})")
+
+
+def keep_bone_lengths(q: np.ndarray, x: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """Positions ``q`` (T, J, 3) moved so that each frame has the bone lengths of ``x`` (T, J, 3).
+
+    Bone directions come from ``q``, parents first, starting from ``q``'s root; what a filter or a lift did
+    to the positions stays, only the lengths are restored. Units those of the inputs. Returns float64.
+    """
+    q = np.asarray(q, np.float64)
+    x = np.asarray(x, np.float64)
+    o = q.copy()
+    for j in skeleton.topological_order:
+        parent = skeleton.parents[j]
+        if parent >= 0:
+            d = q[:, j] - q[:, parent]
+            length = np.linalg.norm(x[:, j] - x[:, parent], axis=-1, keepdims=True)
+            o[:, j] = o[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
+    return o
 
 
 def _topological_order(parents: tuple[int, ...]) -> list[int]:

@@ -40,6 +40,7 @@ import numpy as np
 
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion
+from dancekit.motion.skeleton import keep_bone_lengths
 from dancekit.pipelines.base import DanceResult
 
 __all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
@@ -200,26 +201,11 @@ def smooth(result: DanceResult, *, target: float | None = None, kind: str | None
     if motion.rotations is None:
         out = np.empty(p.shape, np.float32)
         for a, b in chunks(len(p)):  # the filter is local: piece by piece, the same numbers as one pass
-            out[a:b] = _bones_kept(rows(p, a, b), p[a:b], sk)
+            out[a:b] = keep_bone_lengths(rows(p, a, b), p[a:b], sk)
         smoothed = Motion(skeleton=sk, fps=fps, positions=out)
     else:
         smoothed = _rotations_filtered(motion, whole)
     return _with_note(dataclasses.replace(result, motion=smoothed), note)
-
-
-def _bones_kept(q: np.ndarray, x: np.ndarray, skeleton) -> np.ndarray:
-    """Filtered positions ``q`` (F, J, 3) with each frame's bone lengths of the unfiltered ``x`` (F, J, 3):
-    bone directions from ``q``, parents first, from ``q``'s root. Returns float64 (F, J, 3)."""
-    q = np.asarray(q, np.float64)
-    x = np.asarray(x, np.float64)
-    o = q.copy()
-    for j in skeleton.topological_order:
-        parent = skeleton.parents[j]
-        if parent >= 0:
-            d = q[:, j] - q[:, parent]
-            length = np.linalg.norm(x[:, j] - x[:, parent], axis=-1, keepdims=True)
-            o[:, j] = o[:, parent] + length * d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12)
-    return o
 
 
 def _rotations_filtered(motion: Motion, whole) -> Motion:
@@ -338,7 +324,7 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
         q = lowpass_rows(p, h, a, b)
         if keep:  # the legs as locked: only the rest of the body filtered
             q[:, keep] = np.asarray(p[a:b, keep], np.float64)
-        out[a:b] = _bones_kept(q, p[a:b], sk)
+        out[a:b] = keep_bone_lengths(q, p[a:b], sk)
     return dataclasses.replace(result, motion=Motion(skeleton=sk, fps=fps, positions=out))
 
 
