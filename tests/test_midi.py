@@ -8,6 +8,7 @@ import pytest
 pytest.importorskip("pretty_midi")
 
 from dancekit.audio.midi import arrange, best_triad, pick_beats, render, synthesize  # noqa: E402
+from dancekit.errors import ParameterError  # noqa: E402
 
 FPS = 25.0
 
@@ -172,3 +173,27 @@ def test_periodic_tempo_in_arrange_and_its_fallback():
     flat = np.full(200, 0.7)  # no periodicity: the default grid, as with no picked beats
     assert len(periodic_beats(flat, fps=FPS)[0]) == 0
     assert arrange(np.ones((200, 12)), flat, fps=FPS, tempo="periodic").tempo == pytest.approx(120.0)
+
+
+def test_a_very_slow_composition_writes_a_midi_file_with_its_beats_in_place(tmp_path):
+    # two beats 25 s apart: 2.4 BPM, whose 25 s per beat do not fit a MIDI header's 24-bit microseconds
+    import pretty_midi
+
+    from dancekit.audio.midi import midi_file_tempo
+
+    T = 40 * int(FPS)
+    chroma = np.full((T, 12), 0.05)
+    chroma[:, [0, 4, 7]] = 1.0
+    beat = np.zeros(T)
+    beat[[50, 50 + 25 * int(FPS)]] = 0.9
+    arr = arrange(chroma, beat, fps=FPS)
+    assert arr.tempo == pytest.approx(2.4)
+    arr.midi.write(str(tmp_path / "slow.mid"))
+    back = pretty_midi.PrettyMIDI(str(tmp_path / "slow.mid"))
+    kicks = [n.start for n in back.instruments[2].notes if n.pitch in (36, 38)]
+    np.testing.assert_allclose(kicks, [2.0, 27.0], atol=0.01)
+    assert back.get_tempo_changes()[1][0] == pytest.approx(38.4)  # 2.4 doubled four times
+    assert midi_file_tempo(125.0) == 125.0 and midi_file_tempo(19.2) == pytest.approx(38.4)
+    assert midi_file_tempo(500.0) == 250.0
+    with pytest.raises(ParameterError):
+        midi_file_tempo(0.0)

@@ -137,6 +137,26 @@ def periodic_beats(beat: np.ndarray, *, fps: float, min_bpm: float = 60.0, max_b
     return grid, 60.0 / period
 
 
+#: The tempo range (BPM) of a written MIDI file's header: :func:`midi_file_tempo`.
+MIDI_TEMPO_RANGE = (20.0, 400.0)
+
+
+def midi_file_tempo(bpm: float) -> float:
+    """The tempo written in the MIDI header for composed beats ``bpm`` BPM apart: ``bpm`` doubled or halved
+    until it lies in :data:`MIDI_TEMPO_RANGE`, so that every composed beat stays on a MIDI beat. A MIDI
+    file stores microseconds per beat in 24 bits (at most 16.8 s: below 3.6 BPM pretty_midi cannot write the
+    file), and it stores the note times in ticks of 1/220 beat (at 20 BPM, 14 ms). The notes keep their times
+    in seconds; :attr:`Arrangement.tempo` stays the composed tempo."""
+    lo, hi = MIDI_TEMPO_RANGE
+    if not (np.isfinite(bpm) and bpm > 0):
+        raise ParameterError(f"tempo must be a positive number of BPM, got {bpm!r}")
+    while bpm < lo:
+        bpm *= 2.0
+    while bpm > hi:
+        bpm /= 2.0
+    return float(bpm)
+
+
 def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | float = "auto",
             threshold: float = 0.5, min_gap: float = 0.25, default_bpm: float = 120.0) -> Arrangement:
     """Chords on the beats, a bass line on the chord roots and a drum track on the beats.
@@ -185,7 +205,7 @@ def arrange(chroma: np.ndarray, beat: np.ndarray, *, fps: float, tempo: str | fl
     bpm_out = 60.0 / period
     ends = np.append(times[1:], min(duration, times[-1] + period)) if len(times) else times
 
-    pm = pretty_midi.PrettyMIDI(initial_tempo=bpm_out)
+    pm = pretty_midi.PrettyMIDI(initial_tempo=midi_file_tempo(bpm_out))
     piano = pretty_midi.Instrument(program=PIANO, name="chords")
     bass = pretty_midi.Instrument(program=BASS, name="bass")
     drums = pretty_midi.Instrument(program=0, is_drum=True, name="drums")
