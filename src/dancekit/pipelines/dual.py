@@ -204,13 +204,8 @@ class ComposeResult:
 class ComposePipeline:
     """Dance → music with G_D→M: a :class:`Motion` on the model's skeleton → :class:`ComposeResult`."""
 
-    def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
-                 genre_reader=None):
+    def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?"):
         self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
-        #: a :class:`~dancekit.pipelines.music_attributes.MusicAttributePipeline` (the checkpoint's
-        #: ``"genre_reader"`` component) or None: the model has no genre input, but the energy stage's floor
-        #: follows the genre the music calls for (``stages.energy_floor``)
-        self.genre_reader = genre_reader
         self.fps = float(meta["fps"])
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         # beat picking, the checkpoint's composing settings (chosen on the validation dances, docs/DUAL.md)
