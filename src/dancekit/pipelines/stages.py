@@ -242,14 +242,7 @@ def genre_smoothing_targets(model: str | os.PathLike | None) -> dict[str, float]
     ``"smoothing": {"genre_targets": {genre: ratio}}`` (for the embedded music2dance: the median of the real
     training dances of each genre, ``benchmarks/genre_smoothing_targets.py``; docs/MUSIC2DANCE.md). ``{}``
     for a folder without the entry or that is not a checkpoint."""
-    from dancekit.checkpoints.hub import read_meta
-
-    if not model:
-        return {}
-    try:
-        spec = read_meta(model).get("smoothing") or {}
-    except (CheckpointError, OSError):
-        return {}
+    spec = _raw_entry(model, "smoothing")
     targets = spec.get("genre_targets", {}) if isinstance(spec, dict) else None
     if not isinstance(spec, dict) or set(spec) - {"genre_targets"} or not isinstance(targets, dict) or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < 10 for v in targets.values()):
@@ -430,14 +423,7 @@ def energy_options(model: str | os.PathLike | None) -> dict:
     checkpoint. An unknown key, a non-number, a non-positive ``floor``, ``fraction``, ``mean_s``, ``band_hz`` or
     genre energy, a ``max_gain`` under 1, or neither a floor nor a fraction with genre energies is a
     :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
-    from dancekit.checkpoints.hub import read_meta
-
-    if not model:
-        return {}
-    try:
-        spec = read_meta(model).get("energy") or {}
-    except (CheckpointError, OSError):
-        return {}
+    spec = _raw_entry(model, "energy")
     if not spec:
         return {}
 
@@ -550,18 +536,24 @@ def lift_energy(result: DanceResult, *, floor: float | None = None, fraction: fl
     return _with_note(dataclasses.replace(result, motion=lifted), f"energy lifted (gain {gain:.2f} to {floor:.2f} m/s)")
 
 
-def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str]) -> dict[str, float]:
-    """The checkpoint folder's ``config.json`` entry ``key`` (a dict of numbers whose keys are in
-    ``allowed``); ``{}`` for no model, a folder without the entry, or one that is not a checkpoint. A
-    malformed entry is a :class:`~dancekit.errors.CheckpointError` naming the file."""
+def _raw_entry(model: str | os.PathLike | None, key: str):
+    """The checkpoint folder's ``config.json`` entry ``key`` as stored (unchecked); ``{}`` for no model, a
+    folder without the entry, or one that is not a checkpoint."""
     from dancekit.checkpoints.hub import read_meta
 
     if not model:
         return {}
     try:
-        spec = read_meta(model).get(key) or {}
+        return read_meta(model).get(key) or {}
     except (CheckpointError, OSError):
         return {}
+
+
+def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str]) -> dict[str, float]:
+    """The checkpoint folder's ``config.json`` entry ``key`` (a dict of numbers whose keys are in
+    ``allowed``); ``{}`` for no model, a folder without the entry, or one that is not a checkpoint. A
+    malformed entry is a :class:`~dancekit.errors.CheckpointError` naming the file."""
+    spec = _raw_entry(model, key)
     if not isinstance(spec, dict) or not set(spec) <= allowed or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) for v in spec.values()):
         raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: '{key}' takes "
