@@ -232,3 +232,44 @@ def test_smoothing_with_the_lowpass_keeps_bones_and_an_unknown_filter_is_named(d
                                        np.linalg.norm(p[:, j] - p[:, SK.parents[j]], axis=-1), rtol=1e-5)
     with pytest.raises(ParameterError, match="unknown smoothing filter 'median'"):
         smooth(res, kind="median")
+
+
+def _planted_share(p: np.ndarray) -> float:
+    """Share of (frame, foot) pairs whose lowest foot joint is within 3 cm of the local floor (lowest point of
+    the lowest joint within ±1 s) and moves slower than 0.15 m/s: issue 15's planted-foot measure."""
+    from scipy.ndimage import minimum_filter1d
+
+    assert SK.up_axis == "y"
+    h = p[..., 1] * SK.unit_scale * 100.0  # (T, J) cm, height above the capture's origin
+    local = minimum_filter1d(h.min(axis=1), size=2 * int(FPS) + 1, mode="nearest")
+    out = []
+    for side in ("left", "right"):
+        foot = [SK.index(f"{side}_{j}") for j in ("ankle", "heel", "toe")]
+        speed = np.linalg.norm(np.gradient(p[:, foot], axis=0), axis=-1) * FPS * SK.unit_scale
+        low = h[:, foot].argmin(axis=1)
+        t = np.arange(len(p))
+        out.append((h[:, foot][t, low] - local <= 3.0) & (speed[t, low] < 0.15))
+    return float(np.mean(out))
+
+
+def test_the_jitter_cap_comes_before_the_lock_so_planted_feet_stay_planted():
+    """The per-dance jitter cap of a drawn genre (issue 15) is a low-pass down to 1 Hz: after the foot lock it
+    lifted the feet off the floor (this dance: planted share 0.35 → 0.15); before it, the lock plants the
+    calmed dance's feet."""
+    from pathlib import Path
+
+    import dancekit.pipelines.stages as stages
+    from dancekit.metrics import stability
+
+    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    model = str(Path(stages.__file__).resolve().parent.parent / "assets" / "models" / "revolution")
+    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=model, seed=0)
+    plain = stages.finish(res, "unused.wav", beat_sync_on=False).motion.positions.astype(np.float64)
+    capped = stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9).motion.positions.astype(np.float64)
+
+    def jitter(x):
+        return stability.jitter(x, fps=FPS, skeleton=SK)["speed_residual"]
+
+    assert jitter(capped) < 0.8 * jitter(plain)  # the cap (the lowest cut-off) did filter
+    assert _planted_share(plain) > 0.1
+    assert _planted_share(capped) >= 0.8 * _planted_share(plain)

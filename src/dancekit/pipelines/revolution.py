@@ -32,7 +32,7 @@ A drawn genre keeps its steps but need not keep its tremor: with ``"genre_jitter
 training dances' median jitter per genre) the checkpoint may (a) draw only genres whose real jitter is at most
 ``"genre_max_jitter"`` k times that of the song's most likely genre, and (b) cap a drawn dance's jitter at
 ``"jitter_cap"`` s times the smallest real jitter among the song's plausible genres (``p_g ≥ "jitter_cap_min_ratio"
-· max(p)``, default 0.5), by a per-dance low-pass after the settle (:func:`dancekit.pipelines.stages.settle`,
+· max(p)``, default 0.5), by a per-dance low-pass before the foot lock (:func:`dancekit.pipelines.stages.settle`,
 ``max_jitter``); ``"jitter_cap_all": true`` caps the most likely genre's dances too (:func:`jitter_cap`).
 """
 

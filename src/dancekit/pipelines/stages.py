@@ -586,8 +586,9 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     :func:`settle_options`: a held foot stays held), then the beat sync (so the speed minima it aligns are
     those of the final dance). ``foot_lock_on``, ``smooth_on`` and ``energy_on`` follow ``cleanup_on`` unless
     given. ``beats``: the song's :class:`~dancekit.features.pulse.SongBeats` when already tracked (many
-    dances of one song), else tracked here when needed. ``max_jitter`` (m/s): after the settle, a second
-    per-dance low-pass caps the dance's jitter (:func:`settle`; a genre model the seed drew, issue 15)."""
+    dances of one song), else tracked here when needed. ``max_jitter`` (m/s): before the foot lock, a
+    per-dance low-pass caps the dance's jitter (:func:`settle`; a genre model the seed drew, issue 15), so the
+    lock plants the calmed dance's feet (after the lock, a 1-Hz cap lifted the feet off the floor)."""
     if cleanup_on:
         result = clean_up(result)
     if cleanup_on if smooth_on is None else smooth_on:
@@ -595,10 +596,10 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     if cleanup_on if energy_on is None else energy_on:
         result = lift_energy(result, **energy_options(result.model))
     if cleanup_on if foot_lock_on is None else foot_lock_on:
+        if max_jitter is not None:  # before the foot lock: the lock plants the calmed dance's feet
+            result = settle(result, max_jitter=max_jitter)
         result = foot_lock(result)
         result = settle(result, **settle_options(result.model))
-        if max_jitter is not None:
-            result = settle(result, max_jitter=max_jitter)
     if beat_sync_on:
         result = beat_sync(result, audio_path, start=start, end=end, beats=beats)
     return result
