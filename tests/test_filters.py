@@ -85,11 +85,11 @@ def _pairs(rng, T: int, fps: float, bound: float) -> np.ndarray:
 
 def test_the_banded_warp_solver_equals_the_sparse_kkt_solve(monkeypatch):
     rng = np.random.default_rng(0)
-    solves = {"fixed": 0, "sparse": 0}
+    solves = {"bounded": 0, "sparse": 0}
     numpy_solve = timewarp._BandedKKT.solve
 
     def counted(self, fixed, fixed_val):
-        solves["fixed"] += len(fixed) > 0
+        solves["bounded"] += bool(np.any(self.q != self.a[0]))  # a rate bound penalised in this solve
         return numpy_solve(self, fixed, fixed_val)
 
     def no_sparse(self, fixed, fixed_val):
@@ -106,13 +106,15 @@ def test_the_banded_warp_solver_equals_the_sparse_kkt_solve(monkeypatch):
         m.setattr(timewarp._BandedKKT, "solve", counted)
         m.setattr(timewarp._BandedKKT, "_spsolve", no_sparse)
         ours = [timewarp.warp_rates(**kw) for kw in cases]
-    assert solves["sparse"] == 0 and solves["fixed"] >= 3  # the active set fixed rates in several songs
+    assert solves["sparse"] == 0 and solves["bounded"] >= 3  # the rate bounds were active in several solves
     with monkeypatch.context() as m:
         m.setattr(timewarp, "NUMPY_KKT_MAX", 0)  # every system to spsolve: the solve before issue 13's change
         ref = [timewarp.warp_rates(**kw) for kw in cases]
     for kw, a, b in zip(cases, ours, ref, strict=True):
         assert np.isfinite(b).all()
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-6, err_msg=f"T={kw['n_frames']} fps={kw['fps']}")
+        # to 1e-3 frame: the rate bounds are stiff penalties (BOUND_WEIGHT × the smoothness weight), whose
+        # conditioning costs the two solves some digits (they differ by ~1e-4 frame on a 1600-frame song)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-3, err_msg=f"T={kw['n_frames']} fps={kw['fps']}")
 
 
 def _dense(d0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> np.ndarray:

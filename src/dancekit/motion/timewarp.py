@@ -13,11 +13,12 @@ Three steps (:func:`beat_warp` runs them):
    ``1 ± pair_rate_change`` (default ±13 %, below the frame bound so that the smoothing has room); ties
    go to the gentlest warp (sum of squared rate changes).
 2. :func:`warp_rates` — the rate per output frame: the smoothest rate (least first and second
-   differences: no speed jumps, the dance's speed changes gradually) that puts every matched pair
-   exactly on its beat, an equality-constrained quadratic programme (its KKT system solved in NumPy with
-   a banded factorisation, :class:`_BandedKKT`; ``scipy.sparse`` for a song of more than ~2
-   minutes); rates that leave ``1 ± max_rate_change`` are fixed at the bound and the rest solved again
-   (active set).
+   differences: the dance's speed changes gradually) that puts the matched pairs on their beats, a
+   quadratic programme (its KKT system solved in NumPy with a banded factorisation, :class:`_BandedKKT`;
+   ``scipy.sparse`` for a song of more than ~2 minutes) with two bounds: the rate within
+   ``1 ± max_rate_change`` and its change from one frame to the next within ``± max_rate_step`` (default
+   2 %/frame: no visible speed jump), as stiff penalties solved by semi-smooth Newton; a pair the bounds
+   cannot land is dropped.
 3. :func:`warp_motion` — the dance sampled at the fractional source frames: rotations slerped, 3D
    positions bone by bone (:func:`warp_bones`, bone lengths kept), anything else linearly
    (:func:`warp_frames`, the toolkit's resampling rule).
@@ -40,6 +41,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = [
     "BETWEEN_WEIGHT",
     "DEFAULT_MAX_RATE_CHANGE",
+    "DEFAULT_MAX_RATE_STEP",
     "DEFAULT_MAX_SHIFT",
     "DEFAULT_PAIR_RATE_CHANGE",
     "DEFAULT_SMOOTH_S",
@@ -55,6 +57,22 @@ __all__ = [
 DEFAULT_MAX_RATE_CHANGE = 0.15
 #: Bound on the mean rate between two matched beat pairs (room for the smoothing within the frame bound).
 DEFAULT_PAIR_RATE_CHANGE = 0.13
+#: Bound on the warp's rate change from one frame to the next (:func:`warp_rates`): ``|rate[t + 1] - rate[t]|
+#: <= 0.02``, 2 % of the dance's speed per frame (at 25 fps: half the speed change of the whole ±15 % band
+#: takes at least 0.15 s), so the speed changes smoothly, with no visible jump.
+DEFAULT_MAX_RATE_STEP = 0.02
+#: In :func:`warp_rates`' first pass a matched pair's landing row is a penalty whose weight is the bounds'
+#: weight divided by this: the bounds outweigh the pairs, which land as near as the bounds let them (and
+#: the pairs outweigh the smoothness, whose weight is the bounds' / BOUND_WEIGHT).
+PAIR_SOFTNESS = 1e5
+#: Weight of a bound's squared violation in :func:`warp_rates` (the rate box, the step bound), against the
+#: largest weight of the smoothness penalty: large enough that the bounds hold to the solver's round-off.
+BOUND_WEIGHT = 1e4
+#: Most semi-smooth Newton rounds of :func:`warp_rates` (each one banded solve).
+MAX_NEWTON = 60
+#: A pair :func:`warp_rates`' first pass misses by more than this many frames is dropped (the bounds do not
+#: let it land) and the rest solved again without its pull.
+DROP_FRAMES = 1.0
 #: Time scale of the warp's smoothness penalty on its rate, seconds (:func:`warp_rates`).
 DEFAULT_SMOOTH_S = 0.5
 #: A kinematic beat is paired only with music beats at most this many seconds away.
@@ -286,9 +304,21 @@ class _BandedKKT:
     ``spsolve`` as before.
     """
 
-    def __init__(self, rows: list[tuple[np.ndarray, np.ndarray]], rhs: np.ndarray, n: int, a: tuple):
+    def __init__(self, rows: list[tuple[np.ndarray, np.ndarray]], rhs: np.ndarray, n: int, a: tuple,
+                 soft: np.ndarray | None = None, extra: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None):
         self.rows, self.c, self.n, self.a = rows, np.asarray(rhs, np.float64), n, a
+        # softness of each row (0: hard): row k holds up to ``soft[k] · λ_k`` (a penalty |C_k r - c_k|² / (2 soft[k]))
+        self.soft = np.zeros(len(rows)) if soft is None else np.asarray(soft, np.float64)
         self.bands = _bands(n, *a)
+        self.q = np.full(n, float(a[0]))
+        if extra is not None:  # penalties of warp_rates' bounds: diag (n,) + D1' diag(w) D1 (w: (n - 1,)), linear (n,)
+            diag, w, lin = extra
+            d0, d1, d2 = (b.copy() for b in self.bands)
+            d0 += diag
+            d0[:-1] += w
+            d0[1:] += w
+            d1 -= w
+            self.bands, self.q = (d0, d1, d2), self.q + lin
         # C as (row, column, coefficient) triples
         self.ri = np.concatenate([np.full(len(cols), k) for k, (cols, _) in enumerate(rows)] or [np.zeros(0, int)])
         self.ci = np.concatenate([cols for cols, _ in rows] or [np.zeros(0, int)])
@@ -306,7 +336,7 @@ class _BandedKKT:
 
     def solve(self, fixed: np.ndarray, fixed_val: np.ndarray) -> np.ndarray:
         """The rates ``(n,)``, the rates at indices ``fixed`` held at ``fixed_val``."""
-        n, a0, P = self.n, self.a[0], len(self.rows)
+        n, P = self.n, len(self.rows)
         if (n - len(fixed)) * P > NUMPY_KKT_MAX:
             return self._spsolve(fixed, fixed_val)
         free = np.ones(n, dtype=bool)
@@ -327,13 +357,14 @@ class _BandedKKT:
 
         try:
             M = _Pentadiagonal(*_free_bands(self.bands, f))
-            g = a0 - self._qmul(held)[f]  # q - Q_fF r_F
+            g = self.q[f] - self._qmul(held)[f]  # q - Q_fF r_F
             c = self.c - np.bincount(self.ri, weights=self.cv * held[self.ci], minlength=P)  # c - C_F r_F
             ct = np.zeros((nf, P))
             ct[ci, ri] = cv
             Z = M.solve(ct)  # Q_ff^-1 C_f', (n_free, P)
             S = np.zeros((P, P))
             np.add.at(S, ri, cv[:, None] * Z[ci])  # C_f Z
+            S[np.arange(P), np.arange(P)] += self.soft
             r0 = M.solve(g)
             lam = np.linalg.solve(S, cmul(r0) - c)
             x = r0 - (Z * lam).sum(axis=1)
@@ -342,7 +373,7 @@ class _BandedKKT:
             xf[f] = x
             res1 = g - self._qmul(xf)[f] - ctmul(lam)  # Q_ff x = (Q x on the free rates)_f
             u = M.solve(res1)
-            dlam = np.linalg.solve(S, cmul(u) - (c - cmul(x)))
+            dlam = np.linalg.solve(S, cmul(u) - (c - cmul(x) + self.soft * lam))
             x = x + u - (Z * dlam).sum(axis=1)
         except np.linalg.LinAlgError:
             return self._spsolve(fixed, fixed_val)
@@ -356,22 +387,17 @@ class _BandedKKT:
         from scipy import sparse
         from scipy.sparse.linalg import spsolve
 
-        n, (a0, a1, a2) = self.n, self.a
-        Q = a0 * sparse.identity(n, format="csr")
-        if n >= 2:
-            d1 = sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
-            Q = Q + a1 * (d1.T @ d1)
-        if n >= 3:
-            d2 = sparse.diags([np.ones(n - 2), -2 * np.ones(n - 2), np.ones(n - 2)], [0, 1, 2], shape=(n - 2, n))
-            Q = Q + a2 * (d2.T @ d2)
+        n, (d0, d1, d2) = self.n, self.bands
+        Q = sparse.diags([d0, d1, d1, d2, d2], [0, 1, -1, 2, -2], shape=(n, n), format="csr")
         rows = [np.full(len(cols), k) for k, (cols, _) in enumerate(self.rows)]
         C = sparse.csr_matrix((np.concatenate([v for _, v in self.rows]),
                                (np.concatenate(rows), np.concatenate([c for c, _ in self.rows]))),
                               shape=(len(self.rows), n))
         E = sparse.csr_matrix((np.ones(len(fixed)), (np.arange(len(fixed)), fixed)), shape=(len(fixed), n))
         A = sparse.vstack([C, E]).tocsr()
-        K = sparse.bmat([[Q, A.T], [A, None]], format="csc")
-        return spsolve(K, np.concatenate([a0 * np.ones(n), self.c, fixed_val]))[:n]
+        reg = sparse.diags(np.concatenate([-self.soft, np.zeros(len(fixed))]))
+        K = sparse.bmat([[Q, A.T], [A, reg]], format="csc")
+        return spsolve(K, np.concatenate([self.q, self.c, fixed_val]))[:n]
 
 
 def warp_rates(
@@ -381,6 +407,7 @@ def warp_rates(
     fps: float,
     max_rate_change: float = DEFAULT_MAX_RATE_CHANGE,
     smooth_s: float = DEFAULT_SMOOTH_S,
+    max_rate_step: float | None = DEFAULT_MAX_RATE_STEP,
 ) -> np.ndarray:
     """The warp's source frame for every output frame, from matched beat pairs.
 
@@ -391,48 +418,155 @@ def warp_rates(
     fps : frames per second
     max_rate_change : the rate (source frames per output frame) stays within ``1 ± max_rate_change``
     smooth_s : time scale of the smoothness penalty, seconds (larger: gentler rate changes)
+    max_rate_step : the rate changes by at most this much from one frame to the next
+        (``|rate[t + 1] - rate[t]| <= max_rate_step``, a fraction per frame at ``fps``: 0.02 is 2 %/frame);
+        ``None``: no bound beyond the smoothness penalty
 
     Returns
     -------
     (T,) float64 source frames ``s``: ``s[0] = 0``, ``s[-1] = T - 1``, increasing, with
-    ``s[t + 1] - s[t]`` in ``[1 - max_rate_change, 1 + max_rate_change]``; matched pairs land on
-    their beats (``s(m · fps) = k · fps``, interpolated linearly between frames) to ~1e-6 frame.
+    ``s[t + 1] - s[t]`` in ``[1 - max_rate_change, 1 + max_rate_change]`` and (when ``max_rate_step`` is
+    given) consecutive rates at most ``max_rate_step`` apart; matched pairs land on their beats
+    (``s(m · fps) = k · fps``, interpolated linearly between frames) to ~1e-5 frame where the bounds allow it
+    (else as near as the bounds let them: least squares).
+
+    The rate is the smoothest (least first and second differences) that lands the pairs, a quadratic
+    programme with inequality bounds (the box ``1 ± max_rate_change`` and the steps ``± max_rate_step``).
+    The bounds enter as stiff penalties on their violation, solved by damped semi-smooth Newton
+    (:func:`_bounded_rates`, each round one banded KKT solve). A first pass lands every pair softly (as near as
+    the bounds let it); the pairs that came within half a frame are then landed exactly, the others dropped
+    (a pair that still misses is dropped and the programme solved again). A last forward pass clips the rates
+    to the box and every step to ``± max_rate_step`` exactly (it moves the rates by the solver's round-off).
     """
     T = int(n_frames)
     if T < 2:
         return np.zeros(max(T, 0))
     if not 0 < max_rate_change < 1:
         raise ParameterError(f"max_rate_change must be in (0, 1), got {max_rate_change}")
+    if max_rate_step is not None and not (np.isfinite(max_rate_step) and max_rate_step > 0):
+        raise ParameterError(f"max_rate_step must be positive (a rate change per frame), got {max_rate_step}")
     pairs = np.asarray(pairs, dtype=np.float64).reshape(-1, 2)
-    D = (T - 1) / float(fps)
-    knots = np.concatenate([[[0.0, 0.0]], pairs, [[D, D]]]) * float(fps)  # frames
     n = T - 1  # one rate per output interval
-    rows = []  # (columns, coefficients) of each pair's equality row
-    rhs = []
+    # quadratic form: a0 |r - 1|^2 + a1 |D1 r|^2 + a2 |D2 r|^2 (first and second differences of the rate)
+    L = max(1.0, smooth_s * fps)
+    a = (1e-3, L**2, L**4 / 4.0)
+    lo, hi = 1.0 - max_rate_change, 1.0 + max_rate_change
+    step = np.inf if max_rate_step is None else float(max_rate_step)
+    mu = BOUND_WEIGHT * max(a[1], a[2])  # weight of a bound's squared violation
+    knots = np.concatenate([[[0.0, 0.0]], pairs * float(fps), [[n, n]]])  # frames
+    inner = knots[1:-1]
+    keep = np.ones(len(inner), dtype=bool)
+    rates = np.ones(n)
+    # every pair soft (landed as near as the bounds let it); the pairs that then miss by more than
+    # DROP_FRAMES are dropped and the rest solved again without their pull
+    for _ in range(2):
+        if not keep.any():
+            rates = np.ones(n)  # nothing lands within the bounds: the identity
+            break
+        rows, rhs = _knot_rows(np.concatenate([knots[:1], inner[keep], knots[-1:]]), n)
+        rows.append((np.arange(n), np.ones(n)))  # the whole dance: s[-1] = T - 1, hard
+        rhs = np.append(rhs, float(n))
+        soft = np.append(np.full(len(rows) - 1, PAIR_SOFTNESS / mu), 0.0)
+        rates = _bounded_rates(rows, rhs, soft, n, a, lo, hi, step, mu)
+        s = np.concatenate([[0.0], np.cumsum(rates)])
+        miss = np.abs(np.interp(inner[:, 0], np.arange(T), s) - inner[:, 1])
+        if not (keep & (miss > DROP_FRAMES)).any():
+            break
+        keep &= miss <= DROP_FRAMES
+    return np.concatenate([[0.0], np.cumsum(_project(rates, lo, hi, step))])
+
+
+def _project(rates: np.ndarray, lo: float, hi: float, step: float) -> np.ndarray:
+    """The rates clipped to ``[lo, hi]`` and each within ``± step`` of the one before (a forward pass, which
+    keeps the box), their sum kept (a constant added, then clipped again; a few rounds). Exact bounds on
+    rates that held them to the solver's tolerance (it moves them by about that much)."""
+    total = rates.sum()
+    for _ in range(3):
+        rates = np.clip(rates, lo, hi)
+        if np.isfinite(step) and len(rates) > 1 and np.abs(np.diff(rates)).max() > step:
+            for t in range(1, len(rates)):
+                rates[t] = min(max(rates[t], rates[t - 1] - step), rates[t - 1] + step)
+        rates = rates + (total - rates.sum()) / len(rates)
+    rates = np.clip(rates, lo, hi)
+    if np.isfinite(step) and len(rates) > 1 and np.abs(np.diff(rates)).max() > step:
+        for t in range(1, len(rates)):
+            rates[t] = min(max(rates[t], rates[t - 1] - step), rates[t - 1] + step)
+    return rates
+
+
+def _knot_rows(knots: np.ndarray, n: int) -> tuple[list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
+    """The rows ``s(x_b) - s(x_a) = y_b - y_a`` of consecutive knots ``(x, y)`` (frames) in the ``n`` rates."""
+    rows, rhs = [], []
     for (xa, ya), (xb, yb) in zip(knots[:-1], knots[1:], strict=True):
         c, v = _overlap_row(xa, xb, n)
         if len(c):
             rows.append((c, v))
             rhs.append(yb - ya)
-    c = np.asarray(rhs)
-    # quadratic form: a0 |r - 1|^2 + a1 |D1 r|^2 + a2 |D2 r|^2 (first and second differences of the rate)
-    L = max(1.0, smooth_s * fps)
-    a0, a1, a2 = 1e-3, L**2, L**4 / 4.0
-    lo, hi = 1.0 - max_rate_change, 1.0 + max_rate_change
-    fixed = np.zeros(n, dtype=bool)
-    fixed_val = np.zeros(n)
-    rates = np.ones(n)
-    kkt = _BandedKKT(rows, c, n, (a0, a1, a2))
-    for _ in range(50):  # active set: rates that leave the box are fixed at the bound, then solve again
-        F = np.flatnonzero(fixed)
-        rates = kkt.solve(F, fixed_val[F])
-        bad = ((rates < lo - 1e-9) | (rates > hi + 1e-9)) & ~fixed
-        if not bad.any():
+    return rows, np.asarray(rhs, dtype=np.float64)
+
+
+def _bounded_rates(rows: list, rhs: np.ndarray, soft: np.ndarray, n: int, a: tuple, lo: float, hi: float,
+                   step: float, mu: float) -> np.ndarray:
+    """:func:`warp_rates`' programme with its bounds as penalties ``mu/2 · violation²`` (the rate box
+    ``[lo, hi]`` and the steps ``±step``), a convex piecewise quadratic, by damped semi-smooth Newton from the
+    unbounded solution: the bounds the rates leave are penalised and the quadratic programme solved again
+    (:class:`_BandedKKT`), the step towards that solution halved until the objective goes down, until the set of
+    bounds left no longer changes (a bound is released when the rates come back). The hard rows hold at every
+    iterate (each is a mix of two solutions that satisfy them)."""
+    bands = _bands(n, *a)
+    ri = np.concatenate([np.full(len(c), k) for k, (c, _) in enumerate(rows)])
+    ci = np.concatenate([c for c, _ in rows])
+    cv = np.concatenate([v for _, v in rows])
+    softened = soft > 0
+
+    def objective(r: np.ndarray) -> float:
+        d0, d1, d2 = bands
+        qr = d0 * r
+        qr[:-1] += d1 * r[1:]
+        qr[1:] += d1 * r[:-1]
+        qr[:-2] += d2 * r[2:]
+        qr[2:] += d2 * r[:-2]
+        res = np.bincount(ri, weights=cv * r[ci], minlength=len(rows)) - rhs
+        viol = np.maximum(np.abs(np.diff(r)) - step, 0.0)
+        out = np.maximum(r - hi, 0.0) + np.maximum(lo - r, 0.0)
+        return float(0.5 * r @ qr - a[0] * r.sum() + np.sum(res[softened] ** 2 / (2 * soft[softened]))
+                     + 0.5 * mu * (viol @ viol + out @ out))
+
+    def active(r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        d = np.diff(r)
+        return d > step, d < -step, r > hi, r < lo
+
+    def newton_point(up, dn, over, under) -> np.ndarray:
+        """The minimiser of the quadratic that penalises the given bounds (the objective where they are the
+        bounds left)."""
+        pull = np.where(up, mu * step, 0.0) - np.where(dn, mu * step, 0.0)  # μ δ (up - down)
+        lin = mu * (hi * over + lo * under)
+        lin[:-1] -= pull
+        lin[1:] += pull
+        kkt = _BandedKKT(rows, rhs, n, a, soft=soft, extra=(mu * (over | under), mu * (up | dn), lin))
+        return kkt.solve(np.zeros(0, dtype=int), np.zeros(0))
+
+    none = np.zeros(n, dtype=bool)
+    rates = newton_point(none[1:], none[1:], none, none)  # no bound
+    f = objective(rates)
+    for _ in range(MAX_NEWTON):
+        bounds = active(rates)
+        p = newton_point(*bounds) - rates
+        if np.abs(p).max() < 1e-10:
             break
-        fixed |= bad
-        fixed_val[bad] = np.where(rates[bad] < lo, lo, hi)
-    rates = np.clip(rates, lo, hi)
-    return np.concatenate([[0.0], np.cumsum(rates)])
+        alpha = 1.0
+        while True:
+            trial = rates + alpha * p
+            ft = objective(trial)
+            if ft <= f or alpha < 1e-4:
+                break
+            alpha *= 0.5
+        if ft > f:
+            break
+        rates, f = trial, ft
+        if alpha == 1.0 and all(np.array_equal(x, y) for x, y in zip(bounds, active(rates), strict=True)):
+            break  # the minimiser of the quadratic of its own bounds: the minimiser
+    return rates
 
 
 def warp_frames(x: np.ndarray, *, source_frames: np.ndarray) -> np.ndarray:
@@ -513,6 +647,7 @@ def beat_warp(
     smooth: float | None = None,
     between_tolerance: float = 0.0,
     smooth_s: float = DEFAULT_SMOOTH_S,
+    max_rate_step: float | None = DEFAULT_MAX_RATE_STEP,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The beat-synchronous warp of a dance: its source frames and the matched beat pairs.
 
@@ -521,16 +656,17 @@ def beat_warp(
     positions : (T, J, 3) (or (T, J, 2)) joint positions at ``fps``, any units
     music_beats : (M,) music beat times, seconds from the dance's first frame
     fps : frames per second
-    max_rate_change, pair_rate_change, max_shift, between_tolerance, smooth_s : see :func:`warp_rates` and
-        :func:`match_beats`
+    max_rate_change, pair_rate_change, max_shift, between_tolerance, smooth_s, max_rate_step : see
+        :func:`warp_rates` and :func:`match_beats`
     smooth : speed smoothing of the kinematic beats, seconds (default that of
         :func:`dancekit.motion.analysis.kinematic_beats`)
 
     Returns
     -------
     ``(source_frames, pairs)``: (T,) float64 fractional source frames (:func:`warp_frames` applies
-    them) and (P, 2) matched ``[music, kinematic]`` times in seconds. Without a pair the warp is the
-    identity (``source_frames == arange(T)``).
+    them) and (P, 2) matched ``[music, kinematic]`` times in seconds: the pairs the warp lands within half a
+    frame (a pair the rate bounds cannot land is dropped from the list). Without a landed pair the warp is
+    the identity (``source_frames == arange(T)``).
     """
     from dancekit.motion.analysis import DEFAULT_BEAT_SMOOTH, kinematic_beats
 
@@ -544,4 +680,9 @@ def beat_warp(
                         between_tolerance=between_tolerance)
     if len(pairs) == 0:
         return np.arange(T, dtype=np.float64), pairs
-    return warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change, smooth_s=smooth_s), pairs
+    source = warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change, smooth_s=smooth_s,
+                        max_rate_step=max_rate_step)
+    landed = np.abs(np.interp(pairs[:, 0] * fps, np.arange(T), source) - pairs[:, 1] * fps) <= 0.5
+    if not landed.any():
+        return np.arange(T, dtype=np.float64), np.zeros((0, 2))
+    return source, pairs[landed]
