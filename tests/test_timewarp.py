@@ -99,3 +99,20 @@ def test_a_bad_step_bound_is_a_parameter_error(step):
     pairs = _profile_pairs(0.02)
     with pytest.raises(ParameterError, match="max_rate_step"):
         warp_rates(pairs=pairs, n_frames=T, fps=FPS, max_rate_step=step)
+
+
+def test_the_pairing_skips_a_chain_the_step_bound_cannot_follow():
+    # music beats at 0.5 and 1.0 s; kinematic beats at 0.65 and 1.0 s: the chain of both needs a mean rate of
+    # 1.3 over the first half second, then 0.7 over the next (a change of 0.6). At 2 %/frame and 25 fps the
+    # rate moves at most 0.5 per second: 0.25 between two half-second steps (a ramp across both). Without the
+    # check both pairs are taken; with it only one, the one on the identity (rate 1, the gentlest)
+    from dancekit.motion.timewarp import match_beats
+
+    kw = dict(kinematic=np.array([0.65, 1.0]), music=np.array([0.5, 1.0]), duration=3.0, pair_rate_change=0.33,
+              max_shift=0.6)
+    np.testing.assert_allclose(match_beats(**kw), [[0.5, 0.65], [1.0, 1.0]])
+    np.testing.assert_allclose(match_beats(**kw, max_rate_step=0.02, fps=FPS), [[1.0, 1.0]])
+    # a slower step bound of 0.05/frame (1.25 per second: 0.625 between the steps) lets both through
+    np.testing.assert_allclose(match_beats(**kw, max_rate_step=0.05, fps=FPS), [[0.5, 0.65], [1.0, 1.0]])
+    with pytest.raises(ParameterError, match="fps"):
+        match_beats(**kw, max_rate_step=0.02)

@@ -92,6 +92,8 @@ def match_beats(
     min_gap: float = 0.0,
     window: float = 30.0,
     between_tolerance: float = 0.0,
+    max_rate_step: float | None = None,
+    fps: float | None = None,
 ) -> np.ndarray:
     """Pair kinematic beats with music beats by dynamic programming.
 
@@ -109,6 +111,11 @@ def match_beats(
         pairs) puts within this many seconds of a music beat, with weight :data:`BETWEEN_WEIGHT` (a pair:
         1): among chains of nearly as many pairs, the one whose unpaired kinematic beats land on beats too
         (the beat hit rate counts every kinematic beat). 0 (default): only the pairs count.
+    max_rate_step, fps : when given, the warp's rate changes by at most ``max_rate_step`` per frame at ``fps``
+        (:func:`warp_rates`), so two consecutive steps of the chain, ``dm`` and ``dm'`` seconds long, can
+        differ in mean rate by at most ``max_rate_step · fps · (dm + dm') / 2`` (a ramp at the bound across
+        both): a step that breaks it from the best chain into its predecessor is not taken (a greedy check:
+        the predecessor's own best chain only). ``None`` (default): no such check.
 
     Returns
     -------
@@ -121,6 +128,9 @@ def match_beats(
         raise ParameterError(f"max_shift must be positive seconds, got {max_shift}")
     if not between_tolerance >= 0:
         raise ParameterError(f"between_tolerance must be >= 0 seconds, got {between_tolerance}")
+    if max_rate_step is not None and not (fps is not None and fps > 0):
+        raise ParameterError(f"max_rate_step needs the frame rate (fps > 0), got fps={fps}")
+    slope = np.inf if max_rate_step is None else float(max_rate_step) * float(fps)  # rate change per second
     k = check_times(kinematic, "kinematic beats")
     m = check_times(music, "music beats")
     D = float(duration)
@@ -138,6 +148,8 @@ def match_beats(
     lo_r, hi_r = 1.0 - pair_rate_change, 1.0 + pair_rate_change
     score = np.full(N, -np.inf)
     back = np.full(N, -1, dtype=np.int64)
+    rate_in = np.ones(N)  # the mean rate and length (s) of the best chain's last step into each node
+    dm_in = np.zeros(N)
     score[0] = 0.0
     starts = np.searchsorted(node[:, 0], node[:, 0] - window, side="left")
     for n in range(1, N):
@@ -152,6 +164,8 @@ def match_beats(
             ok |= (prev == 0) & (dm > 0)  # the identity warp is always allowed
         rate = np.where(ok, dk / np.where(dm > 0, dm, 1.0), 1.0)
         ok &= (rate >= lo_r - 1e-12) & (rate <= hi_r + 1e-12)
+        if np.isfinite(slope):
+            ok &= (prev == 0) | (np.abs(rate - rate_in[prev]) <= slope * (dm + dm_in[prev]) / 2 + 1e-12)
         if not ok.any():
             continue
         gain = np.full(len(prev), 0.0 if n == N - 1 else 1.0)
@@ -161,6 +175,7 @@ def match_beats(
         best = int(np.argmax(cand))
         score[n] = cand[best]
         back[n] = prev[best]
+        rate_in[n], dm_in[n] = rate[best], dm[best]
     chain = []
     n = int(back[N - 1])
     while n > 0:
@@ -677,7 +692,7 @@ def beat_warp(
     kin = kinematic_beats(p, fps=fps, smooth=DEFAULT_BEAT_SMOOTH if smooth is None else smooth)
     pairs = match_beats(kinematic=kin, music=music_beats, duration=(T - 1) / fps,
                         pair_rate_change=pair_rate_change, max_shift=max_shift,
-                        between_tolerance=between_tolerance)
+                        between_tolerance=between_tolerance, max_rate_step=max_rate_step, fps=fps)
     if len(pairs) == 0:
         return np.arange(T, dtype=np.float64), pairs
     source = warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change, smooth_s=smooth_s,
