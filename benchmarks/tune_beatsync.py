@@ -9,7 +9,7 @@ excepted), split (val / test / song), a JSON object ``name -> beat_warp keyword 
 for the warp off), optionally ``--stage``: the variants
 are ignored and the dances go through ``stages.finish`` as the pipeline runs it (the checkpoint's ``"beat_sync"``
 entry read), next to beat sync off; ``--per-song``: also BAS, hit rate and jerk per song; ``--raw DIR``: the
-dances' folder (default ``runs/feet_raw``). Dances: ``DIR/<model>/<split>/`` of ``benchmarks/feet_dances.py``.
+dances' folder (default ``runs/feet_raw``); ``--json OUT``: every figure, unrounded, to ``OUT``. Dances: ``DIR/<model>/<split>/`` of ``benchmarks/feet_dances.py``.
 Per variant: BAS, beat hit rate, kinematic beats per music beat, the share of kinematic beats matched by the warp,
 mean jerk, foot skating, FID_k / FID_g against the training dances, the warp's rate steps (share of frames whose
 rate changes by more than 1 % and 2 % from the frame before, the largest change); and for the unwarped dances where their
@@ -125,6 +125,8 @@ def main() -> None:
         if name != "off":
             print(f"{name:28s} vs off: " + " ".join(f"{k} {100 * (out[k] / off[k] - 1):+.1f}%"
                                                     for k in ("fid_k", "fid_g", "jerk", "skating")))
+    if "--json" in sys.argv:  # every figure unrounded
+        Path(sys.argv[sys.argv.index("--json") + 1]).write_text(json.dumps(rows_out, indent=1))
 
 
 if __name__ == "__main__":
