@@ -663,6 +663,7 @@ def beat_warp(
     between_tolerance: float = 0.0,
     smooth_s: float = DEFAULT_SMOOTH_S,
     max_rate_step: float | None = DEFAULT_MAX_RATE_STEP,
+    step_pairing: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The beat-synchronous warp of a dance: its source frames and the matched beat pairs.
 
@@ -675,6 +676,9 @@ def beat_warp(
         :func:`warp_rates` and :func:`match_beats`
     smooth : speed smoothing of the kinematic beats, seconds (default that of
         :func:`dancekit.motion.analysis.kinematic_beats`)
+    step_pairing : the pairing skips steps the rate's step bound cannot follow (:func:`match_beats` given
+        ``max_rate_step`` and ``fps``); False: it pairs by ``pair_rate_change`` only and :func:`warp_rates`
+        drops what the bound does not let land
 
     Returns
     -------
@@ -692,7 +696,8 @@ def beat_warp(
     kin = kinematic_beats(p, fps=fps, smooth=DEFAULT_BEAT_SMOOTH if smooth is None else smooth)
     pairs = match_beats(kinematic=kin, music=music_beats, duration=(T - 1) / fps,
                         pair_rate_change=pair_rate_change, max_shift=max_shift,
-                        between_tolerance=between_tolerance, max_rate_step=max_rate_step, fps=fps)
+                        between_tolerance=between_tolerance, fps=fps,
+                        max_rate_step=max_rate_step if step_pairing else None)
     if len(pairs) == 0:
         return np.arange(T, dtype=np.float64), pairs
     source = warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change, smooth_s=smooth_s,
