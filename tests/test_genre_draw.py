@@ -24,6 +24,7 @@ from dancekit.pipelines.revolution import (
     draw_genre,
     genre_draw_from_meta,
     genre_options,
+    jitter_cap,
 )
 
 PROBS = {"waltz": 0.6, "rumba": 0.3, "chacha": 0.1}
@@ -249,3 +250,132 @@ def test_an_implausible_genre_is_never_danced(parent, song, monkeypatch):
         np.testing.assert_array_equal(a.motion.to_positions(), b.motion.to_positions())
     loose = pipeline(parent, monkeypatch, GenreDraw(temperature=1.0, min_ratio=0.8)).dances(song, seeds=SEEDS, end=2.0)
     assert {r.genre for r in loose} == {"waltz", "rumba"}
+
+
+# ---- the fifth attempt: a drawn genre keeps its steps, not its tremor (``genre_jitter``, ``jitter_cap``,
+# ``genre_max_jitter``) -------------------------------------------------------------------------------------------
+
+TABLE = (("waltz", 0.026), ("rumba", 0.05), ("chacha", 0.14), ("tango", 0.22))
+
+
+def test_the_jitter_cap_is_the_smallest_real_jitter_of_the_plausible_genres_worked_by_hand():
+    draw = GenreDraw(temperature=2.0, genre_jitter=TABLE, jitter_cap=0.8)
+    # FOUR: max 0.40, plausible (≥ 0.20): waltz, rumba, chacha; the smallest real jitter is waltz's 0.026
+    assert jitter_cap(FOUR, genre="tango", draw=draw) == pytest.approx(0.8 * 0.026)
+    assert jitter_cap(FOUR, genre=None, draw=draw) == pytest.approx(0.8 * 0.026)  # the model alone too
+    assert jitter_cap(FOUR, genre="waltz", draw=draw) is None  # the most likely genre is left as it is
+    assert jitter_cap(FOUR, genre="waltz", draw=GenreDraw(genre_jitter=TABLE, jitter_cap=0.8, cap_all=True)) == \
+        pytest.approx(0.8 * 0.026)
+    # a song read as cha-cha / tango: waltz (0.10 < 0.5 · 0.45) is not plausible, the cap is cha-cha's 0.14
+    chacha = {"waltz": 0.10, "rumba": 0.10, "chacha": 0.45, "tango": 0.35}
+    assert jitter_cap(chacha, genre="tango", draw=draw) == pytest.approx(0.8 * 0.14)
+    assert jitter_cap(chacha, genre="tango", draw=GenreDraw(genre_jitter=TABLE, jitter_cap=1.0,
+                                                           cap_min_ratio=0.2)) == pytest.approx(0.026)
+    assert jitter_cap({}, genre=None, draw=draw) is None
+    assert jitter_cap(FOUR, genre="tango", draw=GenreDraw(temperature=2.0, genre_jitter=TABLE)) is None  # no cap
+
+
+def test_a_genre_far_jerkier_than_the_most_likely_one_is_not_drawn_worked_by_hand():
+    # most likely waltz (0.026): k = 2 keeps rumba (0.05 ≤ 0.052) and drops cha-cha and tango; τ = 1 over 0.7
+    opts = genre_options(FOUR, GenreDraw(temperature=1.0, genre_jitter=TABLE, max_jitter=2.0))
+    assert opts == pytest.approx({"waltz": 4 / 7, "rumba": 3 / 7, "chacha": 0.0, "tango": 0.0})
+    # k = 1.9 drops rumba too; the model alone keeps its w
+    opts = genre_options(FOUR, GenreDraw(temperature=1.0, alone=0.25, genre_jitter=TABLE, max_jitter=1.9))
+    assert opts == pytest.approx({"waltz": 0.75, "rumba": 0.0, "chacha": 0.0, "tango": 0.0, None: 0.25})
+    # most likely cha-cha (0.14): tango is 1.57×, kept with k = 2; waltz and rumba are calmer, always kept
+    chacha = {"waltz": 0.10, "rumba": 0.10, "chacha": 0.45, "tango": 0.35}
+    opts = genre_options(chacha, GenreDraw(temperature=1.0, genre_jitter=TABLE, max_jitter=2.0))
+    assert opts == pytest.approx(chacha)
+    assert "tango" not in frequencies(FOUR, GenreDraw(temperature=2.0, alone=0.25, genre_jitter=TABLE, max_jitter=2.0))
+
+
+def test_bad_jitter_entries_are_named_errors():
+    for kwargs, says in (({"jitter_cap": 1.0}, "jitter_cap needs a genre_jitter table"),
+                         ({"max_jitter": 2.0}, "genre_max_jitter needs a genre_jitter table"),
+                         ({"genre_jitter": (("waltz", -0.1),)}, "genre_jitter must map"),
+                         ({"genre_jitter": TABLE, "jitter_cap": -1.0}, "jitter_cap must be"),
+                         ({"genre_jitter": TABLE, "cap_min_ratio": 1.5}, "jitter_cap_min_ratio"),
+                         ({"genre_jitter": TABLE, "cap_all": "yes"}, "jitter_cap_all")):
+        with pytest.raises(ParameterError, match=says):
+            GenreDraw(**kwargs)
+    spec = {"genre_temperature": 2, "genre_jitter": dict(TABLE), "jitter_cap": 0.9, "genre_max_jitter": 2,
+            "jitter_cap_min_ratio": 0.4, "jitter_cap_all": True}
+    assert genre_draw_from_meta({"sampling": spec}) == GenreDraw(2.0, genre_jitter=TABLE, jitter_cap=0.9,
+                                                                 max_jitter=2.0, cap_min_ratio=0.4, cap_all=True)
+    for bad in ({"jitter_cap": 1.0}, {"genre_jitter": [0.1]}, {"genre_jitter": {"waltz": "calm"}},
+                {"genre_jitter": dict(TABLE), "jitter_cap": "low"}):
+        with pytest.raises(CheckpointError, match="ckpt: bad 'sampling' entry in config.json"):
+            genre_draw_from_meta({"sampling": bad}, folder="ckpt")
+
+
+def jitter_m_s(motion) -> float:
+    """The guard's jitter (m/s), from the metrics module (not the stage's own sums)."""
+    from dancekit.metrics import stability
+
+    return stability.jitter(motion.to_positions(), fps=motion.fps, skeleton=motion.skeleton)["speed_residual"]
+
+
+def test_a_drawn_dance_is_capped_and_the_most_likely_one_left_alone(parent, song, monkeypatch):
+    free = GenreDraw(temperature=1.0, alone=0.2, genre_jitter=TABLE)
+    # a cap of 0.1 × 0.026 m/s is under every tiny model's dance (0.007-0.03 m/s after the smoothing stage)
+    capped = GenreDraw(temperature=1.0, alone=0.2, genre_jitter=TABLE, jitter_cap=0.1)
+    before = pipeline(parent, monkeypatch, free).dances(song, seeds=SEEDS, beat_sync=False)
+    after = pipeline(parent, monkeypatch, capped).dances(song, seeds=SEEDS, beat_sync=False)
+    drawn = 0
+    for a, b in zip(before, after):
+        assert a.genre == b.genre
+        if b.genre == "waltz":  # the song's most likely genre: not capped, bit for bit
+            np.testing.assert_array_equal(a.motion.to_positions(), b.motion.to_positions())
+            assert not any("calmed" in n for n in b.notes)
+            continue
+        drawn += 1
+        assert jitter_m_s(a.motion) > 0.1 * 0.026
+        assert jitter_m_s(b.motion) < jitter_m_s(a.motion)
+        assert any("calmed to the song's genres" in n for n in b.notes), b.notes
+        # bones keep their lengths through the low-pass
+        p = b.motion.to_positions()
+        sk = b.motion.skeleton
+        for j in range(sk.num_joints):
+            if sk.parents[j] >= 0:
+                length = np.linalg.norm(p[:, j] - p[:, sk.parents[j]], axis=-1)
+                np.testing.assert_allclose(length, length[0], rtol=1e-4)
+    assert drawn >= 2
+    every = pipeline(parent, monkeypatch, GenreDraw(temperature=1.0, alone=0.2, genre_jitter=TABLE, jitter_cap=0.1,
+                                                    cap_all=True)).dances(song, seeds=[0], beat_sync=False)
+    assert jitter_m_s(every[0].motion) < jitter_m_s(before[0].motion)
+
+
+def test_the_cutoff_brings_the_jitter_under_the_cap():
+    from dancekit.motion._filters import fir_lowpass, lowpass_kernel
+    from dancekit.motion.footlock import CAP_CUTOFFS_HZ, jitter_cutoff
+
+    skel = get_skeleton("tang2018")
+    rng = np.random.default_rng(0)
+    t = np.arange(500) / 25.0
+    rest = np.zeros((skel.num_joints, 3))
+    for j in skel.topological_order:
+        if skel.parents[j] >= 0:
+            rest[j] = rest[skel.parents[j]] + skel.offsets[j]
+    sway = 10.0 * np.sin(2 * np.pi * 0.7 * t)[:, None, None] * rng.normal(size=(1, skel.num_joints, 3))
+    tremor = 1.5 * rng.normal(size=(len(t), skel.num_joints, 3))
+    p = rest[None] + sway + tremor
+    p[:, skel.root] = rest[skel.root]
+
+    def metric(x):
+        from dancekit.metrics import stability
+
+        return stability.jitter(x, fps=25.0, skeleton=skel)["speed_residual"]
+
+    base = metric(p)
+    for cap in (0.8 * base, 0.3 * base, 0.1 * base):
+        c = jitter_cutoff(p, skeleton=skel, fps=25.0, max_jitter=cap)
+        assert c in CAP_CUTOFFS_HZ
+        q = fir_lowpass(p, lowpass_kernel(c, fps=25.0))
+        assert metric(q) <= cap + 1e-12  # the stage measures as the metrics module does
+        higher = [h for h in CAP_CUTOFFS_HZ if h > c]
+        if higher:  # the highest cut-off that does: the next one up does not
+            assert metric(fir_lowpass(p, lowpass_kernel(higher[-1], fps=25.0))) > cap
+    assert jitter_cutoff(p, skeleton=skel, fps=25.0, max_jitter=2 * base) == 0.0
+    assert jitter_cutoff(p, skeleton=skel, fps=25.0, max_jitter=1e-9) == CAP_CUTOFFS_HZ[-1]
+    with pytest.raises(ParameterError, match="max_jitter"):
+        jitter_cutoff(p, skeleton=skel, fps=25.0, max_jitter=0.0)

@@ -648,6 +648,63 @@ def lowpass_cutoff(positions: np.ndarray, *, skeleton: Skeleton, fps: float, tar
     return float(cutoffs[-1])
 
 
+#: The cut-offs (Hz, highest first) :func:`jitter_cutoff` tries to bring a dance's tremor under a cap: lower
+#: than :data:`CUTOFFS_HZ`, since the dances it is for (a genre model drawn by the seed, issue 15) already
+#: passed the 3-Hz settle; at 1 Hz a waltz's one-step-per-beat sway (about 1.5 steps per second) is still half there.
+CAP_CUTOFFS_HZ = (4.0, 3.0, 2.5, 2.0, 1.75, 1.5, 1.25, 1.0)
+
+
+def jitter_cutoff(positions: np.ndarray, *, skeleton: Skeleton, fps: float, max_jitter: float,
+                  cutoffs: tuple[float, ...] = CAP_CUTOFFS_HZ) -> float:
+    """The highest low-pass cut-off (Hz) of ``cutoffs`` (highest first) whose output (:func:`lowpass_rows`) has
+    a jitter of at most ``max_jitter`` m/s (the body-relative speed a 5-frame average removes, the
+    :mod:`dancekit.metrics.stability` jitter, with ``skeleton.unit_scale`` to metres); 0 (no filter) when the
+    dance already has; the lowest when none has. Only cut-offs whose kernel (:func:`lowpass_taps`) fits in
+    the dance are tried (a dance shorter than every kernel: 0). Measured :data:`CHUNK` frames at a time."""
+    from dancekit.motion._filters import lowpass_taps
+
+    p = np.asarray(positions)
+    if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
+        raise ParameterError(f"jitter_cutoff needs (T, J, 3) positions, got shape {np.shape(positions)}")
+    if not (np.isfinite(max_jitter) and max_jitter > 0):
+        raise ParameterError(f"max_jitter must be a positive number of m/s, got {max_jitter!r}")
+    cutoffs = tuple(c for c in cutoffs if lowpass_taps(c, fps=fps) <= len(p))
+    if not cutoffs or _jitter_speed(p, skeleton, fps) <= max_jitter:
+        return 0.0
+    for c in cutoffs:
+        if _jitter_speed(p, skeleton, fps, cutoff=c) <= max_jitter:
+            return float(c)
+    return float(cutoffs[-1])
+
+
+def _jitter_speed(p: np.ndarray, skeleton: Skeleton, fps: float, *, cutoff: float | None = None) -> float:
+    """The jitter of ``p`` (T, J, 3) (or of its low-pass at ``cutoff`` Hz) in m/s, as
+    :func:`dancekit.metrics.stability.jitter` measures it (computed here without importing metrics): the mean
+    body-relative joint speed (central differences, one-sided at the ends) minus that of the 5-frame moving
+    average (edge frames repeated). Over pieces of :data:`CHUNK` frames with a 3-frame margin."""
+    from dancekit.motion._filters import lowpass_kernel
+
+    T = len(p)
+    if T < 2:
+        return 0.0
+    r = skeleton.root
+    h = lowpass_kernel(cutoff, fps=fps) if cutoff else None
+    total = 0.0
+    for a, b in chunks(T):  # the speeds at frames [a, b)
+        lo, hi = max(a - 3, 0), min(b + 3, T)
+        x = lowpass_rows(p, h, lo, hi) if h is not None else np.asarray(p[lo:hi], np.float64)
+        rel = x - x[:, r: r + 1]
+        raw = np.linalg.norm(np.gradient(rel, axis=0), axis=-1)[a - lo: b - lo]
+        padded = np.concatenate([rel[:1]] * 2 * (lo == 0) + [rel] + [rel[-1:]] * 2 * (hi == T))
+        c = np.cumsum(np.concatenate([np.zeros((1, *rel.shape[1:])), padded]), axis=0)
+        avg = (c[5:] - c[:-5]) / 5  # the 5-frame average of rows lo + 2 - 2·[lo == 0] ...
+        first = lo + 2 - 2 * (lo == 0)  # the frame avg[0] is centred on
+        sm = np.linalg.norm(np.gradient(avg, axis=0), axis=-1)
+        # the average's gradient at a piece's inner edge would be one-sided: a ≥ first + 1 there (margin 3)
+        total += float(raw.sum() - sm[a - first: b - first].sum())
+    return total / (T * p.shape[1]) * fps * skeleton.unit_scale
+
+
 def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int | None = None,
                   order: int = 3, cutoff: float | None = None) -> float:
     """Mean body-relative speed removed by a 5-frame moving average, over the smoothed speed (the jitter
@@ -656,11 +713,22 @@ def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int 
     low-pass at ``cutoff`` Hz (:func:`lowpass_rows`) when ``cutoff`` is. Summed over pieces
     of :data:`CHUNK` frames with a margin (the moving average and the filter are local), so a long song
     needs no whole-song float64 copies; the same ratio as one pass up to float rounding of the sums."""
+    raw, smooth, _ = _jitter_sums(p, skeleton, fps, window=window, order=order, cutoff=cutoff)
+    return float((raw - smooth) / smooth) if smooth > 0 else 0.0
+
+
+def _jitter_sums(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int | None = None,
+                 order: int = 3, cutoff: float | None = None) -> tuple[float, float, int]:
+    """``(raw, smooth, n)``: the summed body-relative joint steps between frames (skeleton units per frame) of the
+    dance ``p`` (T, J, 3) (or of ``_savgol(p, window, order)`` / its low-pass at ``cutoff`` Hz), the same sum
+    for its 5-frame moving average, and the number of steps summed; computed here without importing metrics,
+    over pieces of :data:`CHUNK` frames with a margin (the moving average and the filter are local), so a
+    long song needs no whole-song float64 copies."""
     from dancekit.motion._filters import lowpass_kernel, uniform_filter1d
 
     T = len(p)
     if T < 3:
-        return 0.0
+        return 0.0, 0.0, 0
     r = skeleton.root
     h = lowpass_kernel(cutoff, fps=fps) if cutoff else None
     raw = smooth = 0.0
@@ -676,7 +744,7 @@ def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int 
         raw += float(np.linalg.norm(np.diff(rel[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
         sm = uniform_filter1d(rel, 5, axis=0)  # at lo > 0 / hi < T: 2 real frames of margin
         smooth += float(np.linalg.norm(np.diff(sm[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
-    return float((raw - smooth) / smooth) if smooth > 0 else 0.0
+    return raw, smooth, (T - 1) * p.shape[1]
 
 
 def smooth_positions(positions: np.ndarray, *, skeleton: Skeleton, fps: float, target: float | None = None,

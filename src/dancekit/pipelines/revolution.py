@@ -27,6 +27,13 @@ posterior sharpened or softened by τ, ``q_g ∝ p_g^(1/τ)``, among the song's 
 the seed and the song's posterior only (:func:`draw_genre`), so it is the same in a batch and alone; the
 result says what was drawn (:meth:`DanceResult.summary`: ``"as rumba (drawn by seed 3, p = 0.31)"``).
 ``genre="waltz"`` still forces the waltz model, and ``genre="none"`` the model alone.
+
+A drawn genre keeps its steps but need not keep its tremor: with ``"genre_jitter": {genre: m/s}`` (the real
+training dances' median jitter per genre) the checkpoint may (a) draw only genres whose real jitter is at most
+``"genre_max_jitter"`` k times that of the song's most likely genre, and (b) cap a drawn dance's jitter at
+``"jitter_cap"`` s times the smallest real jitter among the song's plausible genres (``p_g ≥ "jitter_cap_min_ratio"
+· max(p)``, default 0.5), by a per-dance low-pass after the settle (:func:`dancekit.pipelines.stages.settle`,
+``max_jitter``); ``"jitter_cap_all": true`` caps the most likely genre's dances too (:func:`jitter_cap`).
 """
 
 from __future__ import annotations
@@ -288,8 +295,9 @@ class RevolutionPipeline:
             result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
                                  genre=genre_k, genre_probs=probs, danced_by=danced_by[genre_k],
                                  beat_strength=float(strength), looks_like_music=music, genre_drawn_p=drawn_p)
+            cap = jitter_cap(probs, genre=genre_k, draw=self.genre_draw) if music else None
             results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
-                                  cleanup_on=cleanup, beats=beats))
+                                  cleanup_on=cleanup, beats=beats, max_jitter=cap))
         return results
 
     @torch.no_grad()
@@ -411,6 +419,16 @@ class GenreDraw:
     alone: float = 0.0
     seed0: bool = False
     min_ratio: float = 0.0
+    #: the real training dances' median jitter per genre (m/s), as ``((genre, m/s), ...)``; needed by the two below
+    genre_jitter: tuple[tuple[str, float], ...] = ()
+    #: k > 0: only genres with ``genre_jitter[g] ≤ k · genre_jitter[most likely]`` are drawn (0: no such limit)
+    max_jitter: float = 0.0
+    #: s > 0: a drawn dance's jitter is capped at s × the smallest ``genre_jitter`` of the song's plausible genres
+    jitter_cap: float = 0.0
+    #: the plausible genres of the cap: ``p_g ≥ cap_min_ratio · max(p)``
+    cap_min_ratio: float = 0.5
+    #: True: the cap applies to the most likely genre's dances (seed 0) too
+    cap_all: bool = False
 
     def __post_init__(self):
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -421,6 +439,18 @@ class GenreDraw:
             raise ParameterError(f"genre_draw_seed0 must be true or false, got {self.seed0!r}")
         if not (np.isfinite(self.min_ratio) and 0 <= self.min_ratio <= 1):
             raise ParameterError(f"genre_min_ratio must be in [0, 1], got {self.min_ratio!r}")
+        if not all(isinstance(g, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+                   and v > 0 for g, v in self.genre_jitter):
+            raise ParameterError(f"genre_jitter must map genres to positive m/s, got {dict(self.genre_jitter)!r}")
+        for key, v in (("genre_max_jitter", self.max_jitter), ("jitter_cap", self.jitter_cap)):
+            if not (np.isfinite(v) and v >= 0):
+                raise ParameterError(f"{key} must be a finite number ≥ 0, got {v!r}")
+            if v > 0 and not self.genre_jitter:
+                raise ParameterError(f"{key} needs a genre_jitter table")
+        if not (np.isfinite(self.cap_min_ratio) and 0 <= self.cap_min_ratio <= 1):
+            raise ParameterError(f"jitter_cap_min_ratio must be in [0, 1], got {self.cap_min_ratio!r}")
+        if not isinstance(self.cap_all, bool):
+            raise ParameterError(f"jitter_cap_all must be true or false, got {self.cap_all!r}")
 
     @property
     def active(self) -> bool:
@@ -442,6 +472,11 @@ def genre_options(probs: dict[str, float], draw: GenreDraw) -> dict[str | None, 
             logq = np.log(np.maximum(p, 0.0)) / draw.temperature
         q = np.exp(logq - logq.max())
         q[p < draw.min_ratio * p.max()] = 0.0  # not a plausible genre for this song
+        if draw.max_jitter > 0:  # not a genre far jerkier than the song's most likely one
+            table = dict(draw.genre_jitter)
+            best = names[int(np.argmax(p))]
+            if best in table:
+                q[[g in table and table[g] > draw.max_jitter * table[best] for g in names]] = 0.0
     else:
         q = np.zeros(len(names))
         q[names.index(max(probs, key=probs.get))] = 1.0
@@ -477,20 +512,41 @@ def draw_genre(probs: dict[str, float], *, seed: int, draw: GenreDraw) -> tuple[
     return keys[k], options[keys[k]]
 
 
+def jitter_cap(probs: dict[str, float], *, genre: str | None, draw: GenreDraw) -> float | None:
+    """The jitter cap (m/s) of a dance of genre ``genre`` (None: the model alone) for a song whose genre
+    posterior is ``probs``: ``draw.jitter_cap`` × the smallest real jitter (``draw.genre_jitter``) among the song's
+    plausible genres (``p_g ≥ draw.cap_min_ratio · max(p)``, genres in the table); None (no cap) without a
+    posterior, a cap or a table entry, and for the most likely genre's dance unless ``draw.cap_all``."""
+    table = dict(draw.genre_jitter)
+    if not probs or draw.jitter_cap <= 0 or not table:
+        return None
+    top = max(probs.values())
+    if genre == max(probs, key=probs.get) and not draw.cap_all:
+        return None
+    plausible = [table[g] for g, p in probs.items() if g in table and p >= draw.cap_min_ratio * top]
+    return float(draw.jitter_cap * min(plausible)) if plausible else None
+
+
 def genre_draw_from_meta(meta: dict[str, Any], *, folder: str = "?") -> GenreDraw:
     """The checkpoint's genre draw: ``meta["sampling"]`` with ``genre_temperature`` τ, ``genre_alone`` w,
     ``genre_draw_seed0`` and ``genre_min_ratio`` ρ; none of them: no draw (``GenreDraw()``)."""
     spec = meta.get("sampling") or {}
     if not isinstance(spec, dict):
         raise CheckpointError(f"checkpoint {folder}: config.json 'sampling' must be an object, got {spec!r}")
-    def number(key: str) -> float:
+    def number(key: str, default: float = 0.0) -> float:
         try:
-            return float(spec.get(key, 0.0))
+            return float(spec.get(key, default))
         except (TypeError, ValueError):
             raise ParameterError(f"{key} must be a number, got {spec[key]!r}") from None
 
+    table = spec.get("genre_jitter", {})
     try:
+        if not isinstance(table, dict):
+            raise ParameterError(f"genre_jitter must map genres to positive m/s, got {table!r}")
         return GenreDraw(temperature=number("genre_temperature"), alone=number("genre_alone"),
-                         seed0=spec.get("genre_draw_seed0", False), min_ratio=number("genre_min_ratio"))
+                         seed0=spec.get("genre_draw_seed0", False), min_ratio=number("genre_min_ratio"),
+                         genre_jitter=tuple((str(g), v) for g, v in table.items()),
+                         max_jitter=number("genre_max_jitter"), jitter_cap=number("jitter_cap"),
+                         cap_min_ratio=number("jitter_cap_min_ratio", 0.5), cap_all=spec.get("jitter_cap_all", False))
     except ParameterError as exc:
         raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None

@@ -275,7 +275,7 @@ def foot_lock(result: DanceResult) -> DanceResult:
 
 
 def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = True,
-           ratio_target: float | None = None) -> DanceResult:
+           ratio_target: float | None = None, max_jitter: float | None = None) -> DanceResult:
     """The result with a light zero-phase low-pass (:func:`dancekit.motion._filters.lowpass_kernel` at
     ``cutoff`` Hz, default :data:`SETTLE_HZ`; ``0``: off) on every joint's position, run after the foot lock:
     the lock's stop-and-go (a foot handed over between holds, the knee solved frame by frame) is softened,
@@ -286,16 +286,27 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     :func:`smooth` does) and its positions recomputed from them, so a held foot moves a little there.
     ``ratio_target`` (and no ``cutoff``): the cut-off is chosen per dance, the highest of
     :data:`dancekit.motion.footlock.CUTOFFS_HZ` that brings the dance's jitter-to-energy ratio to the target
-    (:func:`dancekit.motion.footlock.lowpass_cutoff`); a dance already at or under it is left alone."""
+    (:func:`dancekit.motion.footlock.lowpass_cutoff`); a dance already at or under it is left alone.
+    ``max_jitter`` (m/s; and no ``cutoff``): the cut-off is chosen per dance, the highest of
+    :data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ` that brings the dance's jitter under the cap
+    (:func:`dancekit.motion.footlock.jitter_cutoff`; a genre model drawn by the seed, issue 15); a dance
+    already under it is left alone, a filtered one gets a note."""
     from dancekit.motion._filters import lowpass_kernel
     from dancekit.motion.footlock import chunks, lowpass_rows
 
     motion = result.motion
+    note = None
     if ratio_target is not None and cutoff is None and _is_3d(motion):  # per dance: only a jittery one
         from dancekit.motion.footlock import lowpass_cutoff
 
         cutoff = lowpass_cutoff(motion.to_positions(), skeleton=motion.skeleton, fps=motion.fps,
                                 target=float(ratio_target))
+    if max_jitter is not None and cutoff is None and _is_3d(motion):  # per dance: only a jittery one
+        from dancekit.motion.footlock import jitter_cutoff
+
+        cutoff = jitter_cutoff(motion.to_positions(), skeleton=motion.skeleton, fps=motion.fps,
+                               max_jitter=float(max_jitter))
+        note = f"calmed to the song's genres ({cutoff:g}-Hz low-pass)"
     cutoff = SETTLE_HZ if cutoff is None else float(cutoff)
     if not cutoff or not _is_3d(motion):
         return result
@@ -311,14 +322,16 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     if motion.rotations is not None:  # the rotations filtered as the smoothing stage does, positions by FK
         from dancekit.motion._filters import fir_lowpass
 
-        return dataclasses.replace(result, motion=_rotations_filtered(motion, lambda x: fir_lowpass(x, h)))
+        out = dataclasses.replace(result, motion=_rotations_filtered(motion, lambda x: fir_lowpass(x, h)))
+        return _with_note(out, note) if note else out
     out = np.empty(p.shape, np.float32)
     for a, b in chunks(len(p)):
         q = lowpass_rows(p, h, a, b)
         if keep:  # the legs as locked: only the rest of the body filtered
             q[:, keep] = np.asarray(p[a:b, keep], np.float64)
         out[a:b] = keep_bone_lengths(q, p[a:b], sk)
-    return dataclasses.replace(result, motion=Motion(skeleton=sk, fps=fps, positions=out))
+    out = dataclasses.replace(result, motion=Motion(skeleton=sk, fps=fps, positions=out))
+    return _with_note(out, note) if note else out
 
 
 def settle_options(model: str | os.PathLike | None) -> dict[str, float]:
@@ -575,7 +588,7 @@ def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str],
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
            end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
            foot_lock_on: bool | None = None, smooth_on: bool | None = None, energy_on: bool | None = None,
-           beats=None) -> DanceResult:
+           beats=None, max_jitter: float | None = None) -> DanceResult:
     """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
     a jittery dance is filtered), the energy lift the model's checkpoint asks for (:func:`lift_energy`,
     :func:`energy_options`: only a dance under its floor; after the smoothing, so the flicker it removed is
@@ -584,7 +597,8 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     :func:`settle_options`: a held foot stays held), then the beat sync (so the speed minima it aligns are
     those of the final dance). ``foot_lock_on``, ``smooth_on`` and ``energy_on`` follow ``cleanup_on`` unless
     given. ``beats``: the song's :class:`~dancekit.features.pulse.SongBeats` when already tracked (many
-    dances of one song), else tracked here when needed."""
+    dances of one song), else tracked here when needed. ``max_jitter`` (m/s): after the settle, a second
+    per-dance low-pass caps the dance's jitter (:func:`settle`; a genre model the seed drew, issue 15)."""
     if cleanup_on:
         result = clean_up(result)
     if cleanup_on if smooth_on is None else smooth_on:
@@ -594,6 +608,8 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     if cleanup_on if foot_lock_on is None else foot_lock_on:
         result = foot_lock(result)
         result = settle(result, **settle_options(result.model))
+        if max_jitter is not None:
+            result = settle(result, max_jitter=max_jitter)
     if beat_sync_on:
         result = beat_sync(result, audio_path, start=start, end=end, beats=beats)
     return result
