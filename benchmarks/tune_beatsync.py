@@ -5,11 +5,14 @@
 
 Arguments: model (an embedded model: its checkpoint's stages are applied as the pipeline does, the warp
 excepted), split (val / test / song), a JSON object ``name -> beat_warp keyword arguments`` (``max_rate_change``,
-``pair_rate_change``, ``max_shift``, ``smooth``; ``null`` for the warp off), optionally ``--stage``: the variants
+``pair_rate_change``, ``max_shift``, ``smooth``, ``smooth_s``, ``between_tolerance``, ``max_rate_step``; ``null``
+for the warp off), optionally ``--stage``: the variants
 are ignored and the dances go through ``stages.finish`` as the pipeline runs it (the checkpoint's ``"beat_sync"``
-entry read), next to beat sync off; ``--per-song``: also BAS, hit rate and jerk per song. Dances: ``runs/feet_raw/<model>/<split>/`` of ``benchmarks/feet_dances.py``.
+entry read), next to beat sync off; ``--per-song``: also BAS, hit rate and jerk per song; ``--raw DIR``: the
+dances' folder (default ``runs/feet_raw``); ``--json OUT``: every figure, unrounded, to ``OUT``. Dances: ``DIR/<model>/<split>/`` of ``benchmarks/feet_dances.py``.
 Per variant: BAS, beat hit rate, kinematic beats per music beat, the share of kinematic beats matched by the warp,
-mean jerk, foot skating, FID_k / FID_g against the training dances; and for the unwarped dances where their
+mean jerk, foot skating, FID_k / FID_g against the training dances, the warp's rate steps (share of frames whose
+rate changes by more than 1 % and 2 % from the frame before, the largest change); and for the unwarped dances where their
 kinematic beats lie (the diagnosis). Choose settings on ``val`` only.
 """
 
@@ -53,8 +56,9 @@ def main() -> None:
     use_stage = "--stage" in sys.argv
     per_song = "--per-song" in sys.argv
     variants = {"stage": "stage"} if use_stage else json.loads(sys.argv[3])
+    raw = sys.argv[sys.argv.index("--raw") + 1] if "--raw" in sys.argv else "runs/feet_raw"
     data = PreparedData("data/tang2018")
-    files = sorted(Path(f"runs/feet_raw/{model}/{split}").glob("*__*.npz"))
+    files = sorted(Path(f"{raw}/{model}/{split}").glob("*__*.npz"))
     audio = bench_feet.song_audio(data, split)
     reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")]
     folder = bench_feet.model_folder(model)
@@ -75,7 +79,7 @@ def main() -> None:
     rows_out = {}
     for name, v in ({"off": None} | variants).items():
         t1 = time.process_time()
-        rows, pos, matched, songs = [], [], [], []
+        rows, pos, matched, songs, steps = [], [], [], [], []
         for f, res in pre.items():
             song = f.stem.rsplit("__", 1)[0]
             b = beats[song]
@@ -87,6 +91,7 @@ def main() -> None:
                 source, pairs = beat_warp(p, music_beats=b.times, fps=FPS, **v)
                 n_k = len(kinematic_beats(p, fps=FPS, smooth=v.get("smooth")))
                 matched.append(len(pairs) / max(n_k, 1))
+                steps.append(np.abs(np.diff(source, 2)))  # the rate's change per frame
                 if len(pairs):
                     res = DanceResult(motion=warp_motion(res.motion, source_frames=source), model=res.model, seed=0)
             p = np.asarray(res.motion.to_positions(), np.float64)
@@ -98,12 +103,19 @@ def main() -> None:
             pos.append(p)
         m = bench_stages.mean_rows(rows)
         fd = bench_stages.fids(pos, reference, FPS, SK)
+        st = np.concatenate(steps) if steps else np.zeros(0)
         out = {"bas": m["bas"], "hit": m["hit_rate"], "coverage": m["coverage"], "jerk": m["jerk"],
-               "skating": m["foot_skating"], **fd, "matched": float(np.mean(matched)) if matched else np.nan}
+               "skating": m["foot_skating"], **fd, "matched": float(np.mean(matched)) if matched else np.nan,
+               # rate steps (|rate[t+1] - rate[t]|, over every frame of the warped dances): share above 1 % and
+               # 2 % per frame (1e-6 of slack: a step held at the bound counts as at it), the largest
+               "step1": float(np.mean(st > 0.01 + 1e-6)) if len(st) else np.nan,
+               "step2": float(np.mean(st > 0.02 + 1e-6)) if len(st) else np.nan,
+               "stepmax": float(st.max()) if len(st) else np.nan}
         rows_out[name] = out
         print(f"{name:28s} BAS {out['bas']:.3f} hit {out['hit']:.3f} kin/music {out['coverage']:.2f} "
               f"matched {out['matched']:.2f} jerk {out['jerk']:.2f} skate {out['skating']:.4f} "
-              f"FID_k {out['fid_k']:.2f} FID_g {out['fid_g']:.2f} cpu {time.process_time() - t1:.0f}s", flush=True)
+              f"FID_k {out['fid_k']:.2f} FID_g {out['fid_g']:.2f} steps>1% {out['step1']:.4f} >2% {out['step2']:.4f} "
+              f"max {out['stepmax']:.4f} cpu {time.process_time() - t1:.0f}s", flush=True)
         if per_song:
             for song in dict.fromkeys(songs):
                 ms = bench_stages.mean_rows([r for r, s in zip(rows, songs, strict=True) if s == song])
@@ -113,6 +125,8 @@ def main() -> None:
         if name != "off":
             print(f"{name:28s} vs off: " + " ".join(f"{k} {100 * (out[k] / off[k] - 1):+.1f}%"
                                                     for k in ("fid_k", "fid_g", "jerk", "skating")))
+    if "--json" in sys.argv:  # every figure unrounded
+        Path(sys.argv[sys.argv.index("--json") + 1]).write_text(json.dumps(rows_out, indent=1))
 
 
 if __name__ == "__main__":

@@ -1,8 +1,7 @@
 """The dance stages without SciPy (issue 13's cold start): the NumPy 1-D filters of
 :mod:`dancekit.motion._filters` against ``scipy.ndimage`` on random inputs for the modes and sizes the
-stages use, the beat warp's banded NumPy solver against the sparse KKT solve (``spsolve``) it replaced,
-and a fresh process running the stages' functions that imports neither ``scipy.ndimage`` nor
-``scipy.sparse``."""
+stages use, the beat warp's banded solve against a dense one, and a fresh process running the stages'
+functions that imports neither ``scipy.ndimage`` nor ``scipy.sparse``."""
 
 from __future__ import annotations
 
@@ -83,71 +82,42 @@ def _pairs(rng, T: int, fps: float, bound: float) -> np.ndarray:
     return np.asarray(chain[1:]).reshape(-1, 2)
 
 
-def test_the_banded_warp_solver_equals_the_sparse_kkt_solve(monkeypatch):
+def _dense_source(knots: np.ndarray, w_pair: float, n: int, a: tuple) -> np.ndarray:
+    """The unbounded programme of :func:`timewarp._bounded_source` solved densely: explicit difference
+    matrices of the source frames, the pairs' interpolation rows, ``s[0] = 0`` and ``s[n] = n`` held, the
+    normal equations by ``np.linalg.solve``."""
+    D1 = np.diff(np.eye(n + 1), axis=0)  # (n, n + 1): the rates
+    D2, D3 = np.diff(D1, axis=0), np.diff(D1, 2, axis=0)
+    x, y = knots[1:-1, 0], knots[1:-1, 1]
+    P = np.zeros((len(x), n + 1))
+    i0 = np.clip(np.floor(x).astype(int), 0, n - 1)
+    P[np.arange(len(x)), i0] = 1 - (x - i0)
+    P[np.arange(len(x)), i0 + 1] = x - i0
+    H = a[0] * D1.T @ D1 + a[1] * D2.T @ D2 + a[2] * D3.T @ D3 + w_pair * P.T @ P
+    g = a[0] * D1.T @ np.ones(n) + w_pair * P.T @ y
+    g -= H[:, n] * n  # s[n] = n held (s[0] = 0 adds nothing)
+    s = np.zeros(n + 1)
+    s[n] = n
+    s[1:n] = np.linalg.solve(H[1:n, 1:n], g[1:n])
+    return s
+
+
+def test_the_banded_warp_solver_equals_a_dense_solve():
     rng = np.random.default_rng(0)
-    solves = {"fixed": 0, "sparse": 0}
-    numpy_solve = timewarp._BandedKKT.solve
-
-    def counted(self, fixed, fixed_val):
-        solves["fixed"] += len(fixed) > 0
-        return numpy_solve(self, fixed, fixed_val)
-
-    def no_sparse(self, fixed, fixed_val):
-        solves["sparse"] += 1
-        raise AssertionError("a small warp went to spsolve")
-
-    cases = []
-    for _ in range(12):
+    for _ in range(8):
         fps = float(rng.choice([25.0, 30.0, 60.0]))
-        T = int(rng.integers(40, 2500))
-        bound = float(rng.choice([0.15, 0.05]))
-        cases.append(dict(pairs=_pairs(rng, T, fps, bound), n_frames=T, fps=fps, max_rate_change=bound))
-    with monkeypatch.context() as m:
-        m.setattr(timewarp._BandedKKT, "solve", counted)
-        m.setattr(timewarp._BandedKKT, "_spsolve", no_sparse)
-        ours = [timewarp.warp_rates(**kw) for kw in cases]
-    assert solves["sparse"] == 0 and solves["fixed"] >= 3  # the active set fixed rates in several songs
-    with monkeypatch.context() as m:
-        m.setattr(timewarp, "NUMPY_KKT_MAX", 0)  # every system to spsolve: the solve before issue 13's change
-        ref = [timewarp.warp_rates(**kw) for kw in cases]
-    for kw, a, b in zip(cases, ours, ref, strict=True):
-        assert np.isfinite(b).all()
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-6, err_msg=f"T={kw['n_frames']} fps={kw['fps']}")
-
-
-def _dense(d0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
-    m = np.diag(d0)
-    for k, b in ((1, d1), (2, d2)):
-        if len(b):
-            m = m + np.diag(b, k) + np.diag(b, -k)
-    return m
-
-
-def test_the_banded_pieces_against_dense_linear_algebra():
-    rng = np.random.default_rng(3)
-    for n in (1, 2, 3, 47, 48, 49, 97, 300):
-        bands = timewarp._bands(n, 1e-3, 156.25, 6103.5)
-        Q = _dense(*bands)
-        d1 = np.diff(np.eye(n), axis=0)
-        d2 = np.diff(np.eye(n), 2, axis=0)
-        np.testing.assert_allclose(Q, 1e-3 * np.eye(n) + 156.25 * d1.T @ d1 + 6103.5 * d2.T @ d2, rtol=1e-14, atol=1e-9)
-        f = np.flatnonzero(rng.random(n) < 0.7)  # isolated fixed rates too: free rows 1, 2, 3 apart
-        Mf = Q[np.ix_(f, f)]
-        b = timewarp._free_bands(bands, f)
-        np.testing.assert_array_equal(_dense(*b), Mf)
-        if len(f):
-            rhs = rng.normal(size=(len(f), 3))
-            np.testing.assert_allclose(timewarp._Pentadiagonal(*b).solve(rhs), np.linalg.solve(Mf, rhs),
-                                       rtol=1e-6, atol=1e-9)
-
-
-def test_a_large_warp_goes_to_spsolve(monkeypatch):
-    calls = []
-    monkeypatch.setattr(timewarp, "NUMPY_KKT_MAX", 100)
-    real = timewarp._BandedKKT._spsolve
-    monkeypatch.setattr(timewarp._BandedKKT, "_spsolve", lambda self, *a: calls.append(1) or real(self, *a))
-    s = timewarp.warp_rates(pairs=np.array([[1.0, 1.05], [2.0, 2.0]]), n_frames=126, fps=25.0)
-    assert calls and s[0] == 0 and s[-1] == pytest.approx(125, abs=1e-6)
+        T = int(rng.integers(5, 400))
+        n = T - 1
+        pairs = _pairs(rng, T, fps, 0.15) * fps
+        knots = np.concatenate([[[0.0, 0.0]], pairs, [[n, n]]])
+        L = max(1.0, float(rng.uniform(0.1, 0.8)) * fps)
+        a = (1e-3, L**2, L**4 / 4)
+        w = float(rng.choice([1.0, 1e3]))
+        # a wide box and no step bound: nothing is penalised, one banded solve against the dense one
+        rates = timewarp._bounded_source(knots, w, n, a, -10.0, 10.0, np.inf, 1e6)
+        ref = _dense_source(knots, w, n, a)
+        np.testing.assert_allclose(np.concatenate([[0.0], np.cumsum(rates)]), ref, rtol=0, atol=1e-6 * n,
+                                   err_msg=f"T={T} fps={fps}")
 
 
 def test_the_dance_stages_import_no_scipy_ndimage_or_sparse():

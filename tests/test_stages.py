@@ -369,12 +369,15 @@ def test_the_beat_sync_stage_reads_its_settings_from_the_checkpoint(tmp_path):
     for name in ("revolution", "style"):
         assert stages.beat_sync_options(str(folder / name)) == {}
     assert stages.beat_sync_options(None) == {} and stages.beat_sync_options("/somewhere/else") == {}
+    flag = _beat_checkpoint(tmp_path, {"step_pairing": False, "max_rate_step": 0.03})
+    assert stages.beat_sync_options(flag) == {"step_pairing": False, "max_rate_step": 0.03}
 
 
 @pytest.mark.parametrize("entry", [{"max_rate_change": 1.2}, {"pair_rate_change": 0.0}, {"pair_rate_change": 0.2},
                                    {"max_rate_change": 0.3, "pair_rate_change": 0.35}, {"max_shift": -1.0},
                                    {"smooth_s": 0.0}, {"between_tolerance": -0.1}, {"max_shift": "far"},
-                                   {"speed": 1.0}, [0.2]])
+                                   {"max_rate_step": 0.0}, {"max_rate_step": float("inf")}, {"step_pairing": 1},
+                                   {"max_rate_change": True}, {"speed": 1.0}, [0.2]])
 def test_a_bad_beat_sync_entry_is_a_checkpoint_error(tmp_path, entry):
     from dancekit.errors import CheckpointError
     from dancekit.pipelines import stages

@@ -62,7 +62,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--end", type=float, default=None, help="end of the song excerpt, seconds")
     p.add_argument("--beat-sync", choices=("on", "off"), default="on",
                    help="time-warp the dance so its movement beats land on the song's beats (speed kept within "
-                        "±15 %%, or the model's own bound: dual ±30 %%, music2dance ±35 %%; default on; a song without a clear beat is left as it is, with a note)")
+                        "±15 %%, or the model's own bound: dual ±30 %%, music2dance ±40 %%, changing by at most 2 %% a frame; "
+                        "default on; a song without a clear beat is left as it is, with a note)")
     p.add_argument("--cleanup", choices=("on", "off"), default="on",
                    help="physical clean-up: lowest joint on the floor, the figure kept within a dance floor "
                         "(turned back beyond 4 m from its start; default on)")

@@ -13,11 +13,12 @@ Three steps (:func:`beat_warp` runs them):
    ``1 ± pair_rate_change`` (default ±13 %, below the frame bound so that the smoothing has room); ties
    go to the gentlest warp (sum of squared rate changes).
 2. :func:`warp_rates` — the rate per output frame: the smoothest rate (least first and second
-   differences: no speed jumps, the dance's speed changes gradually) that puts every matched pair
-   exactly on its beat, an equality-constrained quadratic programme (its KKT system solved in NumPy with
-   a banded factorisation, :class:`_BandedKKT`; ``scipy.sparse`` for a song of more than ~2
-   minutes); rates that leave ``1 ± max_rate_change`` are fixed at the bound and the rest solved again
-   (active set).
+   differences: the dance's speed changes gradually) that puts the matched pairs on their beats, with two
+   bounds: the rate within ``1 ± max_rate_change`` and its change from one frame to the next within
+   ``± max_rate_step`` (default 2 %/frame: no visible speed jump). The pairs and the bounds are stiff
+   penalties on the source frames, a convex piecewise quadratic with a banded Hessian, solved by
+   semi-smooth Newton (``scipy.linalg.solveh_banded``, linear in the song's length); a pair the bounds
+   cannot land is dropped.
 3. :func:`warp_motion` — the dance sampled at the fractional source frames: rotations slerped, 3D
    positions bone by bone (:func:`warp_bones`, bone lengths kept), anything else linearly
    (:func:`warp_frames`, the toolkit's resampling rule).
@@ -25,7 +26,6 @@ Three steps (:func:`beat_warp` runs them):
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -40,6 +40,7 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = [
     "BETWEEN_WEIGHT",
     "DEFAULT_MAX_RATE_CHANGE",
+    "DEFAULT_MAX_RATE_STEP",
     "DEFAULT_MAX_SHIFT",
     "DEFAULT_PAIR_RATE_CHANGE",
     "DEFAULT_SMOOTH_S",
@@ -55,6 +56,25 @@ __all__ = [
 DEFAULT_MAX_RATE_CHANGE = 0.15
 #: Bound on the mean rate between two matched beat pairs (room for the smoothing within the frame bound).
 DEFAULT_PAIR_RATE_CHANGE = 0.13
+#: Bound on the warp's rate change from one frame to the next (:func:`warp_rates`): ``|rate[t + 1] - rate[t]|
+#: <= 0.02``, 2 % of the dance's speed per frame (at 25 fps: half the speed change of the whole ±15 % band
+#: takes at least 0.15 s), so the speed changes smoothly, with no visible jump.
+DEFAULT_MAX_RATE_STEP = 0.02
+#: In :func:`warp_rates` a matched pair's landing is a penalty whose weight is the bounds' weight divided by
+#: this: the bounds outweigh the pairs, which land as near as the bounds let them (and the pairs outweigh the
+#: smoothness, whose weight is the bounds' / BOUND_WEIGHT).
+PAIR_SOFTNESS = 1e6
+#: Weight of a bound's squared violation in :func:`warp_rates` (the rate box, the step bound), against the
+#: largest weight of the smoothness penalty: large enough that the bounds hold to the solver's round-off.
+BOUND_WEIGHT = 1e4
+#: Most semi-smooth Newton rounds of :func:`_bounded_source` (each one banded solve).
+MAX_NEWTON = 60
+#: A pair :func:`warp_rates`' first pass misses by more than this many frames is dropped (the bounds do not
+#: let it land) and the rest solved again without its pull.
+DROP_FRAMES = 1.0
+#: Rounds of :func:`warp_rates` that move each kept pair's target by what it missed (the pairs are soft
+#: penalties, weaker than the bounds: this lands the ones the bounds allow on their beats).
+LANDING_ROUNDS = 4
 #: Time scale of the warp's smoothness penalty on its rate, seconds (:func:`warp_rates`).
 DEFAULT_SMOOTH_S = 0.5
 #: A kinematic beat is paired only with music beats at most this many seconds away.
@@ -74,6 +94,8 @@ def match_beats(
     min_gap: float = 0.0,
     window: float = 30.0,
     between_tolerance: float = 0.0,
+    max_rate_step: float | None = None,
+    fps: float | None = None,
 ) -> np.ndarray:
     """Pair kinematic beats with music beats by dynamic programming.
 
@@ -91,6 +113,11 @@ def match_beats(
         pairs) puts within this many seconds of a music beat, with weight :data:`BETWEEN_WEIGHT` (a pair:
         1): among chains of nearly as many pairs, the one whose unpaired kinematic beats land on beats too
         (the beat hit rate counts every kinematic beat). 0 (default): only the pairs count.
+    max_rate_step, fps : when given, the warp's rate changes by at most ``max_rate_step`` per frame at ``fps``
+        (:func:`warp_rates`), so two consecutive steps of the chain, ``dm`` and ``dm'`` seconds long, can
+        differ in mean rate by at most ``max_rate_step · fps · (dm + dm') / 2`` (a ramp at the bound across
+        both): a step that breaks it from the best chain into its predecessor is not taken (a greedy check:
+        the predecessor's own best chain only). ``None`` (default): no such check.
 
     Returns
     -------
@@ -103,6 +130,9 @@ def match_beats(
         raise ParameterError(f"max_shift must be positive seconds, got {max_shift}")
     if not between_tolerance >= 0:
         raise ParameterError(f"between_tolerance must be >= 0 seconds, got {between_tolerance}")
+    if max_rate_step is not None and not (fps is not None and fps > 0):
+        raise ParameterError(f"max_rate_step needs the frame rate (fps > 0), got fps={fps}")
+    slope = np.inf if max_rate_step is None else float(max_rate_step) * float(fps)  # rate change per second
     k = check_times(kinematic, "kinematic beats")
     m = check_times(music, "music beats")
     D = float(duration)
@@ -120,6 +150,8 @@ def match_beats(
     lo_r, hi_r = 1.0 - pair_rate_change, 1.0 + pair_rate_change
     score = np.full(N, -np.inf)
     back = np.full(N, -1, dtype=np.int64)
+    rate_in = np.ones(N)  # the mean rate and length (s) of the best chain's last step into each node
+    dm_in = np.zeros(N)
     score[0] = 0.0
     starts = np.searchsorted(node[:, 0], node[:, 0] - window, side="left")
     for n in range(1, N):
@@ -134,6 +166,8 @@ def match_beats(
             ok |= (prev == 0) & (dm > 0)  # the identity warp is always allowed
         rate = np.where(ok, dk / np.where(dm > 0, dm, 1.0), 1.0)
         ok &= (rate >= lo_r - 1e-12) & (rate <= hi_r + 1e-12)
+        if np.isfinite(slope):
+            ok &= (prev == 0) | (np.abs(rate - rate_in[prev]) <= slope * (dm + dm_in[prev]) / 2 + 1e-12)
         if not ok.any():
             continue
         gain = np.full(len(prev), 0.0 if n == N - 1 else 1.0)
@@ -143,6 +177,7 @@ def match_beats(
         best = int(np.argmax(cand))
         score[n] = cand[best]
         back[n] = prev[best]
+        rate_in[n], dm_in[n] = rate[best], dm[best]
     chain = []
     n = int(back[N - 1])
     while n > 0:
@@ -175,205 +210,6 @@ def _landing_between(prev: np.ndarray, pair: np.ndarray, rate: np.ndarray, ok: n
     return out
 
 
-def _overlap_row(xa: float, xb: float, n_rates: int) -> tuple[np.ndarray, np.ndarray]:
-    """Columns and coefficients of ``s(xb) - s(xa)`` in the rates (``s`` integrates the rate)."""
-    u0 = max(0, int(math.floor(xa)))
-    u1 = min(n_rates - 1, int(math.ceil(xb)) - 1)
-    cols = np.arange(u0, u1 + 1)
-    coef = np.minimum(cols + 1.0, xb) - np.maximum(cols.astype(np.float64), xa)
-    keep = coef > 0
-    return cols[keep], coef[keep]
-
-
-#: Largest ``free rates × pairs`` whose warp is solved in NumPy (:class:`_BandedKKT`: dense ``(n, P)``
-#: blocks, ~32 bytes an entry at the peak: ~10 MB). Its work grows as ``n · P`` per active-set round, the
-#: square of the song's length: at this bound (~2 minutes at 25 fps with ~0.7 matched beats a second) it
-#: takes ≤ ~0.1 s, less than ``scipy.sparse``'s import (~0.4 s); a larger system goes to
-#: ``scipy.sparse.linalg.spsolve`` (linear in the length; 3 minutes: 0.07-0.12 s against NumPy's 0.3-1 s).
-NUMPY_KKT_MAX = 300_000
-
-
-def _bands(n: int, a0: float, a1: float, a2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Diagonal, first and second super-diagonal of ``Q = a0 I + a1 D1'D1 + a2 D2'D2`` (n × n; ``D1``,
-    ``D2`` the first and second differences)."""
-    d = (np.full(n, a0), np.zeros(max(n - 1, 0)), np.zeros(max(n - 2, 0)))
-    for stencil, a in (((-1.0, 1.0), a1), ((1.0, -2.0, 1.0), a2)):
-        m = n - len(stencil) + 1  # rows of the difference operator
-        if m < 1:
-            continue
-        for i, ci in enumerate(stencil):
-            for j in range(i, len(stencil)):
-                d[j - i][i:i + m] += a * ci * stencil[j]
-    return d
-
-
-#: Rows per block of :class:`_Pentadiagonal`'s block elimination (its products stay below the size at
-#: which BLAS starts threads: threads of two processes on a loaded machine cost more than they give).
-BLOCK = 48
-
-
-class _Pentadiagonal:
-    """``M⁻¹ b`` for a symmetric positive definite pentadiagonal ``M`` (its diagonal ``d0``, first and
-    second super-diagonals ``d1``, ``d2``) by block Gaussian elimination: ``M`` cut into diagonal blocks of
-    :data:`BLOCK` rows (block tridiagonal, neighbours coupled through a 2 × 2 corner), each block's Schur
-    complement inverted densely (``np.linalg.inv``; symmetric positive definite, so no pivoting is needed);
-    a solve is then ~2 n / BLOCK small matrix products. Raises ``np.linalg.LinAlgError`` for a singular
-    block."""
-
-    def __init__(self, d0: np.ndarray, d1: np.ndarray, d2: np.ndarray):
-        n = len(d0)
-        self.starts = list(range(0, n, BLOCK)) + [n]
-        self.inv: list[np.ndarray] = []
-        self.u: list[np.ndarray | None] = [None]  # u[k]: M[last two rows of block k - 1, block k]
-        ar = np.arange(BLOCK)
-        for k in range(len(self.starts) - 1):
-            a, e = self.starts[k], self.starts[k + 1]
-            m = e - a
-            blk = np.zeros((m, m))
-            blk[ar[:m], ar[:m]] = d0[a:e]
-            for j, d in ((1, d1), (2, d2)):
-                if m > j:
-                    blk[ar[:m - j], ar[j:m]] = blk[ar[j:m], ar[:m - j]] = d[a:e - j]
-            if k:  # Schur complement: blk -= U' D_prev^-1 U (U nonzero in its last two rows only)
-                u = np.zeros((2, m))
-                u[0, 0], u[1, 0] = d2[a - 2], d1[a - 1]
-                if m > 1:
-                    u[1, 1] = d2[a - 1]
-                self.u.append(u)
-                blk -= u.T @ (self.inv[-1][-2:, -2:] @ u)
-            self.inv.append(np.linalg.inv(blk))
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """``M⁻¹ b`` for ``b`` (n,) or (n, k), float64."""
-        y = np.array(b, dtype=np.float64)
-        st, K = self.starts, len(self.starts) - 1
-        z = []  # D_k^-1 y_k of the forward pass
-        for k in range(K):
-            a, e = st[k], st[k + 1]
-            if k:
-                y[a:e] -= self.u[k].T @ z[-1][-2:]
-            z.append(self.inv[k] @ y[a:e])
-        x = z[-1]
-        y[st[K - 1]:st[K]] = x
-        for k in range(K - 2, -1, -1):
-            x = z[k] - self.inv[k][:, -2:] @ (self.u[k + 1] @ x)
-            y[st[k]:st[k + 1]] = x
-        return y
-
-
-def _free_bands(bands: tuple[np.ndarray, np.ndarray, np.ndarray], f: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The bands of ``M[f][:, f]`` (``f`` increasing indices) of a pentadiagonal ``M`` given by its bands: again
-    pentadiagonal, since rows ``i < j`` of ``f`` are at least ``j - i`` apart in ``M``."""
-    d0, d1, d2 = bands
-    d1, d2 = np.append(d1, 0.0), np.append(d2, [0.0, 0.0])  # indexable at every row
-    gap = np.diff(f)  # free rows i, i + 1 are gap rows apart in M
-    b1 = np.where(gap == 1, d1[f[:-1]], np.where(gap == 2, d2[f[:-1]], 0.0))
-    b2 = np.where(f[2:] - f[:-2] == 2, d2[f[:-2]], 0.0)
-    return d0[f], b1, b2
-
-
-class _BandedKKT:
-    """The warp's equality-constrained least squares: ``min r'Qr/2 - q'r`` s.t. ``C r = c`` and the rates
-    ``F`` fixed at given values, ``Q = a0 I + a1 D1'D1 + a2 D2'D2`` (pentadiagonal, positive definite:
-    ``a0 > 0``), ``q = a0 · 1``, ``C`` the pairs' rows (:func:`_overlap_row`).
-
-    The fixed rates are substituted (the free rates' block of ``Q`` is again pentadiagonal in their order),
-    then the range-space method: a banded Cholesky factor of that block (O(n)), ``Z = Q⁻¹ C'``, the small
-    ``(P, P)`` system ``(C Z) λ = C Q⁻¹ q - c`` and ``r = Q⁻¹ (q - C' λ)``, and one step of iterative
-    refinement on the residual. The solution of the KKT system ``spsolve`` solved before (to ~1e-7 of a
-    frame; ``tests/test_filters.py``) without importing ``scipy.sparse`` (~0.4 s of a fresh process). A
-    system above :data:`NUMPY_KKT_MAX`, or a singular one (a pair whose rates are all fixed), goes to
-    ``spsolve`` as before.
-    """
-
-    def __init__(self, rows: list[tuple[np.ndarray, np.ndarray]], rhs: np.ndarray, n: int, a: tuple):
-        self.rows, self.c, self.n, self.a = rows, np.asarray(rhs, np.float64), n, a
-        self.bands = _bands(n, *a)
-        # C as (row, column, coefficient) triples
-        self.ri = np.concatenate([np.full(len(cols), k) for k, (cols, _) in enumerate(rows)] or [np.zeros(0, int)])
-        self.ci = np.concatenate([cols for cols, _ in rows] or [np.zeros(0, int)])
-        self.cv = np.concatenate([coef for _, coef in rows] or [np.zeros(0)])
-
-    def _qmul(self, r: np.ndarray) -> np.ndarray:
-        """``Q r``."""
-        d0, d1, d2 = self.bands
-        out = d0 * r
-        out[:-1] += d1 * r[1:]
-        out[1:] += d1 * r[:-1]
-        out[:-2] += d2 * r[2:]
-        out[2:] += d2 * r[:-2]
-        return out
-
-    def solve(self, fixed: np.ndarray, fixed_val: np.ndarray) -> np.ndarray:
-        """The rates ``(n,)``, the rates at indices ``fixed`` held at ``fixed_val``."""
-        n, a0, P = self.n, self.a[0], len(self.rows)
-        if (n - len(fixed)) * P > NUMPY_KKT_MAX:
-            return self._spsolve(fixed, fixed_val)
-        free = np.ones(n, dtype=bool)
-        free[fixed] = False
-        f = np.flatnonzero(free)
-        pos = np.cumsum(free) - 1  # a free rate's index among the free rates
-        held = np.zeros(n)
-        held[fixed] = fixed_val
-        keep = free[self.ci]  # C restricted to the free rates, as triples (sums, no BLAS: a small product
-        ri, ci, cv = self.ri[keep], pos[self.ci[keep]], self.cv[keep]  # is not worth BLAS threads)
-        nf = len(f)
-
-        def cmul(x):  # C_f x
-            return np.bincount(ri, weights=cv * x[ci], minlength=P)
-
-        def ctmul(lam):  # C_f' lam
-            return np.bincount(ci, weights=cv * lam[ri], minlength=nf)
-
-        try:
-            M = _Pentadiagonal(*_free_bands(self.bands, f))
-            g = a0 - self._qmul(held)[f]  # q - Q_fF r_F
-            c = self.c - np.bincount(self.ri, weights=self.cv * held[self.ci], minlength=P)  # c - C_F r_F
-            ct = np.zeros((nf, P))
-            ct[ci, ri] = cv
-            Z = M.solve(ct)  # Q_ff^-1 C_f', (n_free, P)
-            S = np.zeros((P, P))
-            np.add.at(S, ri, cv[:, None] * Z[ci])  # C_f Z
-            r0 = M.solve(g)
-            lam = np.linalg.solve(S, cmul(r0) - c)
-            x = r0 - (Z * lam).sum(axis=1)
-            # one step of iterative refinement on the KKT residual
-            xf = np.zeros(n)
-            xf[f] = x
-            res1 = g - self._qmul(xf)[f] - ctmul(lam)  # Q_ff x = (Q x on the free rates)_f
-            u = M.solve(res1)
-            dlam = np.linalg.solve(S, cmul(u) - (c - cmul(x)))
-            x = x + u - (Z * dlam).sum(axis=1)
-        except np.linalg.LinAlgError:
-            return self._spsolve(fixed, fixed_val)
-        if not np.isfinite(x).all():
-            return self._spsolve(fixed, fixed_val)
-        held[f] = x
-        return held
-
-    def _spsolve(self, fixed: np.ndarray, fixed_val: np.ndarray) -> np.ndarray:
-        """The same solution from the sparse KKT system and ``scipy.sparse.linalg.spsolve``."""
-        from scipy import sparse
-        from scipy.sparse.linalg import spsolve
-
-        n, (a0, a1, a2) = self.n, self.a
-        Q = a0 * sparse.identity(n, format="csr")
-        if n >= 2:
-            d1 = sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [0, 1], shape=(n - 1, n))
-            Q = Q + a1 * (d1.T @ d1)
-        if n >= 3:
-            d2 = sparse.diags([np.ones(n - 2), -2 * np.ones(n - 2), np.ones(n - 2)], [0, 1, 2], shape=(n - 2, n))
-            Q = Q + a2 * (d2.T @ d2)
-        rows = [np.full(len(cols), k) for k, (cols, _) in enumerate(self.rows)]
-        C = sparse.csr_matrix((np.concatenate([v for _, v in self.rows]),
-                               (np.concatenate(rows), np.concatenate([c for c, _ in self.rows]))),
-                              shape=(len(self.rows), n))
-        E = sparse.csr_matrix((np.ones(len(fixed)), (np.arange(len(fixed)), fixed)), shape=(len(fixed), n))
-        A = sparse.vstack([C, E]).tocsr()
-        K = sparse.bmat([[Q, A.T], [A, None]], format="csc")
-        return spsolve(K, np.concatenate([a0 * np.ones(n), self.c, fixed_val]))[:n]
-
-
 def warp_rates(
     *,
     pairs: np.ndarray,
@@ -381,6 +217,7 @@ def warp_rates(
     fps: float,
     max_rate_change: float = DEFAULT_MAX_RATE_CHANGE,
     smooth_s: float = DEFAULT_SMOOTH_S,
+    max_rate_step: float | None = DEFAULT_MAX_RATE_STEP,
 ) -> np.ndarray:
     """The warp's source frame for every output frame, from matched beat pairs.
 
@@ -391,48 +228,172 @@ def warp_rates(
     fps : frames per second
     max_rate_change : the rate (source frames per output frame) stays within ``1 ± max_rate_change``
     smooth_s : time scale of the smoothness penalty, seconds (larger: gentler rate changes)
+    max_rate_step : the rate changes by at most this much from one frame to the next
+        (``|rate[t + 1] - rate[t]| <= max_rate_step``, a fraction per frame at ``fps``: 0.02 is 2 %/frame);
+        ``None``: no bound beyond the smoothness penalty
 
     Returns
     -------
     (T,) float64 source frames ``s``: ``s[0] = 0``, ``s[-1] = T - 1``, increasing, with
-    ``s[t + 1] - s[t]`` in ``[1 - max_rate_change, 1 + max_rate_change]``; matched pairs land on
-    their beats (``s(m · fps) = k · fps``, interpolated linearly between frames) to ~1e-6 frame.
+    ``s[t + 1] - s[t]`` in ``[1 - max_rate_change, 1 + max_rate_change]`` and (when ``max_rate_step`` is
+    given) consecutive rates at most ``max_rate_step`` apart; matched pairs land on their beats
+    (``s(m · fps) = k · fps``, interpolated linearly between frames) to ~0.01 frame where the bounds allow it
+    comfortably, within half a frame where they are tight (else as near as the bounds let them).
+
+    The rate is the smoothest (least first and second differences) that lands the pairs under the two bounds.
+    Pairs and bounds are penalties on the source frames (:func:`_bounded_source`; the bounds
+    :data:`PAIR_SOFTNESS` times stiffer than the pairs, so that pairs the bounds cannot land all at once land as
+    near as they allow); each kept pair's target is then moved by what it missed (:data:`LANDING_ROUNDS`, the
+    method of multipliers), so the pairs the bounds allow land on their beats. Pairs that still miss by more
+    than :data:`DROP_FRAMES` are dropped and the rest solved again. A last forward pass clips the rates to the
+    box and every step to ``± max_rate_step`` exactly (it moves them by the solver's tolerance).
     """
     T = int(n_frames)
     if T < 2:
         return np.zeros(max(T, 0))
     if not 0 < max_rate_change < 1:
         raise ParameterError(f"max_rate_change must be in (0, 1), got {max_rate_change}")
+    if max_rate_step is not None and not (np.isfinite(max_rate_step) and max_rate_step > 0):
+        raise ParameterError(f"max_rate_step must be positive (a rate change per frame), got {max_rate_step}")
     pairs = np.asarray(pairs, dtype=np.float64).reshape(-1, 2)
-    D = (T - 1) / float(fps)
-    knots = np.concatenate([[[0.0, 0.0]], pairs, [[D, D]]]) * float(fps)  # frames
     n = T - 1  # one rate per output interval
-    rows = []  # (columns, coefficients) of each pair's equality row
-    rhs = []
-    for (xa, ya), (xb, yb) in zip(knots[:-1], knots[1:], strict=True):
-        c, v = _overlap_row(xa, xb, n)
-        if len(c):
-            rows.append((c, v))
-            rhs.append(yb - ya)
-    c = np.asarray(rhs)
     # quadratic form: a0 |r - 1|^2 + a1 |D1 r|^2 + a2 |D2 r|^2 (first and second differences of the rate)
     L = max(1.0, smooth_s * fps)
-    a0, a1, a2 = 1e-3, L**2, L**4 / 4.0
+    a = (1e-3, L**2, L**4 / 4.0)
     lo, hi = 1.0 - max_rate_change, 1.0 + max_rate_change
-    fixed = np.zeros(n, dtype=bool)
-    fixed_val = np.zeros(n)
+    step = np.inf if max_rate_step is None else float(max_rate_step)
+    mu = BOUND_WEIGHT * max(a[1], a[2])  # weight of a bound's squared violation
+    knots = np.concatenate([[[0.0, 0.0]], pairs * float(fps), [[n, n]]])  # frames
+    inner = knots[1:-1]
+    keep = np.ones(len(inner), dtype=bool)
     rates = np.ones(n)
-    kkt = _BandedKKT(rows, c, n, (a0, a1, a2))
-    for _ in range(50):  # active set: rates that leave the box are fixed at the bound, then solve again
-        F = np.flatnonzero(fixed)
-        rates = kkt.solve(F, fixed_val[F])
-        bad = ((rates < lo - 1e-9) | (rates > hi + 1e-9)) & ~fixed
-        if not bad.any():
+    # every pair soft (landed as near as the bounds let it); the pairs that then miss by more than
+    # DROP_FRAMES are dropped and the rest solved again without their pull
+    for _ in range(2):
+        if not keep.any():
+            rates = np.ones(n)  # nothing lands within the bounds: the identity
             break
-        fixed |= bad
-        fixed_val[bad] = np.where(rates[bad] < lo, lo, hi)
+        kept = np.concatenate([knots[:1], inner[keep], knots[-1:]])
+        target = kept.copy()
+        for _ in range(1 + LANDING_ROUNDS):  # the kept pairs' targets moved by what they missed (method of multipliers)
+            rates = _bounded_source(target, mu / PAIR_SOFTNESS, n, a, lo, hi, step, mu)
+            s = np.concatenate([[0.0], np.cumsum(rates)])
+            target[1:-1, 1] += kept[1:-1, 1] - np.interp(kept[1:-1, 0], np.arange(T), s)
+        miss = np.abs(np.interp(inner[:, 0], np.arange(T), s) - inner[:, 1])
+        if not (keep & (miss > DROP_FRAMES)).any():
+            break
+        keep &= miss <= DROP_FRAMES
+    return np.concatenate([[0.0], np.cumsum(_project(rates, lo, hi, step))])
+
+
+def _project(rates: np.ndarray, lo: float, hi: float, step: float) -> np.ndarray:
+    """The rates clipped to ``[lo, hi]`` and each within ``± step`` of the one before (a forward pass, which
+    keeps the box), their sum kept (a constant added, then clipped again; a few rounds). Exact bounds on
+    rates that held them to the solver's tolerance (it moves them by about that much)."""
+    total = rates.sum()
+    for _ in range(3):
+        rates = np.clip(rates, lo, hi)
+        if np.isfinite(step) and len(rates) > 1 and np.abs(np.diff(rates)).max() > step:
+            for t in range(1, len(rates)):
+                rates[t] = min(max(rates[t], rates[t - 1] - step), rates[t - 1] + step)
+        rates = rates + (total - rates.sum()) / len(rates)
     rates = np.clip(rates, lo, hi)
-    return np.concatenate([[0.0], np.cumsum(rates)])
+    if np.isfinite(step) and len(rates) > 1 and np.abs(np.diff(rates)).max() > step:
+        for t in range(1, len(rates)):
+            rates[t] = min(max(rates[t], rates[t - 1] - step), rates[t - 1] + step)
+    return rates
+
+
+def _stencil_add(ab: np.ndarray, b: np.ndarray, start: np.ndarray, v: tuple, w: np.ndarray, c: np.ndarray) -> None:
+    """Add ``Σ_k w_k / 2 (v · s[start_k : start_k + len(v)] - c_k)²`` to the quadratic ``s' H s / 2 - b' s``:
+    ``H`` in LAPACK's upper banded storage ``ab`` (``ab[u + i - j, j] = H[i, j]``, ``u = len(ab) - 1``)."""
+    u = len(ab) - 1
+    for i, vi in enumerate(v):
+        np.add.at(b, start + i, w * c * vi)
+        for j in range(i, len(v)):
+            np.add.at(ab[u - (j - i)], start + j, w * vi * v[j])
+
+
+def _bounded_source(knots: np.ndarray, w_pair: float, n: int, a: tuple, lo: float, hi: float, step: float,
+                    mu: float) -> np.ndarray:
+    """:func:`warp_rates`' programme in the source frames ``s`` (``n + 1`` of them, ``s[0] = 0`` and
+    ``s[n] = n`` held): ``½ Σ`` of ``a0 (r - 1)²``, ``a1 (Δr)²``, ``a2 (Δ²r)²`` (``r = Δs``, the rate), every
+    inner knot's ``w_pair (s(x) - y)²`` (``s`` interpolated linearly at ``x``) and ``mu`` times the squared
+    violation of the rate box ``[lo, hi]`` and of the steps ``|Δr| <= step``: a convex piecewise quadratic
+    whose Hessian is banded (half-bandwidth 3), minimised by damped semi-smooth Newton: the bounds the iterate
+    leaves are penalised, that quadratic solved (``scipy.linalg.solveh_banded``, linear in ``n``), the step
+    towards its minimiser halved until the objective goes down, until the set of bounds left is that of the
+    minimiser. Returns the rates ``(n,)``."""
+    from scipy.linalg import solveh_banded
+
+    x, y = knots[1:-1, 0], knots[1:-1, 1]
+    i0 = np.clip(np.floor(x).astype(int), 0, n - 1)
+    f = x - i0
+    t1, t2, t3 = np.arange(n), np.arange(n - 1), np.arange(max(n - 2, 0))
+
+    def parts(s: np.ndarray):
+        r = np.diff(s)
+        return r, np.diff(r), np.diff(r, 2), (1 - f) * s[i0] + f * s[i0 + 1] - y
+
+    def objective(s: np.ndarray) -> float:
+        r, d1, d2, res = parts(s)
+        box = np.maximum(r - hi, 0.0) + np.maximum(lo - r, 0.0)
+        viol = np.maximum(np.abs(d1) - step, 0.0)
+        return float(0.5 * (a[0] * np.sum((r - 1) ** 2) + a[1] * d1 @ d1 + a[2] * d2 @ d2 + w_pair * res @ res
+                            + mu * (box @ box + viol @ viol)))
+
+    def newton_point(up, dn, over, under) -> np.ndarray:
+        ab, b = np.zeros((4, n + 1)), np.zeros(n + 1)
+        wr = a[0] + mu * (over | under)
+        _stencil_add(ab, b, t1, (-1.0, 1.0), wr, (a[0] + mu * (hi * over + lo * under)) / wr)
+        wd = a[1] + mu * (up | dn)
+        _stencil_add(ab, b, t2, (1.0, -2.0, 1.0), wd, mu * step * (up.astype(float) - dn) / wd if np.isfinite(step)
+                     else np.zeros(len(t2)))
+        _stencil_add(ab, b, t3, (-1.0, 3.0, -3.0, 1.0), np.full(len(t3), a[2]), np.zeros(len(t3)))
+        if len(x):
+            wp = np.full(len(x), w_pair)
+            for i, vi in enumerate(((1 - f), f)):
+                np.add.at(b, i0 + i, wp * y * vi)
+            np.add.at(ab[3], i0, wp * (1 - f) ** 2)
+            np.add.at(ab[3], i0 + 1, wp * f**2)
+            np.add.at(ab[2], i0 + 1, wp * f * (1 - f))
+        # s[0] = 0 and s[n] = n held: their columns move to the right-hand side
+        for k in range(1, 4):  # H[n - k, n] = ab[3 - k, n]
+            if n - k >= 1:
+                b[n - k] -= ab[3 - k, n] * n
+        s = np.zeros(n + 1)
+        s[n] = n
+        if n >= 2:
+            sub = ab[:, 1:n].copy()
+            for k in range(1, 4):  # entries coupling to s[0] (above the first free row) are outside the block
+                sub[3 - k, :k] = 0.0
+            s[1:n] = solveh_banded(sub, b[1:n])
+        return s
+
+    none = np.zeros(n, dtype=bool)
+    s = newton_point(none[1:], none[1:], none, none)
+    fval = objective(s)
+    for _ in range(MAX_NEWTON):
+        r, d1, _, _ = parts(s)
+        bounds = (d1 > step, d1 < -step, r > hi, r < lo)
+        p = newton_point(*bounds) - s
+        if np.abs(p).max() < 1e-10:
+            break
+        alpha = 1.0
+        while True:
+            trial = s + alpha * p
+            ft = objective(trial)
+            if ft <= fval or alpha < 1e-4:
+                break
+            alpha *= 0.5
+        if ft > fval:
+            break
+        s, fval = trial, ft
+        r, d1, _, _ = parts(s)
+        if alpha == 1.0 and all(np.array_equal(u, v) for u, v in zip(bounds, (d1 > step, d1 < -step, r > hi, r < lo),
+                                                                     strict=True)):
+            break
+    return np.diff(s)
 
 
 def warp_frames(x: np.ndarray, *, source_frames: np.ndarray) -> np.ndarray:
@@ -513,6 +474,8 @@ def beat_warp(
     smooth: float | None = None,
     between_tolerance: float = 0.0,
     smooth_s: float = DEFAULT_SMOOTH_S,
+    max_rate_step: float | None = DEFAULT_MAX_RATE_STEP,
+    step_pairing: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The beat-synchronous warp of a dance: its source frames and the matched beat pairs.
 
@@ -521,16 +484,20 @@ def beat_warp(
     positions : (T, J, 3) (or (T, J, 2)) joint positions at ``fps``, any units
     music_beats : (M,) music beat times, seconds from the dance's first frame
     fps : frames per second
-    max_rate_change, pair_rate_change, max_shift, between_tolerance, smooth_s : see :func:`warp_rates` and
-        :func:`match_beats`
+    max_rate_change, pair_rate_change, max_shift, between_tolerance, smooth_s, max_rate_step : see
+        :func:`warp_rates` and :func:`match_beats`
     smooth : speed smoothing of the kinematic beats, seconds (default that of
         :func:`dancekit.motion.analysis.kinematic_beats`)
+    step_pairing : the pairing skips steps the rate's step bound cannot follow (:func:`match_beats` given
+        ``max_rate_step`` and ``fps``); False: it pairs by ``pair_rate_change`` only and :func:`warp_rates`
+        drops what the bound does not let land
 
     Returns
     -------
     ``(source_frames, pairs)``: (T,) float64 fractional source frames (:func:`warp_frames` applies
-    them) and (P, 2) matched ``[music, kinematic]`` times in seconds. Without a pair the warp is the
-    identity (``source_frames == arange(T)``).
+    them) and (P, 2) matched ``[music, kinematic]`` times in seconds: the pairs the warp lands within half a
+    frame (a pair the rate bounds cannot land is dropped from the list). Without a landed pair the warp is
+    the identity (``source_frames == arange(T)``).
     """
     from dancekit.motion.analysis import DEFAULT_BEAT_SMOOTH, kinematic_beats
 
@@ -541,7 +508,13 @@ def beat_warp(
     kin = kinematic_beats(p, fps=fps, smooth=DEFAULT_BEAT_SMOOTH if smooth is None else smooth)
     pairs = match_beats(kinematic=kin, music=music_beats, duration=(T - 1) / fps,
                         pair_rate_change=pair_rate_change, max_shift=max_shift,
-                        between_tolerance=between_tolerance)
+                        between_tolerance=between_tolerance, fps=fps,
+                        max_rate_step=max_rate_step if step_pairing else None)
     if len(pairs) == 0:
         return np.arange(T, dtype=np.float64), pairs
-    return warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change, smooth_s=smooth_s), pairs
+    source = warp_rates(pairs=pairs, n_frames=T, fps=fps, max_rate_change=max_rate_change, smooth_s=smooth_s,
+                        max_rate_step=max_rate_step)
+    landed = np.abs(np.interp(pairs[:, 0] * fps, np.arange(T), source) - pairs[:, 1] * fps) <= 0.5
+    if not landed.any():
+        return np.arange(T, dtype=np.float64), np.zeros((0, 2))
+    return source, pairs[landed]

@@ -390,32 +390,39 @@ def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
 #: :func:`dancekit.motion.timewarp.beat_warp` arguments: the bound on the warp's local speed change
 #: (``max_rate_change``, a fraction: the rate stays within ``1 ± it``), the bound between two matched beats
 #: (``pair_rate_change``, ≤ ``max_rate_change``), the farthest a kinematic beat is moved (``max_shift``, s), the
-#: landing tolerance of unpaired kinematic beats in the pairing (``between_tolerance``, s; 0: off) and the time
-#: scale of the rate's smoothness (``smooth_s``, s).
-BEAT_SYNC_KEYS = ("max_rate_change", "pair_rate_change", "max_shift", "between_tolerance", "smooth_s")
+#: landing tolerance of unpaired kinematic beats in the pairing (``between_tolerance``, s; 0: off), the time
+#: scale of the rate's smoothness (``smooth_s``, s), the bound on the rate's change from one frame to the
+#: next (``max_rate_step``, a fraction per frame; default 0.02: no visible speed jump) and whether the pairing
+#: already skips steps that bound cannot follow (``step_pairing``, true / false; default true).
+BEAT_SYNC_KEYS = ("max_rate_change", "pair_rate_change", "max_shift", "between_tolerance", "smooth_s",
+                  "max_rate_step", "step_pairing")
 
 
-def beat_sync_options(model: str | os.PathLike | None) -> dict[str, float]:
+def beat_sync_options(model: str | os.PathLike | None) -> dict[str, float | bool]:
     """The :func:`~dancekit.motion.timewarp.beat_warp` settings a model's checkpoint folder carries in its
     ``config.json`` (``"beat_sync": {"max_rate_change": f, "pair_rate_change": f, "max_shift": s,
-    "between_tolerance": s, "smooth_s": s}``, any of them, :data:`BEAT_SYNC_KEYS`). The embedded dual
-    and music2dance carry one (±30 % and ±35 %, docs/STAGES.md); ``{}``, the defaults (speed change ±15 %,
-    ±13 % between matched beats, 0.6 s), for a folder without the entry or that is not a checkpoint. A rate outside (0, 1), a ``pair_rate_change`` above the ``max_rate_change`` (either side from
-    the defaults when absent), a ``max_shift`` or ``smooth_s`` that is not positive or a negative
-    ``between_tolerance`` is a :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
+    "between_tolerance": s, "smooth_s": s, "max_rate_step": f, "step_pairing": true/false}``, any of them,
+    :data:`BEAT_SYNC_KEYS`). The embedded dual and music2dance carry one (±30 % and ±40 %, docs/STAGES.md);
+    ``{}``, the defaults (speed change ±15 %, ±13 % between matched beats, 0.6 s, a rate step of at most 2 %
+    per frame, the pairing aware of it), for a folder without the entry or that is not a checkpoint. A rate
+    outside (0, 1), a ``pair_rate_change`` above the ``max_rate_change`` (either side from the defaults when
+    absent), a ``max_shift``, ``smooth_s`` or ``max_rate_step`` that is not positive, a negative
+    ``between_tolerance`` or a ``step_pairing`` that is not true / false is a
+    :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
     from dancekit.motion import timewarp as tw
 
-    spec = _stage_entry(model, "beat_sync", set(BEAT_SYNC_KEYS))
+    spec = _stage_entry(model, "beat_sync", set(BEAT_SYNC_KEYS) - {"step_pairing"}, flags={"step_pairing"})
     full = {"max_rate_change": tw.DEFAULT_MAX_RATE_CHANGE, "pair_rate_change": tw.DEFAULT_PAIR_RATE_CHANGE, **spec}
     bad = [k for k in ("max_rate_change", "pair_rate_change") if k in spec and not 0 < spec[k] < 1]
-    bad += [k for k in ("max_shift", "smooth_s") if k in spec and not (np.isfinite(spec[k]) and spec[k] > 0)]
+    bad += [k for k in ("max_shift", "smooth_s", "max_rate_step") if k in spec
+            and not (np.isfinite(spec[k]) and spec[k] > 0)]
     bad += [k for k in ("between_tolerance",) if k in spec and not (np.isfinite(spec[k]) and spec[k] >= 0)]
     if full["pair_rate_change"] > full["max_rate_change"]:
         bad.append("pair_rate_change > max_rate_change")
     if bad:
         raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'beat_sync' needs rates in "
-                              f"(0, 1) with pair_rate_change <= max_rate_change, positive max_shift and smooth_s "
-                              f"and between_tolerance >= 0, got {bad[0]} in {spec!r}")
+                              f"(0, 1) with pair_rate_change <= max_rate_change, positive max_shift, smooth_s and "
+                              f"max_rate_step and between_tolerance >= 0, got {bad[0]} in {spec!r}")
     return spec
 
 
@@ -562,16 +569,20 @@ def _raw_entry(model: str | os.PathLike | None, key: str):
         return {}
 
 
-def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str]) -> dict[str, float]:
+def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str],
+                 flags: set[str] = frozenset()) -> dict[str, float | bool]:
     """The checkpoint folder's ``config.json`` entry ``key`` (a dict of numbers whose keys are in
-    ``allowed``); ``{}`` for no model, a folder without the entry, or one that is not a checkpoint. A
-    malformed entry is a :class:`~dancekit.errors.CheckpointError` naming the file."""
+    ``allowed``, and of true / false for the keys in ``flags``); ``{}`` for no model, a folder without the
+    entry, or one that is not a checkpoint. A malformed entry is a :class:`~dancekit.errors.CheckpointError`
+    naming the file."""
     spec = _raw_entry(model, key)
-    if not isinstance(spec, dict) or not set(spec) <= allowed or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in spec.values()):
+    if not isinstance(spec, dict) or not set(spec) <= allowed | flags or not all(
+            isinstance(v, bool) if k in flags else isinstance(v, (int, float)) and not isinstance(v, bool)
+            for k, v in spec.items()):
         raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: '{key}' takes "
-                              f"numbers for {sorted(allowed)}, got {spec!r}")
-    return {k: float(v) for k, v in spec.items()}
+                              f"numbers for {sorted(allowed)}"
+                              + (f" and true / false for {sorted(flags)}" if flags else "") + f", got {spec!r}")
+    return {k: v if k in flags else float(v) for k, v in spec.items()}
 
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
