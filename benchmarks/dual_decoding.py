@@ -20,7 +20,8 @@ energy stage of ``stages.finish`` lifts a dance under the genre floor (the gain 
 song is danced as music here (the pipeline would calm a song that does not look like music, e.g. W_11 of the
 validation split; ``looks_like_music`` is recorded per song). Folders with identical weights and statistics
 (e.g. one checkpoint with different stage entries) share one raw G_M→D output (it depends on the weights, the
-features and the seed only).
+features and the seed only). ``--genre-labels`` (a diagnostic) puts the dataset's genre label in place of the
+reader's probabilities, to separate what the energy stage does from how well the music's genre is read.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ import numpy as np
 import torch
 
 from dancekit.checkpoints.hub import components
-from dancekit.data import PreparedData
+from dancekit.data import PreparedData, tang2018_genre
 from dancekit.features import MUSIC_BEAT_STRENGTH
 from dancekit.metrics import smoothed_energy, stillness_share
 from dancekit.metrics.stability import body_relative, jitter, to_metres
@@ -93,6 +94,9 @@ def main() -> None:
     ap.add_argument("--seeds", nargs="+", type=int, default=[0])
     ap.add_argument("--no-beat-sync", action="store_true")
     ap.add_argument("--fid", action="store_true", help="FID_k / FID_g against the training dances")
+    ap.add_argument("--genre-labels", action="store_true",
+                    help="diagnostic: the energy floor from the dataset's genre label (probability 1) instead of "
+                         "the genre reader's probabilities (no user of `dancekit dance` has that label)")
     ap.add_argument("-o", "--out", required=True)
     args = ap.parse_args()
     torch.set_num_threads(1)
@@ -144,6 +148,8 @@ def main() -> None:
         if pipe.genre_reader is not None and stages.energy_options(pipe.folder).get("genre_energy"):
             reader = digest(*sorted(Path(components(folder)["genre_reader"]).glob("*.*")))
             for n in names:
+                if args.genre_labels:
+                    probs_cache[reader, n] = {tang2018_genre(n): 1.0}
                 if (reader, n) not in probs_cache:
                     probs_cache[reader, n] = dict(pipe.genre_reader(audio[n][0], start=audio[n][1], end=audio[n][2]))
                 probs[n] = probs_cache[reader, n]
