@@ -396,13 +396,13 @@ def test_a_batch_of_seeds_equals_the_seeds_one_by_one(m2d_folder, song8):
     assert [r.seed for r in batch] == [3, 0, 7]
     for r in batch:
         alone = pipe(song8, seed=r.seed, genre="rumba", end=3.0).motion.to_positions()
-        np.testing.assert_allclose(r.motion.to_positions(), alone, rtol=0, atol=1e-4)  # cm (float32 batching)
+        np.testing.assert_array_equal(r.motion.to_positions(), alone)  # bit for bit (tests/test_seeds.py)
     assert np.abs(batch[0].motion.to_positions() - batch[1].motion.to_positions()).max() > 1.0
     mixed = pipe.dances(song8, seeds=[0, 0], genre=["waltz", "rumba"], end=3.0)
     assert [r.genre for r in mixed] == ["waltz", "rumba"]
     for r in mixed:
         alone = pipe(song8, seed=0, genre=r.genre, end=3.0).motion.to_positions()
-        np.testing.assert_allclose(r.motion.to_positions(), alone, rtol=0, atol=1e-4)
+        np.testing.assert_array_equal(r.motion.to_positions(), alone)
 
 
 def test_the_embedded_model_loads_in_float32_with_its_parts_and_dances(song8):
@@ -529,8 +529,8 @@ def test_genre_sampling_applies_when_a_genre_is_named_and_not_otherwise(m2d_fold
     mixed = steered.dances(song8, seeds=[0, 0, 1], genre=["rumba", "waltz", "rumba"], end=3.0)
     assert [r.genre for r in mixed] == ["rumba", "waltz", "rumba"]
     alone = [rumba, pos(plain, "waltz"), steered(song8, seed=1, genre="rumba", end=3.0).motion.to_positions()]
-    for r, a in zip(mixed, alone):  # a batch of two equals the rows alone up to float rounding
-        np.testing.assert_allclose(r.motion.to_positions(), a, rtol=0, atol=1e-4)
+    for r, a in zip(mixed, alone):  # a batch of two equals the rows alone, bit for bit
+        np.testing.assert_array_equal(r.motion.to_positions(), a)
     for bad in ({"tango": steer}, {"rumba": {"speed": 2}}, {"rumba": {"noise_correlation": 1.0}}, ["rumba"]):
         (folder / "config.json").write_text(json.dumps({**meta, "genre_sampling": bad}))
         with pytest.raises(CheckpointError, match="genre_sampling"):

@@ -482,9 +482,16 @@ class DualModel(nn.Module):
         return self._generate(self.d2m, dance, start)
 
     def _generate(self, net: Seq2Seq, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
-        """Windows of T frames overlapping by one; each starts from the last generated frame of the previous."""
+        """Windows of T frames overlapping by one; each starts from the last generated frame of the previous.
+
+        Runs on one torch thread (restored after): the incremental decoding's attention rounds differently
+        with 2 threads than with 1 (1e-6 of a unit per window on the embedded model), and one thread is as fast
+        for its one-frame products (and much faster on a busy CPU), so the dance does not depend on the
+        thread count."""
         was_training = self.training
+        threads = torch.get_num_threads()
         self.eval()
+        torch.set_num_threads(1)
         try:
             B, n, _ = src.shape
             T = self.config.window
@@ -498,6 +505,7 @@ class DualModel(nn.Module):
                 prev, s = y[:, -1], s + chunk.shape[1] - 1
             return torch.cat(out, dim=1)
         finally:
+            torch.set_num_threads(threads)
             self.train(was_training)
 
     def _check(self, music: torch.Tensor, dance: torch.Tensor) -> None:

@@ -487,7 +487,9 @@ class Music2DanceModel(nn.Module):
 
         ``first (B, P)``: the input of frame 0 (default zeros: the mean pose, no contacts); ``fmap_window``:
         see :meth:`music_condition` (the pipeline passes the training window); ``generator``: one, or one
-        per row (:func:`gmm_sample`: a batch of seeds, each row the dance of its seed alone); ``genre_scale``:
+        per row (a batch of seeds: each row is generated on its own, as a batch of one, so that row k is bit for
+        bit the dance of its seed alone whatever the batch: the batched products round differently for every
+        batch size); ``genre_scale``:
         guidance of the dance type (:meth:`guided_genre_vector`; 1: as trained). Call in eval mode.
 
         The WaveNet's frames are computed by :class:`NumpyWaveNet` (on the CPU, in the model's float
@@ -497,6 +499,17 @@ class Music2DanceModel(nn.Module):
         """
         from tqdm import tqdm
 
+        if isinstance(generator, (list, tuple)) and len(generator) > 1:  # one generator per row: each row alone
+            if len(generator) != music.shape[0]:
+                raise ParameterError(f"{len(generator)} generators for a batch of {music.shape[0]}")
+            genres = None if genre is None else torch.as_tensor(genre).reshape(-1)
+            return torch.cat([
+                self.generate(music[k : k + 1], None if genres is None else genres[k : k + 1] if len(genres) > 1
+                              else genres, temperature=temperature, generator=[gen],
+                              first=None if first is None else first[k : k + 1], progress=progress,
+                              fmap_window=fmap_window, noise_correlation=noise_correlation, genre_scale=genre_scale,
+                              reference=reference)
+                for k, gen in enumerate(generator)])
         B, T = music.shape[:2]
         cond, g = self._conditions(music, genre, window=fmap_window, genre_scale=genre_scale)
         if not 0.0 <= noise_correlation < 1.0:

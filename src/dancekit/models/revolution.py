@@ -747,19 +747,21 @@ class RevolutionModel(nn.Module):
     ) -> torch.Tensor:
         """Dance for a whole song, autoregressively from the begin-of-pose (inference mode).
 
-        The song is processed in chunks of ``chunk`` frames (default ``config.encoder_chunk``): each
-        chunk is encoded (with context on both sides, see :meth:`encode`) and decoded before the
-        next, so memory is bounded whatever the song length (e.g. 10-minute songs).
+        The song is encoded in chunks of ``chunk`` frames (default ``config.encoder_chunk``), each with
+        context on both sides (see :meth:`encode`), so the encoder's memory is bounded whatever the song
+        length (e.g. 10-minute songs); the latents (n × d_model floats) are then decoded.
 
         Parameters
         ----------
         music : (B, n, music_dim) normalised features at the training fps; (1, n, music_dim) with a list of
             ``B`` generators: one song danced ``B`` times (its music encoded once)
         generator : seeds the initial decoder state (and the variety draws); the same seed gives the same
-            dance. A list of generators (one per row, :meth:`initial_state`): many dances in one batch, row
-            ``k`` the dance that ``generator[k]`` alone gives (to float rounding: the batched matrix products
-            may round differently)
-        genre : (B,) genre indices for a genre-conditioned model; None or -1: auto (the music decides)
+            dance. A list of generators (one per row, :meth:`initial_state`): many dances, row ``k`` exactly
+            (bit for bit) the dance that ``generator[k]`` alone gives: each row is decoded on its own, as a
+            batch of one, because the batched matrix products round differently for every batch size and
+            the autoregressive decoder carries a last-bit difference into another dance within ~20 s.
+            One generator for ``B`` songs decodes them as one batch (rows not bit-equal to the songs alone).
+        genre : (B,) or (1,) genre indices for a genre-conditioned model; None or -1: auto (the music decides)
         variety : per-phrase perturbations that keep the seeds' dances apart (:class:`SeedVariety`);
             None: the paper's decoding (the seed draws the initial state only)
 
@@ -772,49 +774,81 @@ class RevolutionModel(nn.Module):
         self.eval()
         try:
             B, n, _ = music.shape
-            if isinstance(generator, (list, tuple)) and B == 1:
-                B = len(generator)  # one song, many seeds: the encoder runs on the one song, its output is shared
-            elif isinstance(generator, (list, tuple)) and len(generator) != B:
+            if not isinstance(generator, (list, tuple)):  # one generator: the batch's rows share its draws
+                z = self._latents(music, genre, chunk=chunk)
+                return self._decode(z, generator, variety, device=music.device, chunk=chunk, progress=progress)
+            if B == 1:  # one song, many seeds: the music encoded once, its latents shared by every seed
+                B = len(generator)
+            elif len(generator) != B:
                 raise ParameterError(f"{len(generator)} generators for a batch of {B} songs")
-            chunk = chunk or self.config.encoder_chunk
-            context = self.encoder.receptive_field
-            if context is None:
-                context = self.config.window
-            state = self.initial_state(B, generator=generator, device=music.device)
-            variety = variety or SeedVariety()
-            prev = self.bop.expand(B, 1, -1)
-            outputs = []
-            starts = range(0, n, chunk)
-            if progress:
-                from tqdm import tqdm
-
-                starts = tqdm(starts, desc="generate", unit="chunk")
-
-            def latents(start: int) -> torch.Tensor:  # (B, ≤chunk, d), encoded with context on both sides
-                a, b = max(0, start - context), min(n, start + chunk + context)
-                z = self.encoder(music[:, a:b])[:, start - a : start - a + min(chunk, n - start)]
-                z = z.expand(B, -1, -1) if z.shape[0] != B else z
-                return self._condition(z, genre)
-
-            if not variety.active:
-                for start in starts:
-                    y, prev, state = self._autoregress(latents(start), prev, state)
-                    outputs.append(y)
-            else:  # the whole song's latents first: their spread per dimension scales the latent offsets
-                z = torch.cat([latents(start) for start in starts], dim=1)  # (B, n, d)
-                noise = self._variety_noise(n, B, variety, generator, music.device,
-                                            scale=z.std(dim=1, keepdim=True, correction=0))
-                if "latent" in noise:
-                    z = z + noise["latent"]
-                if "style" in noise:
-                    z = z + self.style_proj(self.style_path(noise["style"], n))
-                for a0, b0 in _phrases(0, n, variety.phrase) if variety.phrase else [(0, n)]:
-                    state = _perturb_state(state, noise, a0, variety)
-                    y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
-                    outputs.append(y)
-            return torch.cat(outputs, dim=1) if outputs else music.new_zeros(B, 0, self.config.pose_dim)
+            genres = None if genre is None else torch.as_tensor(genre).reshape(-1)
+            if genres is not None and len(genres) not in (1, B):
+                raise ParameterError(f"{len(genres)} genre indices for a batch of {B}")
+            cache: dict[tuple[int, int], torch.Tensor] = {}
+            rows = []
+            for k, g in enumerate(generator):  # each seed decoded alone: batch-size independent, bit for bit
+                song = k if music.shape[0] > 1 else 0
+                index = genres[k : k + 1] if genres is not None and len(genres) > 1 else genres
+                key = (song, -2 if index is None else int(index))
+                if key not in cache:
+                    cache[key] = self._latents(music[song : song + 1], index, chunk=chunk)
+                rows.append(self._decode(cache[key], [g], variety, device=music.device, chunk=chunk,
+                                         progress=progress))
+            return torch.cat(rows, dim=0) if rows else music.new_zeros(0, n, self.config.pose_dim)
         finally:
             self.train(was_training)
+
+    def _latents(self, music: torch.Tensor, genre: torch.Tensor | None, *, chunk: int | None = None) -> torch.Tensor:
+        """The song's conditioned latents ``(B, n, d_model)`` for ``music (B, n, music_dim)``, encoded in chunks of
+        ``chunk`` frames (default ``config.encoder_chunk``) with the encoder's receptive field as context."""
+        n = music.shape[1]
+        chunk = chunk or self.config.encoder_chunk
+        context = self.encoder.receptive_field
+        if context is None:
+            context = self.config.window
+        out = []
+        for start in range(0, n, chunk):
+            a, b = max(0, start - context), min(n, start + chunk + context)
+            z = self.encoder(music[:, a:b])[:, start - a : start - a + min(chunk, n - start)]
+            out.append(self._condition(z, genre))
+        if not out:
+            return music.new_zeros(music.shape[0], 0, self.config.d_model)
+        return torch.cat(out, dim=1)
+
+    def _decode(self, z: torch.Tensor, generator, variety: SeedVariety | None, *, device, chunk: int | None = None,
+                progress: bool = False) -> torch.Tensor:
+        """Decode the latents ``z (B, n, d_model)`` from the begin-of-pose with the initial state (and the
+        variety's draws) of ``generator`` → (B, n, pose_dim); the steps are run in pieces of ``chunk`` frames
+        (or the variety's phrases), the pieces shown by ``progress``."""
+        B, n, _ = z.shape
+        state = self.initial_state(B, generator=generator, device=device)
+        variety = variety or SeedVariety()
+        prev = self.bop.expand(B, 1, -1)
+        if n == 0:
+            return z.new_zeros(B, 0, self.config.pose_dim)
+        noise: dict[str, torch.Tensor] = {}
+        if variety.active:  # the whole song's spread of z per dimension scales the latent offsets
+            noise = self._variety_noise(n, B, variety, generator, device,
+                                        scale=z.std(dim=1, keepdim=True, correction=0))
+            if "latent" in noise:
+                z = z + noise["latent"]
+            if "style" in noise:
+                z = z + self.style_proj(self.style_path(noise["style"], n))
+        if variety.active and variety.phrase:
+            pieces = _phrases(0, n, variety.phrase)
+        else:
+            step = chunk or self.config.encoder_chunk
+            pieces = [(a, min(n, a + step)) for a in range(0, n, step)]
+        if progress:
+            from tqdm import tqdm
+
+            pieces = tqdm(pieces, desc="generate", unit="piece")
+        outputs = []
+        for a0, b0 in pieces:
+            state = _perturb_state(state, noise, a0, variety)
+            y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
+            outputs.append(y)
+        return torch.cat(outputs, dim=1)
 
     def _check_music(self, music: torch.Tensor) -> None:
         if music.ndim != 3 or music.shape[2] != self.config.music_dim:

@@ -1,7 +1,7 @@
 """Inference pipelines (inference only: no training or dataset imports).
 
 ``Pipeline.from_pretrained(name_or_folder)(audio_path, seed=...) -> DanceResult`` for dance models, and
-``pipe.dances(audio_path, seeds=[0, 1, 2]) -> list[DanceResult]`` (one batch, one dance per seed) for every
+``pipe.dances(audio_path, seeds=[0, 1, 2]) -> list[DanceResult]`` (the song read once, one dance per seed, each bit for bit the seed's dance alone) for every
 dance family (revolution, music2dance, dual);
 :func:`load_pipeline` picks the pipeline class from the family registry (:mod:`dancekit.registry`).
 Pipelines are imported lazily (``from dancekit.pipelines import RevolutionPipeline`` works).

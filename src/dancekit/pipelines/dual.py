@@ -132,16 +132,19 @@ class DualPipeline:
                end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
                smooth_frames: int | None = None, lowpass_hz: float | None = None, progress: bool = False,
                beat_sync: bool = True, cleanup: bool = True) -> list[DanceResult]:
-        """One dance per seed for the song, generated as one batch (the features and the song's beats once,
-        G_M→D on all start poses together, the stages per dance): ``dances(song, seeds=[0, 1])[k]`` is
-        ``pipe(song, seed=[0, 1][k])`` to float rounding. Arguments as :meth:`__call__` (a ``start_pose``
+        """One dance per seed for the song (the features and the song's beats once, G_M→D from each start pose
+        on its own, the stages per dance): ``dances(song, seeds=[0, 1])[k]`` is bit for bit
+        ``pipe(song, seed=[0, 1][k])``. Arguments as :meth:`__call__` (a ``start_pose``
         starts every dance from it)."""
         if genre not in (None, "auto", "none"):
             raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
         seeds = check_seeds(seeds)
         feats = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
         s = torch.stack([self.start_pose(start_pose, seed) for seed in seeds])  # (B, P)
-        y = self.model.generate_dance(feats.expand(len(seeds), -1, -1), start=s).cpu().numpy()  # (B, T, P)
+        # each seed on its own, as a batch of one: the batched products round differently for every batch size
+        # (and row), so a batch would not give bit for bit the dance of the seed alone
+        y = np.stack([self.model.generate_dance(feats, start=s[k : k + 1])[0].cpu().numpy()
+                      for k in range(len(seeds))])  # (B, T, P)
         results, beats = [], None
         probs = {}  # the genres the music calls for, read only where the energy stage's floor needs them
         if cleanup and self.genre_reader is not None and energy_options(self.folder).get("genre_energy"):

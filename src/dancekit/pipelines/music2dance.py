@@ -213,8 +213,8 @@ class Music2DancePipeline:
                temperature: float | None = None, start: float | None = None, end: float | None = None,
                progress: bool = False, music: np.ndarray | None = None, beat_sync: bool = True,
                cleanup: bool = True, genre_scale: float | None = None) -> list[DanceResult]:
-        """One dance per seed for the song, generated as one batch (the features and the frame loop once):
-        ``dances(song, seeds=[0, 1, 2])[k]`` equals ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
+        """One dance per seed for the song (the features and the genre reading once, each seed's frame loop on
+        its own): ``dances(song, seeds=[0, 1, 2])[k]`` is bit for bit ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
         :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type). ``music``:
         the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
         prepared dataset's), instead of extracting them from ``audio_path``. Rows whose genre is named and has
@@ -269,7 +269,8 @@ class Music2DancePipeline:
             from dancekit.models.foot_constraint import gaussian_smooth
 
             D = self.model.config.gmm_dim
-            y = torch.cat([gaussian_smooth(y[..., :D], smooth_sigma), y[..., D:]], -1)
+            y = torch.cat([torch.cat([gaussian_smooth(row[None, :, :D], smooth_sigma), row[None, :, D:]], -1)
+                           for row in y])  # row by row: each seed's dance as it is alone
         out, beats = [], None
         for k, (seed, g) in enumerate(zip(seeds, wanted)):
             requested, danced, probs = read[g]

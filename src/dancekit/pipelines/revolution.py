@@ -234,10 +234,10 @@ class RevolutionPipeline:
         cleanup: bool = True,
         variety: bool = True,
     ) -> list[DanceResult]:
-        """One dance per seed for the song, generated as one batch: the features, the genre reading and the
-        song's beats once, the music encoded once, the decoder run on all seeds together, the stages applied
-        to each dance. ``dances(song, seeds=[0, 1, 2])[k]`` is ``pipe(song, seed=[0, 1, 2][k])`` (the same
-        initial state; the batched matrix products may round the last float bits differently). Other
+        """One dance per seed for the song: the features, the genre reading and the song's beats once, the
+        music encoded once, the decoder run on each seed on its own (a batch of one: batched matrix products
+        round differently for every batch size), the stages applied to each dance.
+        ``dances(song, seeds=[0, 1, 2])[k]`` is bit for bit ``pipe(song, seed=[0, 1, 2][k])``. Other
         arguments as :meth:`__call__`.
 
         Raises
