@@ -4,7 +4,7 @@
         --models dual runs/ft/checkpoints/step_0000100 ... --filters box13 bw1.0 bw1.5 bw2.0 --seeds 0 1 -o runs/dd_val
 
 For every model, song and seed, G_M→D's raw output is generated once (``DualModel.generate_dance`` on the song's
-features, start pose from the pool with the seed); every filter is then applied to it (``boxN``: the N-frame
+features, start pose from the pool with the seed, each seed on its own as ``DualPipeline.dances`` does); every filter is then applied to it (``boxN``: the N-frame
 moving average, ``bwF``: the zero-phase Butterworth low-pass at F Hz, ``none``; ``default``: the checkpoint's own setting), and the dance goes through the
 default stages of ``dancekit dance`` (clean-up, smoothing, foot lock, beat sync: ``stages.finish``). Per dance:
 stillness share, smoothed energy and jitter as ratios to the song's real dance, planted-foot share, foot
@@ -140,9 +140,10 @@ def main() -> None:
         for n in names:
             if n in raw:  # the same weights and statistics scored before in this run
                 continue
-            s = torch.stack([pipe.start_pose(None, seed) for seed in args.seeds])
-            f = torch.from_numpy(feats[n])[None].expand(len(args.seeds), -1, -1)
-            raw[n] = pipe.model.generate_dance(f, start=s).cpu().numpy()
+            # each seed on its own, as `DualPipeline.dances` decodes it (a batch rounds differently)
+            f = torch.from_numpy(feats[n])[None]
+            raw[n] = np.stack([pipe.model.generate_dance(f, start=pipe.start_pose(None, seed)[None])[0].cpu().numpy()
+                               for seed in args.seeds])
         gen_cpu = time.process_time() - t0
         probs = {n: {} for n in names}  # the genres the music calls for, where the energy entry's floor needs them
         if pipe.genre_reader is not None and stages.energy_options(pipe.folder).get("genre_energy"):
