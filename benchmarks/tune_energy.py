@@ -8,7 +8,9 @@ the chosen entry scored on the test songs and the songs of ``../shared/music``, 
 Each setting runs the default stages on every cached dance of the split, as ``stages.finish`` does (clean-up,
 smoothing, the energy lift with the setting given here instead of the checkpoint's entry — ``null``: none —,
 the checkpoint's foot lock and settle, beat sync; a ``"settle"`` key in a setting, e.g. ``{"settle":
-{"ratio_target": 0.07}}``, replaces the checkpoint's settle entry), with the embedded model's folder as the result's model so
+{"ratio_target": 0.07}}``, replaces the checkpoint's settle entry; a ``"jitter_cap"`` key, e.g.
+``{"jitter_cap": {"genre_jitter": {...}, "jitter_cap": 1.5, "jitter_cap_min_ratio": 0.7}}``, caps each dance's jitter
+before the foot lock as music2dance's entry of that name does, the song's genre read by music2dance's classifier), with the embedded model's folder as the result's model so
 its other entries apply. Per setting: per song (seeds averaged) smoothed energy, jitter (speed residual) and
 their ratios to the song's real dance (``--split song``: the real test dances' mean), stillness; over all
 dances planted share, skating, jerk, floor, BAS / hit rate, the gains, and with ``--fid`` FID_k / FID_g
@@ -56,9 +58,14 @@ def finish(motion, model: str, audio, beats, energy: dict | None, probs: dict[st
     before = res.motion
     energy = dict(energy or {})
     settle = energy.pop("settle", None)  # a "settle" entry in the setting replaces the checkpoint's
+    cap = energy.pop("jitter_cap", None)  # a "jitter_cap" entry (music2dance's): the per-dance cap before the lock
     if energy:
         res = stages.lift_energy(res, **energy)
     gain = next((float(n.split("gain ")[1].split()[0]) for n in res.notes if n.startswith("energy lifted")), 1.0)
+    if cap is not None and music:
+        max_jitter = stages.plausible_jitter_cap(probs, **stages.jitter_cap_from_entry(cap, folder=model))
+        if max_jitter is not None:
+            res = stages.settle(res, max_jitter=max_jitter)
     res = stages.foot_lock(res)
     res = stages.settle(res, **(stages.settle_options(res.model) if settle is None else
                                 {("cutoff" if k == "cutoff_hz" else k): v for k, v in settle.items()}))

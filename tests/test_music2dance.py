@@ -558,3 +558,43 @@ def test_pipeline_takes_its_default_genre_scale_from_the_checkpoint(m2d_folder, 
     (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"genre_scale": -2}}))
     with pytest.raises(CheckpointError, match="genre_scale"):
         Music2DancePipeline.from_pretrained(folder)
+
+
+def test_the_jitter_cap_entry_calms_a_dance_to_its_genres_before_the_foot_lock(m2d_folder, song8, tmp_path):
+    """A checkpoint's ``"jitter_cap": {"genre_jitter": {...}, "jitter_cap": s, "jitter_cap_min_ratio": ρ}``
+    (issue 15, the Dance Revolution cap given to music2dance): a dance of a named genre G is finished with
+    ``max_jitter = s × genre_jitter[G]`` (worked by hand: 1.5 × 0.002 m/s), i.e. bit for bit the model's own dance
+    run through :func:`stages.finish` with that cap; "none" (no genre) is not capped; a bad entry names config.json."""
+    import json
+    import shutil
+
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines import stages
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    folder = tmp_path / "capped"
+    shutil.copytree(m2d_folder, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    entry = {"genre_jitter": {"waltz": 0.001, "rumba": 0.002}, "jitter_cap": 1.5, "jitter_cap_min_ratio": 0.7}
+    (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": entry}))
+    plain, capped = Music2DancePipeline.from_pretrained(m2d_folder), Music2DancePipeline.from_pretrained(folder)
+    assert plain.jitter_cap is None
+    assert capped.max_jitter("rumba", {}) == pytest.approx(1.5 * 0.002)
+    assert capped.max_jitter("rumba", {"rumba": 0.6, "waltz": 0.4}) == pytest.approx(1.5 * 0.002)  # 0.4 < 0.7 · 0.6
+    assert capped.max_jitter("rumba", {"rumba": 0.5, "waltz": 0.4}) == pytest.approx(1.5 * 0.001)  # 0.4 ≥ 0.7 · 0.5
+    assert capped.max_jitter(None, {}) is None and plain.max_jitter("rumba", {}) is None
+
+    raw = plain(song8, seed=0, genre="rumba", end=3.0, beat_sync=False, cleanup=False)
+    by_hand = stages.finish(raw, song8, end=3.0, beat_sync_on=False, max_jitter=1.5 * 0.002).motion.to_positions()
+    got = capped(song8, seed=0, genre="rumba", end=3.0, beat_sync=False)
+    np.testing.assert_array_equal(got.motion.to_positions(), by_hand)
+    assert any(n.startswith("calmed to the song's genres") for n in got.notes)
+    uncapped = plain(song8, seed=0, genre="rumba", end=3.0, beat_sync=False).motion.to_positions()
+    assert np.abs(uncapped - by_hand).max() > 0.1  # the cap changed the dance (cm)
+    np.testing.assert_array_equal(capped(song8, seed=0, genre="none", end=3.0, beat_sync=False).motion.to_positions(),
+                                  plain(song8, seed=0, genre="none", end=3.0, beat_sync=False).motion.to_positions())
+    for bad in ([1.5], {"jitter_cap": 1.5}, {**entry, "jitter_cap": 0}, {**entry, "jitter_cap_min_ratio": 2},
+                {**entry, "genre_jitter": {"waltz": -1}}, {**entry, "cap": 1}):
+        (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": bad}))
+        with pytest.raises(CheckpointError, match=r"bad 'jitter_cap' entry in config\.json"):
+            Music2DancePipeline.from_pretrained(folder)

@@ -399,3 +399,26 @@ def test_the_embedded_dual_and_music2dance_beat_sync_entries_are_read(name):
     assert 0 < spec["pair_rate_change"] <= spec["max_rate_change"] < 1
     assert spec["max_rate_change"] > timewarp.DEFAULT_MAX_RATE_CHANGE
     assert spec.get("between_tolerance", 0.0) >= 0
+
+
+def test_plausible_jitter_cap_is_the_scale_times_the_smallest_real_jitter_of_the_plausible_genres():
+    """Worked by hand: p = (0.5, 0.4, 0.1) over (chacha, rumba, waltz), ρ = 0.7 → plausible {chacha (0.5 ≥ 0.35),
+    rumba (0.4 ≥ 0.35)} → 1.5 × min(0.14, 0.05); ρ = 0.1 adds waltz → 1.5 × 0.026; a genre not in the table is
+    skipped; no posterior, no plausible genre in the table: None."""
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines.stages import jitter_cap_from_entry, plausible_jitter_cap
+
+    table = {"waltz": 0.026, "rumba": 0.05, "chacha": 0.14}
+    probs = {"chacha": 0.5, "rumba": 0.4, "waltz": 0.1}
+    assert plausible_jitter_cap(probs, genre_jitter=table, scale=1.5, min_ratio=0.7) == pytest.approx(0.075)
+    assert plausible_jitter_cap(probs, genre_jitter=table, scale=1.5, min_ratio=0.1) == pytest.approx(0.039)
+    assert plausible_jitter_cap({"tango": 0.9, "chacha": 0.1}, genre_jitter=table, scale=1.0,
+                                min_ratio=0.5) is None
+    assert plausible_jitter_cap({}, genre_jitter=table, scale=1.0, min_ratio=0.5) is None
+    entry = jitter_cap_from_entry({"genre_jitter": table, "jitter_cap": 2})
+    assert entry == {"genre_jitter": table, "scale": 2.0, "min_ratio": 0.5}
+    assert jitter_cap_from_entry(None) is None
+    for bad in ({"genre_jitter": {}, "jitter_cap": 1}, {"genre_jitter": table}, {"genre_jitter": table, "jitter_cap": True},
+                {"genre_jitter": table, "jitter_cap": 1, "jitter_cap_min_ratio": -0.1}, "1.5"):
+        with pytest.raises(CheckpointError, match=r"ckpt: bad 'jitter_cap' entry in config\.json"):
+            jitter_cap_from_entry(bad, folder="ckpt")

@@ -36,7 +36,7 @@ from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import finish, song_beats_for
+from dancekit.pipelines.stages import finish, jitter_cap_from_entry, plausible_jitter_cap, song_beats_for
 
 
 class Music2DancePipeline:
@@ -97,6 +97,11 @@ class Music2DancePipeline:
         #: songs for the embedded model so that the style classifier reads the genre back; "auto", "none" and
         #: the genres not listed keep the plain settings
         self.genre_sampling = self._genre_sampling(meta.get("genre_sampling"), folder)
+        #: the per-dance jitter cap (issue 15): the checkpoint's ``"jitter_cap": {"genre_jitter": {genre: m/s},
+        #: "jitter_cap": s, "jitter_cap_min_ratio": ρ}`` (:func:`~dancekit.pipelines.stages.jitter_cap_from_entry`),
+        #: None: no cap. A dance is low-passed before the foot lock until its jitter is at most s × the smallest real
+        #: jitter among the song's plausible genres (a genre asked for by name: that genre's), :meth:`max_jitter`
+        self.jitter_cap = jitter_cap_from_entry(meta.get("jitter_cap"), folder=folder)
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
@@ -175,6 +180,14 @@ class Music2DancePipeline:
             known = ", ".join(self.genres) or "none (the model has no dance-type condition)"
             raise ParameterError(f"unknown genre {requested!r} for this model; choose from {known}, auto or none")
         return requested, requested, {}
+
+    def max_jitter(self, danced: str | None, probs: dict[str, float]) -> float | None:
+        """The jitter cap (m/s) of a dance of genre ``danced`` whose song's genre posterior is ``probs`` (empty for
+        a genre asked for by name): :func:`~dancekit.pipelines.stages.plausible_jitter_cap` over ``probs``, or over
+        ``{danced: 1}`` for a named genre; None without a ``"jitter_cap"`` entry or a genre (``"none"``)."""
+        if self.jitter_cap is None or danced is None:
+            return None
+        return plausible_jitter_cap(probs or {danced: 1.0}, **self.jitter_cap)
 
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, genre: str | None = None,
@@ -283,7 +296,7 @@ class Music2DancePipeline:
             if beat_sync and out[-1].looks_like_music and beats is None:  # the song's beats once for all seeds
                 beats = song_beats_for(audio_path, start=start, end=end)
             out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup,
-                             beats=beats)
+                             beats=beats, max_jitter=self.max_jitter(danced, probs) if out[-1].looks_like_music else None)
         return out
 
 

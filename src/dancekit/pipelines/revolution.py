@@ -61,7 +61,7 @@ from dancekit.pipelines.base import (
     song_features,
 )
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import finish, song_beats_for
+from dancekit.pipelines.stages import finish, plausible_jitter_cap, song_beats_for
 
 
 class RevolutionPipeline:
@@ -517,14 +517,10 @@ def jitter_cap(probs: dict[str, float], *, genre: str | None, draw: GenreDraw) -
     posterior is ``probs``: ``draw.jitter_cap`` × the smallest real jitter (``draw.genre_jitter``) among the song's
     plausible genres (``p_g ≥ draw.cap_min_ratio · max(p)``, genres in the table); None (no cap) without a
     posterior, a cap or a table entry, and for the most likely genre's dance unless ``draw.cap_all``."""
-    table = dict(draw.genre_jitter)
-    if not probs or draw.jitter_cap <= 0 or not table:
+    if probs and genre == max(probs, key=probs.get) and not draw.cap_all:
         return None
-    top = max(probs.values())
-    if genre == max(probs, key=probs.get) and not draw.cap_all:
-        return None
-    plausible = [table[g] for g, p in probs.items() if g in table and p >= draw.cap_min_ratio * top]
-    return float(draw.jitter_cap * min(plausible)) if plausible else None
+    return plausible_jitter_cap(probs, genre_jitter=dict(draw.genre_jitter), scale=draw.jitter_cap,
+                                min_ratio=draw.cap_min_ratio)
 
 
 def genre_draw_from_meta(meta: dict[str, Any], *, folder: str = "?") -> GenreDraw:

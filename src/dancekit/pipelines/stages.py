@@ -44,7 +44,7 @@ from dancekit.motion.skeleton import keep_bone_lengths
 from dancekit.pipelines.base import DanceResult
 
 __all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
-           "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_smoothing_targets", "lift_energy", "settle", "settle_options", "smooth",
+           "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_smoothing_targets", "jitter_cap_from_entry", "lift_energy", "plausible_jitter_cap", "settle", "settle_options", "smooth",
            "smoothing_target", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
@@ -583,6 +583,55 @@ def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str],
                               f"numbers for {sorted(allowed)}"
                               + (f" and true / false for {sorted(flags)}" if flags else "") + f", got {spec!r}")
     return {k: v if k in flags else float(v) for k, v in spec.items()}
+
+
+JITTER_CAP_KEYS = ("genre_jitter", "jitter_cap", "jitter_cap_min_ratio")
+
+
+def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, float], scale: float,
+                         min_ratio: float) -> float | None:
+    """The per-dance jitter cap (m/s, the ``max_jitter`` of :func:`finish`) for a song whose genre posterior is
+    ``probs`` (genre → p): ``scale`` × the smallest real jitter ``genre_jitter[g]`` (m/s, the real training
+    dances' median per genre, ``benchmarks/genre_jitter_table.py``) among the song's plausible genres
+    (``p_g ≥ min_ratio · max(p)``, genres in the table). None (no cap) without a posterior, a scale or a
+    plausible genre in the table. A genre asked for by name is ``probs = {genre: 1.0}``."""
+    if not probs or not scale > 0 or not genre_jitter:
+        return None
+    top = max(probs.values())
+    plausible = [genre_jitter[g] for g, p in probs.items() if g in genre_jitter and p >= min_ratio * top]
+    return float(scale * min(plausible)) if plausible else None
+
+
+def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "jitter_cap") -> dict | None:
+    """A checkpoint's jitter cap entry ``{"genre_jitter": {genre: m/s}, "jitter_cap": s,
+    "jitter_cap_min_ratio": ρ}`` (ρ default 0.5) checked, as keyword arguments of :func:`plausible_jitter_cap`
+    (``genre_jitter``, ``scale``, ``min_ratio``); None for no entry.
+
+    Raises
+    ------
+    CheckpointError
+        Naming ``config.json`` and ``key``, for an entry that is not an object, an unknown key, a table that
+        does not map genres to positive m/s, a scale that is not a finite number > 0, or ρ outside [0, 1]."""
+    if spec is None:
+        return None
+    where = f"checkpoint {folder}: bad {key!r} entry in config.json"
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+    if not isinstance(spec, dict) or set(spec) - set(JITTER_CAP_KEYS):
+        raise CheckpointError(f"{where}: takes {list(JITTER_CAP_KEYS)}, got {spec!r}")
+    table = spec.get("genre_jitter")
+    if not (isinstance(table, dict) and table and all(isinstance(g, str) and number(v) and v > 0
+                                                      for g, v in table.items())):
+        raise CheckpointError(f"{where}: genre_jitter must map genres to positive m/s, got {table!r}")
+    scale = spec.get("jitter_cap")
+    if not (number(scale) and scale > 0):
+        raise CheckpointError(f"{where}: jitter_cap must be a finite number > 0, got {scale!r}")
+    ratio = spec.get("jitter_cap_min_ratio", 0.5)
+    if not (number(ratio) and 0 <= ratio <= 1):
+        raise CheckpointError(f"{where}: jitter_cap_min_ratio must be in [0, 1], got {ratio!r}")
+    return {"genre_jitter": {g: float(v) for g, v in table.items()}, "scale": float(scale), "min_ratio": float(ratio)}
 
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
