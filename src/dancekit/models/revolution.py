@@ -801,19 +801,9 @@ class RevolutionModel(nn.Module):
     def _latents(self, music: torch.Tensor, genre: torch.Tensor | None, *, chunk: int | None = None) -> torch.Tensor:
         """The song's conditioned latents ``(B, n, d_model)`` for ``music (B, n, music_dim)``, encoded in chunks of
         ``chunk`` frames (default ``config.encoder_chunk``) with the encoder's receptive field as context."""
-        n = music.shape[1]
-        chunk = chunk or self.config.encoder_chunk
-        context = self.encoder.receptive_field
-        if context is None:
-            context = self.config.window
-        out = []
-        for start in range(0, n, chunk):
-            a, b = max(0, start - context), min(n, start + chunk + context)
-            z = self.encoder(music[:, a:b])[:, start - a : start - a + min(chunk, n - start)]
-            out.append(self._condition(z, genre))
-        if not out:
+        if music.shape[1] == 0:
             return music.new_zeros(music.shape[0], 0, self.config.d_model)
-        return torch.cat(out, dim=1)
+        return self._condition(self.encode(music, chunk=chunk or self.config.encoder_chunk), genre)  # (B, n, d)
 
     def _decode(self, z: torch.Tensor, generator, variety: SeedVariety | None, *, device, chunk: int | None = None,
                 progress: bool = False) -> torch.Tensor:
