@@ -290,7 +290,8 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     ``max_jitter`` (m/s; and no ``cutoff``): the cut-off is chosen per dance, the highest of
     :data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ` that brings the dance's jitter under the cap
     (:func:`dancekit.motion.footlock.jitter_cutoff`; a genre model drawn by the seed, issue 15); a dance
-    already under it is left alone, a filtered one gets a note."""
+    already under it is left alone, a filtered one gets a note. :func:`finish` runs this one *before* the foot
+    lock (a cut-off down to 1 Hz after it would lift the planted feet)."""
     from dancekit.motion._filters import lowpass_kernel
     from dancekit.motion.footlock import chunks, lowpass_rows
 
