@@ -10,7 +10,7 @@ smoothing, the energy lift with the setting given here instead of the checkpoint
 the checkpoint's foot lock and settle, beat sync; a ``"settle"`` key in a setting, e.g. ``{"settle":
 {"ratio_target": 0.07}}``, replaces the checkpoint's settle entry; a ``"jitter_cap"`` key, e.g.
 ``{"jitter_cap": {"genre_jitter": {...}, "jitter_cap": 1.5, "jitter_cap_min_ratio": 0.7}}``, caps each dance's jitter
-before the foot lock as music2dance's entry of that name does, the song's genre read by music2dance's classifier), with the embedded model's folder as the result's model so
+before the foot lock (after the lock and its settle with ``"after_lock": true``) as music2dance's entry of that name does, the song's genre read by music2dance's classifier), with the embedded model's folder as the result's model so
 its other entries apply. Per setting: per song (seeds averaged) smoothed energy, jitter (speed residual) and
 their ratios to the song's real dance (``--split song``: the real test dances' mean), stillness; over all
 dances planted share, skating, jerk, floor, BAS / hit rate, the gains, and with ``--fid`` FID_k / FID_g
@@ -62,13 +62,18 @@ def finish(motion, model: str, audio, beats, energy: dict | None, probs: dict[st
     if energy:
         res = stages.lift_energy(res, **energy)
     gain = next((float(n.split("gain ")[1].split()[0]) for n in res.notes if n.startswith("energy lifted")), 1.0)
+    max_jitter, after_lock = None, False
     if cap is not None and music:
-        max_jitter = stages.plausible_jitter_cap(probs, **stages.jitter_cap_from_entry(cap, folder=model))
-        if max_jitter is not None:
-            res = stages.settle(res, max_jitter=max_jitter)
+        cap = stages.jitter_cap_from_entry(cap, folder=model)
+        after_lock = cap.pop("after_lock")
+        max_jitter = stages.plausible_jitter_cap(probs, **cap)
+    if max_jitter is not None and not after_lock:
+        res = stages.settle(res, max_jitter=max_jitter)
     res = stages.foot_lock(res)
     res = stages.settle(res, **(stages.settle_options(res.model) if settle is None else
                                 {("cutoff" if k == "cutoff_hz" else k): v for k, v in settle.items()}))
+    if max_jitter is not None and after_lock:  # "after_lock": true, as stages.finish(jitter_after_lock=True)
+        res = stages.settle(res, max_jitter=max_jitter)
     if beats is not None:
         res = stages.beat_sync(res, audio[0], start=audio[1], end=audio[2], beats=beats)
     return res.motion, gain, before

@@ -598,3 +598,44 @@ def test_the_jitter_cap_entry_calms_a_dance_to_its_genres_before_the_foot_lock(m
         (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": bad}))
         with pytest.raises(CheckpointError, match=r"bad 'jitter_cap' entry in config\.json"):
             Music2DancePipeline.from_pretrained(folder)
+
+
+def test_the_jitter_cap_entry_after_lock_calms_the_locked_dance(m2d_folder, song8, tmp_path):
+    """``"after_lock": true`` in the ``"jitter_cap"`` entry (issue 15, second try): the cap's per-dance low-pass
+    runs after the foot lock and its settle instead of before the lock, i.e. the dance is bit for bit the raw dance
+    through the stages spelt out by hand (clean-up, smoothing, energy, lock, settle, *then* the cap of
+    1.5 × 0.002 m/s), and not the before-the-lock dance; ``false`` is today's order; a non-boolean names
+    config.json."""
+    import json
+    import shutil
+
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines import stages
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    folder = tmp_path / "after"
+    shutil.copytree(m2d_folder, folder)
+    meta = json.loads((folder / "config.json").read_text())
+    entry = {"genre_jitter": {"waltz": 0.001, "rumba": 0.002}, "jitter_cap": 1.5, "jitter_cap_min_ratio": 0.7}
+    plain = Music2DancePipeline.from_pretrained(m2d_folder)
+    raw = plain(song8, seed=0, genre="rumba", end=3.0, beat_sync=False, cleanup=False)
+    r = stages.smooth(stages.clean_up(raw))
+    r = stages.lift_energy(r, **stages.energy_options(r.model))
+    locked = stages.settle(stages.foot_lock(r), **stages.settle_options(r.model))
+    by_hand_after = stages.settle(locked, max_jitter=1.5 * 0.002)
+    by_hand_before = stages.settle(stages.settle(stages.foot_lock(stages.settle(r, max_jitter=1.5 * 0.002)),
+                                                 **stages.settle_options(r.model)))
+    assert any(n.startswith("calmed to the song's genres") for n in by_hand_after.notes)
+    got = {}
+    for after in (True, False):
+        (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": {**entry, "after_lock": after}}))
+        capped = Music2DancePipeline.from_pretrained(folder)
+        assert capped.jitter_after_lock is after and "after_lock" not in capped.jitter_cap
+        got[after] = capped(song8, seed=0, genre="rumba", end=3.0, beat_sync=False).motion.to_positions()
+    np.testing.assert_array_equal(got[True], by_hand_after.motion.to_positions())
+    np.testing.assert_array_equal(got[False], by_hand_before.motion.to_positions())
+    assert np.abs(got[True] - got[False]).max() > 1e-3  # the placement matters for this dance
+    for bad in ("yes", 1, None):
+        (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": {**entry, "after_lock": bad}}))
+        with pytest.raises(CheckpointError, match=r"bad 'jitter_cap' entry in config\.json: after_lock"):
+            Music2DancePipeline.from_pretrained(folder)

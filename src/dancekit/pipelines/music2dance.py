@@ -102,6 +102,8 @@ class Music2DancePipeline:
         #: None: no cap. A dance is low-passed before the foot lock until its jitter is at most s × the smallest real
         #: jitter among the song's plausible genres (a genre asked for by name: that genre's), :meth:`max_jitter`
         self.jitter_cap = jitter_cap_from_entry(meta.get("jitter_cap"), folder=folder)
+        #: the entry's ``"after_lock"``: the cap's low-pass after the foot lock and its settle (default: before)
+        self.jitter_after_lock = bool(self.jitter_cap and self.jitter_cap.pop("after_lock"))
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
@@ -296,7 +298,8 @@ class Music2DancePipeline:
             if beat_sync and out[-1].looks_like_music and beats is None:  # the song's beats once for all seeds
                 beats = song_beats_for(audio_path, start=start, end=end)
             out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup,
-                             beats=beats, max_jitter=self.max_jitter(danced, probs) if out[-1].looks_like_music else None)
+                             beats=beats, max_jitter=self.max_jitter(danced, probs) if out[-1].looks_like_music else None,
+                             jitter_after_lock=self.jitter_after_lock)
         return out
 
 

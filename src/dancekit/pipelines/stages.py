@@ -586,7 +586,7 @@ def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str],
     return {k: v if k in flags else float(v) for k, v in spec.items()}
 
 
-JITTER_CAP_KEYS = ("genre_jitter", "jitter_cap", "jitter_cap_min_ratio")
+JITTER_CAP_KEYS = ("genre_jitter", "jitter_cap", "jitter_cap_min_ratio", "after_lock")
 
 
 def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, float], scale: float,
@@ -605,14 +605,17 @@ def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, flo
 
 def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "jitter_cap") -> dict | None:
     """A checkpoint's jitter cap entry ``{"genre_jitter": {genre: m/s}, "jitter_cap": s,
-    "jitter_cap_min_ratio": ρ}`` (ρ default 0.5) checked, as keyword arguments of :func:`plausible_jitter_cap`
-    (``genre_jitter``, ``scale``, ``min_ratio``); None for no entry.
+    "jitter_cap_min_ratio": ρ, "after_lock": bool}`` (ρ default 0.5, ``after_lock`` default false) checked:
+    ``{"genre_jitter", "scale", "min_ratio"}`` (the keyword arguments of :func:`plausible_jitter_cap`) plus
+    ``"after_lock"`` (the ``jitter_after_lock`` of :func:`finish`: the cap's low-pass after the foot lock and
+    its settle instead of before the lock); None for no entry.
 
     Raises
     ------
     CheckpointError
         Naming ``config.json`` and ``key``, for an entry that is not an object, an unknown key, a table that
-        does not map genres to positive m/s, a scale that is not a finite number > 0, or ρ outside [0, 1]."""
+        does not map genres to positive m/s, a scale that is not a finite number > 0, ρ outside [0, 1], or an
+        ``after_lock`` that is not true / false."""
     if spec is None:
         return None
     where = f"checkpoint {folder}: bad {key!r} entry in config.json"
@@ -632,13 +635,17 @@ def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "
     ratio = spec.get("jitter_cap_min_ratio", 0.5)
     if not (number(ratio) and 0 <= ratio <= 1):
         raise CheckpointError(f"{where}: jitter_cap_min_ratio must be in [0, 1], got {ratio!r}")
-    return {"genre_jitter": {g: float(v) for g, v in table.items()}, "scale": float(scale), "min_ratio": float(ratio)}
+    after = spec.get("after_lock", False)
+    if not isinstance(after, bool):
+        raise CheckpointError(f"{where}: after_lock must be true or false, got {after!r}")
+    return {"genre_jitter": {g: float(v) for g, v in table.items()}, "scale": float(scale), "min_ratio": float(ratio),
+            "after_lock": after}
 
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
            end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
            foot_lock_on: bool | None = None, smooth_on: bool | None = None, energy_on: bool | None = None,
-           beats=None, max_jitter: float | None = None) -> DanceResult:
+           beats=None, max_jitter: float | None = None, jitter_after_lock: bool = False) -> DanceResult:
     """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
     a jittery dance is filtered), the energy lift the model's checkpoint asks for (:func:`lift_energy`,
     :func:`energy_options`: only a dance under its floor; after the smoothing, so the flicker it removed is
@@ -649,7 +656,10 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     given. ``beats``: the song's :class:`~dancekit.features.pulse.SongBeats` when already tracked (many
     dances of one song), else tracked here when needed. ``max_jitter`` (m/s): before the foot lock, a
     per-dance low-pass caps the dance's jitter (:func:`settle`; a genre model the seed drew, issue 15), so the
-    lock plants the calmed dance's feet (after the lock, a 1-Hz cap lifted the feet off the floor)."""
+    lock plants the calmed dance's feet (after the lock, a 1-Hz cap lifted the feet off the floor);
+    ``jitter_after_lock``: that low-pass runs after the foot lock and its settle instead (the jitter measured
+    closer to its final value: the lock adds some back; a checkpoint's ``"after_lock"``,
+    :func:`jitter_cap_from_entry`)."""
     if cleanup_on:
         result = clean_up(result)
     if cleanup_on if smooth_on is None else smooth_on:
@@ -657,10 +667,12 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     if cleanup_on if energy_on is None else energy_on:
         result = lift_energy(result, **energy_options(result.model))
     if cleanup_on if foot_lock_on is None else foot_lock_on:
-        if max_jitter is not None:  # before the foot lock: the lock plants the calmed dance's feet
+        if max_jitter is not None and not jitter_after_lock:  # before the lock: it plants the calmed dance's feet
             result = settle(result, max_jitter=max_jitter)
         result = foot_lock(result)
         result = settle(result, **settle_options(result.model))
+        if max_jitter is not None and jitter_after_lock:  # after: the jitter the lock added back is measured too
+            result = settle(result, max_jitter=max_jitter)
     if beat_sync_on:
         result = beat_sync(result, audio_path, start=start, end=end, beats=beats)
     return result
