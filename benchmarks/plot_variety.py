@@ -65,6 +65,7 @@ def main() -> None:
     ap.add_argument("--base", default="0:0:0", help="the row whose FID_k +10 %% and multimodality x3 are drawn")
     ap.add_argument("--report", action="append", default=[], help="LABEL=report.json")
     ap.add_argument("--fid-max", type=float, default=130.0, help="right end of the FID_k axis (beyond: clipped)")
+    ap.add_argument("--fid-min", type=float, default=30.0, help="left end of the FID_k axis")
     ap.add_argument("--right-title", default="test songs, 5 seeds: two seeds (thick) vs half of two songs (thin)")
     ap.add_argument("-o", "--out", required=True)
     args = ap.parse_args()
@@ -77,11 +78,11 @@ def main() -> None:
     draw = ImageDraw.Draw(img)
     mm_max = max(50.0, max(r["style_multimodality"] for r in rows.values()) * 1.1)
     to_px = _axes(draw, 0, "validation songs, 5 seeds, stages on: settings tried", "FID_k",
-                  "multimodality", (30.0, args.fid_max), (0.0, mm_max))
+                  "multimodality", (args.fid_min, args.fid_max), (0.0, mm_max))
     base = rows.get(args.base)
     if base is not None:
         _dashed(draw, to_px(1.1 * base["fid_k"], 0), to_px(1.1 * base["fid_k"], mm_max), (120, 120, 120))
-        _dashed(draw, to_px(30, 3 * base["style_multimodality"]), to_px(args.fid_max, 3 * base["style_multimodality"]),
+        _dashed(draw, to_px(args.fid_min, 3 * base["style_multimodality"]), to_px(args.fid_max, 3 * base["style_multimodality"]),
                 (120, 120, 120), dash=2)
     for spec, r in rows.items():
         x, y = to_px(min(r["fid_k"], args.fid_max), r["style_multimodality"])

@@ -4,6 +4,7 @@ checkpoint selection, classifier scores."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -177,3 +178,37 @@ def test_select_checkpoint_on_a_tiny_run(data_with_audio, tmp_path, capsys):
     assert {"style", "dance_accuracy", "stillness_max", "val_loss"} <= set(report["chosen"])
     assert (tmp_path / "chosen" / "model.safetensors").is_file()
     assert "chosen:" in capsys.readouterr().out
+
+
+def test_steering_dances_each_genre_through_a_pipelines_dances_with_one_genre(data_with_audio):
+    """Regression: ``steering`` gave a pipeline's ``dances`` a list of genres, which Dance Revolution's (one
+    genre per call) refused ("unknown genre [...]"), so ``dancekit steering --checkpoint revolution`` failed."""
+    from dancekit.data import PreparedData
+    from dancekit.evaluation import load_classifier, steering
+    from dancekit.motion import Motion, get_skeleton
+    from dancekit.pipelines.base import DanceResult
+
+    sk = get_skeleton("tang2018")
+    base = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    calls = []
+
+    class OneGenrePipeline:
+        genres = ["waltz", "tango"]
+
+        def dances(self, path, *, seeds, genre=None, start=None, end=None):
+            if not isinstance(genre, str) or genre not in self.genres:
+                raise ParameterError(f"unknown genre {genre!r} for this model")
+            calls.append((genre, list(seeds)))
+            # each (genre, seed) its own dance: the pose scaled so that the two genres move differently
+            scale = 1.0 if genre == "waltz" else 0.2
+            return [DanceResult(motion=Motion(skeleton=sk, fps=25.0, positions=base * scale + s), model="fake",
+                                seed=s) for s in seeds]
+
+    style, _ = load_classifier()
+    data = PreparedData(data_with_audio)
+    out = steering(OneGenrePipeline(), data, style, split="val", seeds=2, progress=False)
+    songs = data.names("val")
+    assert out["n"] == len(songs) * 2 * 2
+    assert sorted(calls) == sorted([(g, [0, 1]) for _ in songs for g in ("waltz", "tango")])
+    assert sum(sum(row.values()) for row in out["matrix"].values()) == out["n"]
+    assert set(out["per_song"][songs[0]]) == {"waltz__0", "waltz__1", "tango__0", "tango__1"}

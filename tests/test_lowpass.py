@@ -126,15 +126,18 @@ def test_settle_keeps_bones_and_filters_in_pieces(dance, monkeypatch):
     assert settle(res, cutoff=0).motion is res.motion
 
 
-def test_settle_keeps_held_feet_held():
-    """On the embedded model's own dances, locked: inside every hold (6 frames from its ends) the settled
-    ankle stays within 1 cm of where the lock holds it."""
+def test_settle_keeps_held_feet_held(prepared_tang2018):
+    """On the embedded model's own dances and a real one, locked: inside every hold (6 frames from its ends)
+    the settled ankle stays within 1 cm of where the lock holds it. (The genre models trained with the speed
+    term hold a foot for under 0.5 s in the 8-s golden clips, so a real waltz brings the long holds.)"""
     from pathlib import Path
 
     checked = 0
     for key in ("none_seed3", "auto_seed0", "rumba_seed1"):
         checked += _held_frames_checked(np.load(Path(__file__).parent / "golden" / "default_model.npz")[key])
-    assert checked >= 2
+    real = prepared_tang2018.motion("DANCE_W_10").to_positions()[:500]
+    checked += _held_frames_checked(real)
+    assert checked >= 10  # the real waltz alone has 22
 
 
 def _held_frames_checked(p: np.ndarray) -> int:

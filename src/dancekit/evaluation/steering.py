@@ -47,14 +47,16 @@ def steering(pipe: Any, data: Any, style: Any, *, split: str, seeds: int = 1, pr
     energy: dict[str, list[float]] = {g: [] for g in pipe.genres}
     per_song: dict[str, dict[str, str]] = {}
     jobs = [(n, g, k) for n in data.names(split) for g in pipe.genres for k in range(seeds)]
-    batch = getattr(pipe, "dances", None)  # a pipeline that dances a song's (genre, seed) pairs at once
+    batch = getattr(pipe, "dances", None)  # a pipeline that dances a song's seeds of one genre at once
     done: dict[tuple[str, str, int], Any] = {}
     for name, genre, k in tqdm(jobs, desc="steering", unit="dance", disable=not progress):
         ref = data.audio(name)
-        if batch is not None and (name, genre, k) not in done:
-            mine = [(g, s) for n, g, s in jobs if n == name]
-            rows = batch(ref.path, seeds=[s for _, s in mine], genre=[g for g, _ in mine], start=ref.start, end=ref.end)
-            done = {(name, g, s): r.motion for (g, s), r in zip(mine, rows)}
+        if batch is not None and (name, genre, k) not in done:  # the song's seeds of each genre at once
+            done = {}
+            for g in pipe.genres:
+                ks = [s for n, gg, s in jobs if n == name and gg == g]
+                rows = batch(ref.path, seeds=ks, genre=g, start=ref.start, end=ref.end)
+                done.update({(name, g, s): r.motion for s, r in zip(ks, rows)})
         m = done[(name, genre, k)] if batch is not None else pipe(ref.path, seed=k, start=ref.start, end=ref.end,
                                                                    genre=genre).motion
         pos = m.to_positions()

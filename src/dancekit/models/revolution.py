@@ -85,6 +85,9 @@ class RevolutionConfig:
     style_segment: int = 75  # frames per style-latent segment (3 s at 25 fps)
     style_beta: float = 0.02  # weight of the KL term (mean nats per latent dimension) in the training loss
     style_free_bits: float = 0.1  # KL per dimension below this many nats is not penalised (keeps the latent used)
+    # livelier motion (issue 15): L1 terms on the frame-to-frame differences of the normalised poses
+    velocity_weight: float = 0.0  # x mean |Δŷ − Δy| (each frame's velocity against the target's)
+    speed_weight: float = 0.0  # x mean over windows and coordinates of |mean_t |Δŷ| − mean_t |Δy||
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_genres, int) or self.n_genres < 0:
@@ -98,6 +101,9 @@ class RevolutionConfig:
             raise ParameterError(f"RevolutionConfig.style_dim must be a non-negative integer, got {self.style_dim!r}")
         if not isinstance(self.style_segment, int) or isinstance(self.style_segment, bool) or self.style_segment < 2:
             raise ParameterError(f"RevolutionConfig.style_segment must be an integer >= 2, got {self.style_segment!r}")
+        if not self.velocity_weight >= 0 or not self.speed_weight >= 0:
+            raise ParameterError("RevolutionConfig.velocity_weight and speed_weight must be >= 0, got "
+                                 f"{self.velocity_weight!r}, {self.speed_weight!r}")
         if not self.style_beta >= 0 or not self.style_free_bits >= 0:
             raise ParameterError("RevolutionConfig.style_beta and style_free_bits must be >= 0, got "
                                  f"{self.style_beta!r}, {self.style_free_bits!r}")
@@ -698,10 +704,29 @@ class RevolutionModel(nn.Module):
                 y, _, state = self._autoregress(z[:, a:b], outputs[-1][:, -1:], state)
             outputs.append(y)
         pred = torch.cat(outputs, dim=1)  # (B, n, P)
-        loss = F.l1_loss(pred, dance)
+        loss = F.l1_loss(pred, dance) + self.motion_loss(pred, dance)
         if kl is not None:
             loss = loss + self.config.style_beta * kl
         return pred, loss
+
+    def motion_loss(self, pred: torch.Tensor, dance: torch.Tensor) -> torch.Tensor:
+        """The velocity and speed terms of the training loss (0 with both weights 0).
+
+        ``pred``, ``dance``: (B, n, P) normalised poses. With Δ the difference of consecutive frames
+        (B, n − 1, P): ``velocity_weight`` × mean |Δŷ − Δy| + ``speed_weight`` × mean over (B, P) of
+        |mean_t |Δŷ| − mean_t |Δy||. The second asks each coordinate of a window to move as much as the
+        target's, whatever the phase: L1 on poses alone lets an autoregressive decoder settle on calmer
+        motion than the data's (docs/BENCHMARKS.md, "the default's FID_k").
+        """
+        c = self.config
+        loss = pred.new_zeros(())
+        if (c.velocity_weight or c.speed_weight) and pred.shape[1] > 1:
+            dp, dy = pred.diff(dim=1), dance.diff(dim=1)  # (B, n - 1, P)
+            if c.velocity_weight:
+                loss = loss + c.velocity_weight * F.l1_loss(dp, dy)
+            if c.speed_weight:
+                loss = loss + c.speed_weight * F.l1_loss(dp.abs().mean(dim=1), dy.abs().mean(dim=1))  # over (B, P)
+        return loss
 
     def _autoregress(self, z: torch.Tensor, prev: torch.Tensor, state):
         """Generate ``L = z.shape[1]`` frames from the input pose ``prev (B, 1, P)``, one step at a time.

@@ -137,6 +137,45 @@ def clean_up(result: DanceResult) -> DanceResult:
     return dataclasses.replace(result, motion=cleaned)
 
 
+def reground(result: DanceResult, *, window_s: float) -> DanceResult:
+    """The result with its lowest joint put back on the floor (:func:`dancekit.motion.cleanup.ground_offset`
+    over a centred ``window_s`` window, s): a vertical shift per frame, run after the foot lock and its settle
+    when the model's checkpoint asks for it (:func:`ground_options`). The stages after the clean-up (the
+    low-passes, the lock's IK) can lift a lively model's dance off the floor again; this one lets it touch
+    the floor at least once in every window, while a rise shorter than ``window_s / 2`` stays. A motion with
+    rotations keeps them (its root translation moved); 2D dances are returned unchanged."""
+    from dancekit.motion.analysis import up_sign
+    from dancekit.motion.cleanup import ground_offset
+
+    motion = result.motion
+    if not _is_3d(motion):
+        return result
+    sk, fps = motion.skeleton, motion.fps
+    p = np.asarray(motion.to_positions(), np.float64)
+    shift = up_sign(sk) * ground_offset(p, skeleton=sk, fps=fps, window_s=window_s)  # (T,) skeleton units
+    p[..., sk.up_index] -= shift[:, None]
+    tr = None
+    if motion.rotations is not None:
+        tr = np.array(motion.root_translation, np.float64)
+        tr[:, sk.up_index] -= shift
+        tr = tr.astype(np.float32)
+    out = Motion(skeleton=sk, fps=fps, positions=p.astype(np.float32), rotations=motion.rotations, root_translation=tr)
+    return dataclasses.replace(result, motion=out)
+
+
+def ground_options(model: str | os.PathLike | None) -> dict[str, float]:
+    """The :func:`reground` settings a model's checkpoint folder carries in its ``config.json`` (``"ground":
+    {"after_lock_s": s}``, the window in seconds), chosen on the validation songs (docs/BENCHMARKS.md,
+    "Livelier genre models"); ``{}`` (no second grounding) for a folder without the entry or that is not a
+    checkpoint. A window that is not a positive finite number is a :class:`~dancekit.errors.CheckpointError`
+    naming the ``config.json``."""
+    spec = _stage_entry(model, "ground", {"after_lock_s"})
+    if "after_lock_s" in spec and not (np.isfinite(spec["after_lock_s"]) and spec["after_lock_s"] > 0):
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'ground' takes a positive "
+                              f"after_lock_s (s), got {spec!r}")
+    return {"window_s": spec["after_lock_s"]} if "after_lock_s" in spec else {}
+
+
 def smooth(result: DanceResult, *, target: float | None = None, kind: str | None = None) -> DanceResult:
     """The result with frame-to-frame noise filtered out; a dance already smooth enough is returned as it is.
 
@@ -659,7 +698,8 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     lock plants the calmed dance's feet (after the lock, a 1-Hz cap lifted the feet off the floor);
     ``jitter_after_lock``: that low-pass runs after the foot lock and its settle instead (the jitter measured
     closer to its final value: the lock adds some back; a checkpoint's ``"after_lock"``,
-    :func:`jitter_cap_from_entry`)."""
+    :func:`jitter_cap_from_entry`). Last in the lock's block, the second grounding the checkpoint asks for
+    (:func:`reground`, :func:`ground_options`)."""
     if cleanup_on:
         result = clean_up(result)
     if cleanup_on if smooth_on is None else smooth_on:
@@ -673,6 +713,9 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
         result = settle(result, **settle_options(result.model))
         if max_jitter is not None and jitter_after_lock:  # after: the jitter the lock added back is measured too
             result = settle(result, max_jitter=max_jitter)
+        ground = ground_options(result.model)
+        if ground:  # a lively model's dance, lifted again by the low-passes and the lock's IK
+            result = reground(result, **ground)
     if beat_sync_on:
         result = beat_sync(result, audio_path, start=start, end=end, beats=beats)
     return result

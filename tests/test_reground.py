@@ -1,0 +1,93 @@
+"""The second grounding after the foot lock (stages.reground / ground_options, a checkpoint's "ground" entry)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dancekit.pipelines.stages as stages
+from dancekit.errors import CheckpointError
+from dancekit.motion import Motion, get_skeleton
+from dancekit.motion.analysis import rest_pose
+from dancekit.pipelines.base import DanceResult
+
+FPS = 25.0
+SK = get_skeleton("tang2018")
+ASSETS = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
+
+
+def _standing(T: int = 100) -> np.ndarray:
+    """A still rest pose with its lowest joint at height 0 (cm, y up), ``(T, J, 3)``."""
+    rest = rest_pose(SK)
+    rest[:, 1] -= rest[:, 1].min()
+    return np.repeat(rest[None], T, axis=0)
+
+
+def test_a_lift_longer_than_half_the_window_is_taken_down_and_a_short_one_stays():
+    p = _standing()
+    p[20:60, :, 1] += 5.0  # the whole figure 5 cm up for 1.6 s (a float)
+    p[80:82, :, 1] += 3.0  # 0.08 s up (a hop): shorter than half of a 0.6-s window
+    out = stages.reground(DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=None, seed=0),
+                          window_s=0.6).motion.positions
+    low = out[:, :, 1].min(axis=1)
+    # by hand: a 15-frame running minimum (0.6 s) is 5 cm for frames 27-52 (7 frames inside the float's ends),
+    # then Gaussian-smoothed (sigma 0.05 s = 1.25 frames), which blurs its steps over ~4 frames: frames 31-48
+    # are put back down by the whole 5 cm; the hop is inside windows that reach the floor on both sides
+    np.testing.assert_allclose(low[31:49], 0.0, atol=1e-3)
+    assert 0.5 < low[27] < 4.5  # the blurred edge: part of the way down
+    assert low[81] == pytest.approx(3.0, abs=0.05)
+    np.testing.assert_allclose(low[:15], 0.0, atol=1e-6)  # already on the floor: unchanged
+    # a vertical shift only: the pose within each frame and the horizontal path are those of the input
+    np.testing.assert_allclose(out[..., [0, 2]], p[..., [0, 2]], atol=1e-5)
+    np.testing.assert_allclose(out - out[:, :1], p - p[:, :1], atol=1e-4)
+
+
+def test_ground_options_come_from_the_checkpoint(tmp_path):
+    assert stages.ground_options(str(ASSETS / "revolution")) == {"window_s": 1.0}  # the embedded default asks
+    assert stages.ground_options(str(ASSETS / "music2dance")) == {}
+    assert stages.ground_options(str(ASSETS / "dual")) == {}
+    assert stages.ground_options(None) == {}
+    folder = tmp_path / "m"
+    folder.mkdir()
+    cfg = json.loads((ASSETS / "revolution" / "config.json").read_text())
+    for good, want in (({"after_lock_s": 0.6}, {"window_s": 0.6}), ({}, {})):
+        (folder / "config.json").write_text(json.dumps({**cfg, "ground": good}))
+        assert stages.ground_options(str(folder)) == want
+    for bad in ({"after_lock_s": 0}, {"after_lock_s": "0.6"}, {"window": 0.6}):
+        (folder / "config.json").write_text(json.dumps({**cfg, "ground": bad}))
+        with pytest.raises(CheckpointError, match="config.json"):
+            stages.ground_options(str(folder))
+
+
+def test_finish_regrounds_last_in_the_lock_block_for_the_model_that_asks(tmp_path, monkeypatch):
+    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    folder = tmp_path / "m"
+    folder.mkdir()
+    cfg = json.loads((ASSETS / "revolution" / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**cfg, "ground": {"after_lock_s": 0.6}}))
+    order = []
+    for name in ("foot_lock", "settle", "reground"):
+        real = getattr(stages, name)
+        monkeypatch.setattr(stages, name, lambda r, _real=real, _n=name, **kw: order.append(_n) or _real(r, **kw))
+    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=str(folder), seed=0)
+    out = stages.finish(res, "unused.wav", beat_sync_on=False)
+    assert order == ["foot_lock", "settle", "reground"]
+    order.clear()
+    without = tmp_path / "without"
+    without.mkdir()
+    (without / "config.json").write_text(json.dumps({k: v for k, v in cfg.items() if k != "ground"}))
+    plain = stages.finish(DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p),
+                                      model=str(without), seed=0), "unused.wav", beat_sync_on=False)
+    assert "reground" not in order
+    # the grounded dance touches the floor in every 0.6-s window; the lowest joint is never under it
+    low = out.motion.positions[..., 1].min(axis=1)
+    assert low.min() >= -1e-3
+    windows = np.lib.stride_tricks.sliding_window_view(low, 15).min(axis=1)
+    assert np.all(windows < 0.5)  # cm (the offset's Gaussian smoothing leaves up to a few mm)
+    before = np.lib.stride_tricks.sliding_window_view(plain.motion.positions[..., 1].min(axis=1), 15).min(axis=1)
+    # without it the lock (its IK lowers the body) and the low-pass leave it under the floor or off it
+    assert before.min() < -0.1 and before.max() > 0.5
+    assert not np.array_equal(out.motion.positions, plain.motion.positions)
