@@ -6,6 +6,9 @@ skating (``bench_feet.metrics``, the measures of the earlier sections). Issue 15
 
     PYTHONPATH=src python benchmarks/variety_songs.py --data data/tang2018 --music ../shared/music \\
         --model revolution --model /tmp/rev_today --seeds 3 -o runs/variety_songs.json
+
+``--beat-sync both`` dances each song with the beat sync off as well (the report's keys ``SONG|off``) and
+prints the mean BAS / beat hit rate / jerk of each (issue 15's beat point outside the dataset).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ def main() -> None:
     ap.add_argument("--music", default="../shared/music")
     ap.add_argument("--model", action="append", required=True, help="embedded name or checkpoint folder (repeat)")
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--beat-sync", choices=("on", "both"), default="on", help="both: also with the beat sync off")
     ap.add_argument("-o", "--out", required=True)
     args = ap.parse_args()
     data = PreparedData(args.data)
@@ -41,14 +45,19 @@ def main() -> None:
         for song in bench_stages.SONGS:
             path = str(Path(args.music) / song)
             t0 = time.perf_counter()
-            results = pipe.dances(path, seeds=seeds)
             beats = stages.song_beats_for(path)
-            rows = []
-            for res in results:
-                row = bench_feet.metrics(res.motion, None if beats is None else beats.times, real_mean)
-                row["genre"] = res.genre or "alone"
-                rows.append(row)
-            report["models"][model][song] = rows
+            for sync in (True, False) if args.beat_sync == "both" else (True,):
+                rows = []
+                for res in pipe.dances(path, seeds=seeds, beat_sync=sync):
+                    row = bench_feet.metrics(res.motion, None if beats is None else beats.times, real_mean)
+                    row["genre"] = res.genre or "alone"
+                    rows.append(row)
+                report["models"][model][song if sync else f"{song}|off"] = rows
+                if args.beat_sync == "both" and beats is not None:
+                    mean = {k: sum(r[k] for r in rows) / len(rows) for k in ("bas", "hit_rate", "jerk")}
+                    print(f"{model} {song[:28]:28s} beat sync {'on ' if sync else 'off'}: BAS {mean['bas']:.3f} "
+                          f"hit {mean['hit_rate']:.3f} jerk {mean['jerk']:.2f}", flush=True)
+            rows = report["models"][model][song]
             print(f"{model} {song[:28]:28s} ({time.perf_counter() - t0:.0f} s): "
                   + "; ".join(f"seed {k} {r['genre']}: jitter {r['jitter_ratio']:.2f} energy {r['energy_ratio']:.2f} "
                               f"still {r['stillness']:.3f} floor {r['floor_median_cm']:.2f}/{r['floor_within_2cm']:.2f} "
