@@ -91,3 +91,16 @@ def test_finish_regrounds_last_in_the_lock_block_for_the_model_that_asks(tmp_pat
     # without it the lock (its IK lowers the body) and the low-pass leave it under the floor or off it
     assert before.min() < -0.1 and before.max() > 0.5
     assert not np.array_equal(out.motion.positions, plain.motion.positions)
+
+
+def test_a_motion_with_rotations_keeps_them_and_its_root_translation_follows():
+    p = _standing(60)
+    p[10:50, :, 1] += 4.0  # a 1.6-s float
+    m = Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32)).with_rotations()
+    out = stages.reground(DanceResult(motion=m, model=None, seed=0), window_s=0.6).motion
+    np.testing.assert_array_equal(out.rotations, m.rotations)
+    # forward kinematics of the kept rotations from the moved root translation gives the grounded positions
+    fk = Motion(skeleton=SK, fps=FPS, rotations=out.rotations, root_translation=out.root_translation).to_positions()
+    np.testing.assert_allclose(fk, out.positions, atol=1e-3)
+    # the float is taken down where the 15-frame minimum is 4 cm (frames 17-42) beyond the Gaussian's reach
+    assert out.positions[22:38, :, 1].min(axis=1).max() < 1e-3

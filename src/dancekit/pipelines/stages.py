@@ -138,27 +138,23 @@ def clean_up(result: DanceResult) -> DanceResult:
 
 
 def reground(result: DanceResult, *, window_s: float) -> DanceResult:
-    """The result with its lowest joint put back on the floor (:func:`dancekit.motion.cleanup.ground_offset`
+    """The result with its lowest joint put back on the floor (:func:`dancekit.motion.cleanup.ground_contact`
     over a centred ``window_s`` window, s): a vertical shift per frame, run after the foot lock and its settle
     when the model's checkpoint asks for it (:func:`ground_options`). The stages after the clean-up (the
     low-passes, the lock's IK) can lift a lively model's dance off the floor again; this one lets it touch
     the floor at least once in every window, while a rise shorter than ``window_s / 2`` stays. A motion with
     rotations keeps them (its root translation moved); 2D dances are returned unchanged."""
-    from dancekit.motion.analysis import up_sign
-    from dancekit.motion.cleanup import ground_offset
+    from dancekit.motion.cleanup import ground_contact
 
     motion = result.motion
     if not _is_3d(motion):
         return result
     sk, fps = motion.skeleton, motion.fps
-    p = np.asarray(motion.to_positions(), np.float64)
-    shift = up_sign(sk) * ground_offset(p, skeleton=sk, fps=fps, window_s=window_s)  # (T,) skeleton units
-    p[..., sk.up_index] -= shift[:, None]
+    before = np.asarray(motion.to_positions(), np.float64)
+    p = ground_contact(before, skeleton=sk, fps=fps, window_s=window_s)  # (T, J, 3), shifted along the up axis
     tr = None
-    if motion.rotations is not None:
-        tr = np.array(motion.root_translation, np.float64)
-        tr[:, sk.up_index] -= shift
-        tr = tr.astype(np.float32)
+    if motion.rotations is not None:  # the same shift on the root translation
+        tr = (motion.root_translation + (p[:, sk.root] - before[:, sk.root])).astype(np.float32)
     out = Motion(skeleton=sk, fps=fps, positions=p.astype(np.float32), rotations=motion.rotations, root_translation=tr)
     return dataclasses.replace(result, motion=out)
 
