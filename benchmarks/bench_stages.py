@@ -108,6 +108,12 @@ def fids(dances: list[np.ndarray], reference: list[np.ndarray], fps: float, sk,
     return out
 
 
+def energy_gain(res) -> float:
+    """The energy stage's gain from a :class:`~dancekit.pipelines.base.DanceResult`'s notes (1.0 when it did
+    not lift the dance)."""
+    return next((float(n.split("gain ")[1].split()[0]) for n in res.notes if n.startswith("energy lifted")), 1.0)
+
+
 def mean_rows(rows: list[dict]) -> dict[str, float]:
     return {k: float(np.nanmean([r[k] for r in rows])) for k in rows[0]}
 

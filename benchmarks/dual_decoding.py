@@ -80,11 +80,6 @@ def digest(*files: Path) -> str:
     return h.hexdigest()
 
 
-def energy_gain(res: DanceResult) -> float:
-    """The energy stage's gain from the result's notes (1.0 when it did not lift the dance)."""
-    return next((float(n.split("gain ")[1].split()[0]) for n in res.notes if n.startswith("energy lifted")), 1.0)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
@@ -170,7 +165,7 @@ def main() -> None:
                            "stillness": stillness_share(p, fps=fps, skeleton=sk),
                            "energy_ratio": smoothed_energy(p, fps=fps, skeleton=sk) / real[n]["energy"],
                            "jitter_ratio": jitter(p, fps=fps, skeleton=sk)["speed_residual"] / real[n]["jitter"],
-                           "energy_gain": energy_gain(res),
+                           "energy_gain": bench_stages.energy_gain(res),
                            **bench_stages.dance_row(res.motion, None)}
                     if filt == args.filters[0]:
                         raw_p = np.asarray(decode_motion(pipe.stats.denormalize_dance(raw[n][k]), sk, fps,

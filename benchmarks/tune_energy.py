@@ -61,7 +61,7 @@ def finish(motion, model: str, audio, beats, energy: dict | None, probs: dict[st
     cap = energy.pop("jitter_cap", None)  # a "jitter_cap" entry (music2dance's): the per-dance cap before the lock
     if energy:
         res = stages.lift_energy(res, **energy)
-    gain = next((float(n.split("gain ")[1].split()[0]) for n in res.notes if n.startswith("energy lifted")), 1.0)
+    gain = bench_stages.energy_gain(res)
     max_jitter, after_lock = None, False
     if cap is not None and music:
         cap = stages.jitter_cap_from_entry(cap, folder=model)
