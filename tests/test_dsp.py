@@ -123,7 +123,9 @@ def test_tempo_and_beats_equal_librosa(song):
     fpb = float(np.round(frame_rate * 60.0 / 97.0))
     onsets = padded / (padded.std(ddof=1) + np.finfo(np.float32).tiny)
     score = _dsp._local_score(onsets.astype(np.float64), fpb)
-    np.testing.assert_array_equal(score, getattr(librosa.beat, "__beat_local_score")(onsets, np.array([fpb])))
+    # the last bit may differ: librosa compiles its local score with numba, whose sums fuse differently per CPU
+    np.testing.assert_allclose(score, getattr(librosa.beat, "__beat_local_score")(onsets, np.array([fpb])),
+                               rtol=1e-12, atol=1e-12)
     link, cum = _dsp._beat_dp(score, fpb, 100.0)
     link0, cum0 = getattr(librosa.beat, "__beat_track_dp")(score, np.array([fpb]), 100.0)
     np.testing.assert_array_equal(link, link0)

@@ -371,6 +371,46 @@ def test_the_smoothing_stage_takes_a_named_genres_target_from_the_checkpoint(tmp
         stages.smooth(named)
 
 
+def test_a_drawn_genre_takes_the_scaled_target_when_the_entry_says_drawn(tmp_path):
+    """With ``"drawn": true`` the target also applies to a genre read from the music or drawn by the seed
+    (``genre_requested`` "auto" or None, ``genre`` the genre model that danced), times ``"scale"``: 0.2 × 1.5 =
+    0.3 for cha-cha; the model alone (genre None), a genre without a target and "none" keep the stage's own
+    targets; without ``"drawn"`` only a named genre takes it (unscaled 0.2 × 1.5 all the same). Malformed
+    entries name the file."""
+    import dataclasses
+    import json
+
+    from dancekit.errors import CheckpointError
+    from dancekit.pipelines import stages
+    from dancekit.pipelines.base import DanceResult
+
+    folder = tmp_path / "m"
+    folder.mkdir()
+    cfg = folder / "config.json"
+
+    def write(entry):
+        cfg.write_text(json.dumps({"model": "revolution", "smoothing": entry}))
+
+    write({"genre_targets": {"chacha": 0.2, "waltz": 0.06}, "drawn": True, "scale": 1.5})
+    p = np.zeros((10, SK.num_joints, 3), np.float32)
+    drawn = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=str(folder), seed=1,
+                        genre_requested="auto", genre="chacha")
+    assert stages.smoothing_target(drawn) == pytest.approx(0.3)
+    assert stages.smoothing_target(dataclasses.replace(drawn, genre_requested=None)) == pytest.approx(0.3)
+    assert stages.smoothing_target(dataclasses.replace(drawn, genre="waltz")) == pytest.approx(0.09)
+    for other in (dataclasses.replace(drawn, genre=None), dataclasses.replace(drawn, genre="tango"),
+                  dataclasses.replace(drawn, genre_requested="none", genre=None)):
+        assert stages.smoothing_target(other) is None
+    write({"genre_targets": {"chacha": 0.2}, "scale": 1.5})  # not drawn: a named genre only
+    assert stages.smoothing_target(drawn) is None
+    assert stages.smoothing_target(dataclasses.replace(drawn, genre_requested="chacha")) == pytest.approx(0.3)
+    for bad in ({"genre_targets": {"chacha": 0.2}, "drawn": "yes"}, {"genre_targets": {"chacha": 0.2}, "scale": 0},
+                {"genre_targets": {"chacha": 0.2}, "speed": 1}):
+        write(bad)
+        with pytest.raises(CheckpointError, match=r"config\.json.*smoothing"):
+            stages.smoothing_target(drawn)
+
+
 @pytest.mark.parametrize(("speed_cm", "planted"), [(3.8, True), (4.2, False)])
 def test_a_faster_contact_speed_finds_a_gliding_foot(speed_cm, planted):
     """Both feet on the floor, sliding at 0.95 m/s (3.8 cm a frame at 25 fps) or 1.05 m/s (4.2 cm): with a

@@ -412,6 +412,9 @@ _INTERACT = """<script>
   c.dispatchEvent(new WheelEvent("wheel", {deltaY: 100, bubbles: true, cancelable: true}));
   document.documentElement.dataset.testBefore = before;
   document.getElementById("dk-play").click();
+  // a redraw 0.6 s later (a resize draws at once): newer headless Chromium delivers almost no animation
+  // frames under a virtual-time budget, so the check reads the clock without depending on their cadence
+  setTimeout(function () { window.dispatchEvent(new Event("resize")); }, 600);
 })();
 </script>
 </body>"""

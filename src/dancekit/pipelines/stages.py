@@ -45,7 +45,7 @@ from dancekit.pipelines.base import DanceResult
 
 __all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
            "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_smoothing_targets", "jitter_cap_from_entry", "lift_energy", "plausible_jitter_cap", "settle", "settle_options", "smooth",
-           "smoothing_target", "song_beats_for"]
+           "smoothing_options", "smoothing_target", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
 #: jittery dance down to: about the 80th percentile of the real training dances' (0.055-0.28, median 0.065);
@@ -263,27 +263,57 @@ def _rotations_filtered(motion: Motion, whole) -> Motion:
 
 
 def smoothing_target(result: DanceResult) -> float | None:
-    """The jitter-to-energy ratio :func:`smooth` brings ``result`` to when it was danced in a genre asked for
-    by name (``result.genre_requested`` is a genre, not "auto" / "none") and the model's checkpoint has a
-    target for it (:func:`genre_smoothing_targets`); None otherwise (the stage's own targets apply)."""
-    if result.genre_requested in (None, "auto", "none") or result.genre != result.genre_requested:
+    """The jitter-to-energy ratio :func:`smooth` brings ``result`` to when the model's checkpoint has a target
+    for the genre danced (:func:`genre_smoothing_targets`) and that genre was asked for by name
+    (``result.genre_requested`` is a genre, not "auto" / "none"), or, with the entry's ``"drawn": true``,
+    also when the genre was read from the music or drawn by the seed (``result.genre``: the genre model that
+    danced it); None otherwise (the stage's own targets apply: the model alone, a genre without a target)."""
+    targets, drawn = smoothing_options(result.model)
+    genre = result.genre
+    if genre is None or str(genre) not in targets:
         return None
-    return genre_smoothing_targets(result.model).get(str(result.genre))
+    named = result.genre_requested not in (None, "auto", "none") and genre == result.genre_requested
+    return targets[str(genre)] if named or (drawn and result.genre_requested in (None, "auto")) else None
 
 
 def genre_smoothing_targets(model: str | os.PathLike | None) -> dict[str, float]:
     """Per genre, the jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) that the
-    smoothing stage brings a dance of that genre to when the genre was asked for by name: the checkpoint's
-    ``"smoothing": {"genre_targets": {genre: ratio}}`` (for the embedded music2dance: the median of the real
-    training dances of each genre, ``benchmarks/genre_smoothing_targets.py``; docs/MUSIC2DANCE.md). ``{}``
-    for a folder without the entry or that is not a checkpoint."""
+    smoothing stage brings a dance of that genre to: the checkpoint's ``"smoothing": {"genre_targets":
+    {genre: ratio}}`` (the median of the real training dances of each genre,
+    ``benchmarks/genre_smoothing_targets.py``; docs/MUSIC2DANCE.md) times its ``"scale"`` (default 1).
+    ``{}`` for a folder without the entry or that is not a checkpoint."""
+    return smoothing_options(model)[0]
+
+
+SMOOTHING_KEYS = ("genre_targets", "drawn", "scale")
+
+
+def smoothing_options(model: str | os.PathLike | None) -> tuple[dict[str, float], bool]:
+    """``(targets, drawn)`` from the checkpoint's ``"smoothing"`` entry: the per-genre targets of
+    :func:`genre_smoothing_targets` (already scaled) and whether they also apply to a genre read from the
+    music or drawn by the seed (``"drawn"``, default false: only a genre asked for by name). ``({}, False)``
+    for a folder without the entry or that is not a checkpoint.
+
+    Raises
+    ------
+    CheckpointError
+        Naming the ``config.json``: an unknown key, a target outside (0, 10), a ``scale`` that is not a
+        number in (0, 10], a ``drawn`` that is not true / false."""
     spec = _raw_entry(model, "smoothing")
     targets = spec.get("genre_targets", {}) if isinstance(spec, dict) else None
-    if not isinstance(spec, dict) or set(spec) - {"genre_targets"} or not isinstance(targets, dict) or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < 10 for v in targets.values()):
+    scale = spec.get("scale", 1.0) if isinstance(spec, dict) else None
+    drawn = spec.get("drawn", False) if isinstance(spec, dict) else None
+
+    def number(v) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+    if not isinstance(spec, dict) or set(spec) - set(SMOOTHING_KEYS) or not isinstance(targets, dict) or not all(
+            number(v) and 0 < v < 10 for v in targets.values()) or not (number(scale) and 0 < scale <= 10) \
+            or not isinstance(drawn, bool):
         raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'smoothing' takes "
-                              f"{{'genre_targets': {{genre: ratio in (0, 10)}}}}, got {spec!r}")
-    return {str(g): float(v) for g, v in targets.items()}
+                              f"{{'genre_targets': {{genre: ratio in (0, 10)}}, 'scale': number in (0, 10], "
+                              f"'drawn': true / false}}, got {spec!r}")
+    return {str(g): float(v) * float(scale) for g, v in targets.items()}, drawn
 
 
 def foot_lock(result: DanceResult) -> DanceResult:
