@@ -24,6 +24,20 @@ def test_the_terms_have_their_hand_computed_values():
     assert both == pytest.approx(10 / 3 + 1.0)
 
 
+def test_the_kinetic_term_has_its_hand_computed_value_and_weighs_bursts():
+    # ŷ Δ = 1, 0, 2 (rms sqrt(5/3)) against y Δ = 0, 2, 0 (rms sqrt(4/3)): |1.29099 - 1.15470| = 0.13629
+    pred = torch.tensor([0.0, 1.0, 1.0, 3.0]).view(1, 4, 1).expand(1, 4, 3)
+    dance = torch.tensor([0.0, 0.0, 2.0, 2.0]).view(1, 4, 1).expand(1, 4, 3)
+    want = (5 / 3) ** 0.5 - (4 / 3) ** 0.5
+    assert _model(kinetic_weight=2.0).motion_loss(pred, dance).item() == pytest.approx(2 * want, rel=1e-5)
+    # a steady drift (Δ 1, 1, 1, 1) and a burst (Δ 0, 0, 0, 4) move as far: the speed term sees no difference,
+    # the kinetic one does (rms 1 against 2)
+    steady = torch.arange(5, dtype=torch.float32).view(1, 5, 1).expand(1, 5, 3)
+    burst = torch.tensor([0.0, 0.0, 0.0, 0.0, 4.0]).view(1, 5, 1).expand(1, 5, 3)
+    assert _model(speed_weight=1.0).motion_loss(steady, burst).item() == pytest.approx(0.0, abs=1e-7)
+    assert _model(kinetic_weight=1.0).motion_loss(steady, burst).item() == pytest.approx(1.0, rel=1e-5)
+
+
 def test_the_speed_term_ignores_phase_and_the_velocity_term_does_not():
     t = torch.arange(40, dtype=torch.float32)
     y = torch.sin(t / 3).view(1, 40, 1).expand(1, 40, 3)
@@ -53,3 +67,5 @@ def test_forward_adds_the_terms_to_the_l1_loss():
 def test_negative_weights_are_refused():
     with pytest.raises(ParameterError, match="velocity_weight"):
         RevolutionConfig(velocity_weight=-1.0)
+    with pytest.raises(ParameterError, match="kinetic_weight"):
+        RevolutionConfig(kinetic_weight=-0.5)

@@ -88,6 +88,7 @@ class RevolutionConfig:
     # livelier motion (issue 15): L1 terms on the frame-to-frame differences of the normalised poses
     velocity_weight: float = 0.0  # x mean |Δŷ − Δy| (each frame's velocity against the target's)
     speed_weight: float = 0.0  # x mean over windows and coordinates of |mean_t |Δŷ| − mean_t |Δy||
+    kinetic_weight: float = 0.0  # x mean over windows and coordinates of |rms_t Δŷ − rms_t Δy|
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_genres, int) or self.n_genres < 0:
@@ -101,9 +102,9 @@ class RevolutionConfig:
             raise ParameterError(f"RevolutionConfig.style_dim must be a non-negative integer, got {self.style_dim!r}")
         if not isinstance(self.style_segment, int) or isinstance(self.style_segment, bool) or self.style_segment < 2:
             raise ParameterError(f"RevolutionConfig.style_segment must be an integer >= 2, got {self.style_segment!r}")
-        if not self.velocity_weight >= 0 or not self.speed_weight >= 0:
-            raise ParameterError("RevolutionConfig.velocity_weight and speed_weight must be >= 0, got "
-                                 f"{self.velocity_weight!r}, {self.speed_weight!r}")
+        if not self.velocity_weight >= 0 or not self.speed_weight >= 0 or not self.kinetic_weight >= 0:
+            raise ParameterError("RevolutionConfig.velocity_weight, speed_weight and kinetic_weight must be >= 0, "
+                                 f"got {self.velocity_weight!r}, {self.speed_weight!r}, {self.kinetic_weight!r}")
         if not self.style_beta >= 0 or not self.style_free_bits >= 0:
             raise ParameterError("RevolutionConfig.style_beta and style_free_bits must be >= 0, got "
                                  f"{self.style_beta!r}, {self.style_free_bits!r}")
@@ -710,22 +711,29 @@ class RevolutionModel(nn.Module):
         return pred, loss
 
     def motion_loss(self, pred: torch.Tensor, dance: torch.Tensor) -> torch.Tensor:
-        """The velocity and speed terms of the training loss (0 with both weights 0).
+        """The velocity, speed and kinetic terms of the training loss (0 with all three weights 0).
 
         ``pred``, ``dance``: (B, n, P) normalised poses. With Δ the difference of consecutive frames
         (B, n − 1, P): ``velocity_weight`` × mean |Δŷ − Δy| + ``speed_weight`` × mean over (B, P) of
-        |mean_t |Δŷ| − mean_t |Δy||. The second asks each coordinate of a window to move as much as the
-        target's, whatever the phase: L1 on poses alone lets an autoregressive decoder settle on calmer
-        motion than the data's (docs/BENCHMARKS.md, "the default's FID_k").
+        |mean_t |Δŷ| − mean_t |Δy|| + ``kinetic_weight`` × mean over (B, P) of |rms_t Δŷ − rms_t Δy|
+        (``rms_t Δ = sqrt(mean_t Δ² + 1e-8)``). The speed term asks each coordinate of a window to move as much
+        as the target's, whatever the phase: L1 on poses alone lets an autoregressive decoder settle on calmer
+        motion than the data's (docs/BENCHMARKS.md, "the default's FID_k"); the kinetic term asks the same of
+        the root mean square, which weighs a quick burst (a heel's rise) more than a steady drift, as the
+        kinetic features of FID_k (mean squared velocity) do.
         """
         c = self.config
         loss = pred.new_zeros(())
-        if (c.velocity_weight or c.speed_weight) and pred.shape[1] > 1:
+        if (c.velocity_weight or c.speed_weight or c.kinetic_weight) and pred.shape[1] > 1:
             dp, dy = pred.diff(dim=1), dance.diff(dim=1)  # (B, n - 1, P)
             if c.velocity_weight:
                 loss = loss + c.velocity_weight * F.l1_loss(dp, dy)
             if c.speed_weight:
                 loss = loss + c.speed_weight * F.l1_loss(dp.abs().mean(dim=1), dy.abs().mean(dim=1))  # over (B, P)
+            if c.kinetic_weight:
+                rms_p = (dp.square().mean(dim=1) + 1e-8).sqrt()  # (B, P)
+                rms_y = (dy.square().mean(dim=1) + 1e-8).sqrt()
+                loss = loss + c.kinetic_weight * F.l1_loss(rms_p, rms_y)
         return loss
 
     def _autoregress(self, z: torch.Tensor, prev: torch.Tensor, state):
