@@ -43,7 +43,7 @@ from dancekit.motion import Motion
 from dancekit.motion.skeleton import keep_bone_lengths
 from dancekit.pipelines.base import DanceResult
 
-__all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
+__all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTHING_KEYS", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
            "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_smoothing_targets", "jitter_cap_from_entry", "lift_energy", "plausible_jitter_cap", "settle", "settle_options", "smooth",
            "smoothing_options", "smoothing_target", "song_beats_for"]
 
@@ -304,11 +304,8 @@ def smoothing_options(model: str | os.PathLike | None) -> tuple[dict[str, float]
     scale = spec.get("scale", 1.0) if isinstance(spec, dict) else None
     drawn = spec.get("drawn", False) if isinstance(spec, dict) else None
 
-    def number(v) -> bool:
-        return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
-
     if not isinstance(spec, dict) or set(spec) - set(SMOOTHING_KEYS) or not isinstance(targets, dict) or not all(
-            number(v) and 0 < v < 10 for v in targets.values()) or not (number(scale) and 0 < scale <= 10) \
+            _is_number(v) and 0 < v < 10 for v in targets.values()) or not (_is_number(scale) and 0 < scale <= 10) \
             or not isinstance(drawn, bool):
         raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'smoothing' takes "
                               f"{{'genre_targets': {{genre: ratio in (0, 10)}}, 'scale': number in (0, 10], "
@@ -513,21 +510,18 @@ def energy_options(model: str | os.PathLike | None) -> dict:
     if not spec:
         return {}
 
-    def number(v) -> bool:
-        return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
-
     table = spec.get("genre_energy", {}) if isinstance(spec, dict) else None
     bad = [] if isinstance(spec, dict) else ["not a mapping"]
     if not bad:
         bad += [f"unknown key {k!r}" for k in sorted(set(spec) - set(ENERGY_KEYS))]
         bad += [f"{k} not a positive number" for k in ("floor", "fraction", "mean_s", "band_hz")
-                if k in spec and not (number(spec[k]) and spec[k] > 0)]
-        bad += ["damp outside [0, 1]"] if "damp" in spec and not (number(spec["damp"]) and 0 <= spec["damp"] <= 1) \
+                if k in spec and not (_is_number(spec[k]) and spec[k] > 0)]
+        bad += ["damp outside [0, 1]"] if "damp" in spec and not (_is_number(spec["damp"]) and 0 <= spec["damp"] <= 1) \
             else []
         bad += [f"{k} not 0 or 1" for k in ("root", "legs") if k in spec and spec[k] not in (0, 1)]
-        bad += ["max_gain < 1"] if "max_gain" in spec and not (number(spec["max_gain"]) and spec["max_gain"] >= 1) \
+        bad += ["max_gain < 1"] if "max_gain" in spec and not (_is_number(spec["max_gain"]) and spec["max_gain"] >= 1) \
             else []
-        bad += [] if isinstance(table, dict) and all(number(v) and v > 0 for v in table.values()) \
+        bad += [] if isinstance(table, dict) and all(_is_number(v) and v > 0 for v in table.values()) \
             else ["genre_energy not {genre: positive m/s}"]
         bad += [] if "floor" in spec or ("fraction" in spec and table) else ["neither a floor nor a fraction with "
                                                                                "genre_energy"]
@@ -622,6 +616,11 @@ def lift_energy(result: DanceResult, *, floor: float | None = None, fraction: fl
     return _with_note(dataclasses.replace(result, motion=lifted), f"energy lifted (gain {gain:.2f} to {floor:.2f} m/s)")
 
 
+def _is_number(v) -> bool:
+    """A finite int or float, not a bool (a checkpoint entry's number)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
 def _raw_entry(model: str | os.PathLike | None, key: str):
     """The checkpoint folder's ``config.json`` entry ``key`` as stored (unchecked); ``{}`` for no model, a
     folder without the entry, or one that is not a checkpoint."""
@@ -685,20 +684,17 @@ def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "
         return None
     where = f"checkpoint {folder}: bad {key!r} entry in config.json"
 
-    def number(v) -> bool:
-        return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
-
     if not isinstance(spec, dict) or set(spec) - set(JITTER_CAP_KEYS):
         raise CheckpointError(f"{where}: takes {list(JITTER_CAP_KEYS)}, got {spec!r}")
     table = spec.get("genre_jitter")
-    if not (isinstance(table, dict) and table and all(isinstance(g, str) and number(v) and v > 0
+    if not (isinstance(table, dict) and table and all(isinstance(g, str) and _is_number(v) and v > 0
                                                       for g, v in table.items())):
         raise CheckpointError(f"{where}: genre_jitter must map genres to positive m/s, got {table!r}")
     scale = spec.get("jitter_cap")
-    if not (number(scale) and scale > 0):
+    if not (_is_number(scale) and scale > 0):
         raise CheckpointError(f"{where}: jitter_cap must be a finite number > 0, got {scale!r}")
     ratio = spec.get("jitter_cap_min_ratio", 0.5)
-    if not (number(ratio) and 0 <= ratio <= 1):
+    if not (_is_number(ratio) and 0 <= ratio <= 1):
         raise CheckpointError(f"{where}: jitter_cap_min_ratio must be in [0, 1], got {ratio!r}")
     after = spec.get("after_lock", False)
     if not isinstance(after, bool):
