@@ -303,7 +303,6 @@ def smoothing_options(model: str | os.PathLike | None) -> tuple[dict[str, float]
     targets = spec.get("genre_targets", {}) if isinstance(spec, dict) else None
     scale = spec.get("scale", 1.0) if isinstance(spec, dict) else None
     drawn = spec.get("drawn", False) if isinstance(spec, dict) else None
-
     if not isinstance(spec, dict) or set(spec) - set(SMOOTHING_KEYS) or not isinstance(targets, dict) or not all(
             _is_number(v) and 0 < v < 10 for v in targets.values()) or not (_is_number(scale) and 0 < scale <= 10) \
             or not isinstance(drawn, bool):
