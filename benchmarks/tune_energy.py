@@ -27,27 +27,14 @@ from pathlib import Path
 import bench_feet  # benchmarks/ is on the path when run as a script
 import bench_stages
 import numpy as np
+from genre_tables import genre_table
 
 from dancekit.data import PreparedData
 from dancekit.features import MUSIC_BEAT_STRENGTH
-from dancekit.metrics import smoothed_energy
 from dancekit.motion import get_skeleton
 from dancekit.pipelines import stages
 from dancekit.pipelines.base import DanceResult, song_feature_set
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-
-GENRES = {"W": "waltz", "R": "rumba", "C": "chacha", "T": "tango"}
-
-
-def genre_energy(data: PreparedData) -> dict[str, float]:
-    """Per genre, the median smoothed energy (m/s) of the real training dances (what a checkpoint's
-    ``"energy": {"genre_energy": ...}`` holds)."""
-    per: dict[str, list[float]] = {}
-    for n in data.names("train"):
-        m = data.motion(n)
-        per.setdefault(GENRES[n.split("_")[1]], []).append(
-            smoothed_energy(np.asarray(m.to_positions(), np.float64), fps=m.fps, skeleton=m.skeleton))
-    return {g: round(float(np.median(v)), 3) for g, v in per.items()}
 
 
 def finish(motion, model: str, audio, beats, energy: dict | None, probs: dict[str, float], music: bool = True):
@@ -66,6 +53,9 @@ def finish(motion, model: str, audio, beats, energy: dict | None, probs: dict[st
     if cap is not None and music:
         cap = stages.jitter_cap_from_entry(cap, folder=model)
         after_lock = cap.pop("after_lock")
+        if cap.pop("to_end"):
+            raise SystemExit("tune_energy.py: a jitter cap with \"to_end\" re-runs the stages after it; score a "
+                             "candidate folder with `dancekit evaluate` (benchmarks/candidate_folder.py) instead")
         max_jitter = stages.plausible_jitter_cap(probs, **cap)
     if max_jitter is not None and not after_lock:
         res = stages.settle(res, max_jitter=max_jitter)
@@ -91,7 +81,7 @@ def main() -> None:
     ap.add_argument("-o", "--out")
     args = ap.parse_args()
     data = PreparedData(args.data)
-    table = genre_energy(data)
+    table = genre_table(data, "energy")
     print("genre energy (median of the real training dances, m/s):", json.dumps(table))
     settings = json.loads(args.settings)
     for entry in settings.values():

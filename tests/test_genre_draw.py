@@ -379,3 +379,22 @@ def test_the_cutoff_brings_the_jitter_under_the_cap():
     assert jitter_cutoff(p, skeleton=skel, fps=25.0, max_jitter=1e-9) == CAP_CUTOFFS_HZ[-1]
     with pytest.raises(ParameterError, match="max_jitter"):
         jitter_cutoff(p, skeleton=skel, fps=25.0, max_jitter=0.0)
+
+
+def test_the_draw_and_a_jitter_cap_entry_judge_a_genre_jitter_table_alike():
+    from dancekit.pipelines.stages import genre_jitter_table, jitter_cap_from_entry
+
+    assert genre_jitter_table({"waltz": 0.026, "tango": 1}) == {"waltz": 0.026, "tango": 1.0}
+    assert genre_jitter_table((("rumba", 0.05),)) == {"rumba": 0.05}
+    bad = ({"waltz": 0.0}, {"waltz": -0.1}, {"waltz": True}, {"waltz": float("inf")}, {"waltz": float("nan")},
+           {"waltz": "calm"}, {3: 0.1}, {})
+    for table in bad:
+        with pytest.raises(ParameterError, match="genre_jitter must map genres to positive m/s"):
+            genre_jitter_table(table)
+        if table:  # an empty table is "no table" for the draw (its caps then say they need one)
+            with pytest.raises(ParameterError, match="genre_jitter must map"):
+                GenreDraw(genre_jitter=tuple(table.items()))
+        with pytest.raises(CheckpointError, match="m2d: bad 'jitter_cap' entry in config.json: genre_jitter must map"):
+            jitter_cap_from_entry({"genre_jitter": table, "jitter_cap": 1.0}, folder="m2d")
+    good = {"genre_jitter": {"waltz": 0.026, "rumba": 0.05}, "jitter_cap": 1.2}
+    assert jitter_cap_from_entry(good)["genre_jitter"] == {"waltz": 0.026, "rumba": 0.05}

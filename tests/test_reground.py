@@ -104,3 +104,30 @@ def test_a_motion_with_rotations_keeps_them_and_its_root_translation_follows():
     np.testing.assert_allclose(fk, out.positions, atol=1e-3)
     # the float is taken down where the 15-frame minimum is 4 cm (frames 17-42) beyond the Gaussian's reach
     assert out.positions[22:38, :, 1].min(axis=1).max() < 1e-3
+
+
+def test_finish_traces_every_stage_it_runs_in_order_and_each_traced_dance_is_that_stage_applied():
+    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=str(ASSETS / "revolution"), seed=0)
+    seen = []
+    out = stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9,
+                        trace=lambda name, r: seen.append((name, r)))
+    assert seen[0] == ("input", res)
+    names = [n for n, _ in seen[1:]]
+    seen = seen[1:]
+    assert names == ["clean_up", "smooth", "lift_energy", "jitter_cap", "foot_lock", "settle", "reground"]
+    assert names == [n for n in stages.STAGE_NAMES if n != "beat_sync"]  # the default has a "ground" entry
+    assert seen[-1][1] is out
+    before, locked = seen[names.index("foot_lock") - 1][1], seen[names.index("foot_lock")][1]
+    assert np.array_equal(locked.motion.positions, stages.foot_lock(before).motion.positions)
+    capped = seen[names.index("jitter_cap")][1]
+    assert capped.notes[-1].startswith("calmed to the song's genres")
+    plain = stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9)
+    assert np.array_equal(plain.motion.positions, out.motion.positions)  # the trace changes nothing
+    after = []
+    stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9, jitter_after_lock=True,
+                  trace=lambda name, r: after.append(name))
+    assert after == ["input", "clean_up", "smooth", "lift_energy", "foot_lock", "settle", "jitter_cap", "reground"]
+    none = []
+    stages.finish(res, "unused.wav", beat_sync_on=False, cleanup_on=False, trace=lambda name, r: none.append(name))
+    assert none == ["input"]

@@ -416,7 +416,7 @@ def test_plausible_jitter_cap_is_the_scale_times_the_smallest_real_jitter_of_the
                                 min_ratio=0.5) is None
     assert plausible_jitter_cap({}, genre_jitter=table, scale=1.0, min_ratio=0.5) is None
     entry = jitter_cap_from_entry({"genre_jitter": table, "jitter_cap": 2})
-    assert entry == {"genre_jitter": table, "scale": 2.0, "min_ratio": 0.5, "after_lock": False}
+    assert entry == {"genre_jitter": table, "scale": 2.0, "min_ratio": 0.5, "after_lock": False, "to_end": False}
     assert jitter_cap_from_entry({"genre_jitter": table, "jitter_cap": 2, "after_lock": True})["after_lock"] is True
     assert jitter_cap_from_entry(None) is None
     for bad in ({"genre_jitter": {}, "jitter_cap": 1}, {"genre_jitter": table}, {"genre_jitter": table, "jitter_cap": True},

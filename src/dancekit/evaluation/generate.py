@@ -8,6 +8,7 @@ exactly as ``dancekit evaluate --pred OUT/pred --ref DATA --data DATA --split SP
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
 import time
@@ -41,8 +42,10 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
 
     ``beat_sync``: None leaves the pipeline's default; True / False switch its beat-synchronous stage.
     With ``unwarped_dir`` (and ``beat_sync`` not False) every dance is also written there as it was
-    before the warp (the pipeline dances without it, then :func:`dancekit.pipelines.stages.beat_sync`
-    warps it: the same dance as with the stage on).
+    before the warp: for a pipeline whose ``dances`` takes a ``stage_trace``, the dance its last stage
+    before the warp gave (the written dance is the pipeline's own, bit for bit what ``dancekit dance``
+    gives, also where a stage looks at the warped dance, e.g. a jitter cap held to the end); otherwise the
+    pipeline dances without the warp, then :func:`dancekit.pipelines.stages.beat_sync` warps it.
 
     Parameters
     ----------
@@ -73,22 +76,37 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
         d.mkdir(parents=True, exist_ok=True)
         for old in d.glob("*.npz"):
             old.unlink()
+    batch = getattr(pipe, "dances", None)  # a pipeline that dances several seeds at once (equal results)
+    traced = split_warp and batch is not None and "stage_trace" in inspect.signature(batch).parameters
     kwargs = {} if beat_sync is None and not split_warp else {"beat_sync": bool(beat_sync) and not split_warp}
+    if traced:  # the pipeline's own warp; the dance before it from the stages' trace
+        kwargs = {"beat_sync": True}
     t0 = time.perf_counter()
     seconds, files = 0.0, 0
-    batch = getattr(pipe, "dances", None)  # a pipeline that dances several seeds at once (equal results)
+    before: dict[int, Any] = {}  # per seed index of the song, the dance before its warp
+
+    def keep(k: int, stage: str, result: Any) -> None:
+        if stage != "beat_sync":
+            before[k] = result
+
     for name in tqdm(names, desc="generate", unit="song", disable=not progress):
         ref = data.audio(name)
         beats = None
         want = requested_genre(genre, data.genre(name))
-        if batch is not None:
+        before.clear()
+        if traced:
+            results = batch(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, genre=want,
+                            stage_trace=keep, **kwargs)
+        elif batch is not None:
             results = batch(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, genre=want, **kwargs)
         else:
             results = [pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=want, **kwargs)
                        for k in range(seeds)]
         for k, result in enumerate(results):
             stem = name if seeds == 1 else f"{name}{SAMPLE_SEP}{k}"
-            if split_warp:
+            if traced:
+                write_motion(Path(unwarped_dir) / f"{stem}.npz", before[k].motion)
+            elif split_warp:
                 from dancekit.pipelines import stages
 
                 write_motion(Path(unwarped_dir) / f"{stem}.npz", result.motion)

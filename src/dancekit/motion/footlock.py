@@ -34,7 +34,8 @@ from dancekit.errors import ParameterError
 from dancekit.motion.analysis import heights, horizontal_axes, up_sign
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["FootLockReport", "foot_contacts", "leg_chains", "leg_rotations", "lock_feet", "lowpass_cutoff",
+__all__ = ["CAP_CUTOFFS_HZ", "FootLockReport", "foot_contacts", "jitter_cutoff", "jitter_speed", "leg_chains",
+           "leg_rotations", "lock_feet", "lowpass_cutoff",
            "lowpass_rows", "smooth_positions", "smoothing_window", "two_bone_ik"]
 
 #: Contact thresholds (metres above the local floor, m/s), chosen on the validation songs
@@ -675,6 +676,13 @@ def jitter_cutoff(positions: np.ndarray, *, skeleton: Skeleton, fps: float, max_
         if _jitter_speed(p, skeleton, fps, cutoff=c) <= max_jitter:
             return float(c)
     return float(cutoffs[-1])
+
+
+def jitter_speed(positions: np.ndarray, *, skeleton: Skeleton, fps: float) -> float:
+    """The jitter (m/s) of a dance ``(T, J, 3)`` (skeleton units) at ``fps``: the speed a 5-frame moving
+    average removes, the number :func:`dancekit.metrics.stability.jitter` gives as ``"speed_residual"``
+    (the per-song jitter guard's measure), computed without importing the metrics."""
+    return _jitter_speed(np.asarray(positions), skeleton, fps)
 
 
 def _jitter_speed(p: np.ndarray, skeleton: Skeleton, fps: float, *, cutoff: float | None = None) -> float:

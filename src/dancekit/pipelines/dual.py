@@ -12,6 +12,7 @@ dance stay raw (``music_raw_from`` / ``dance_raw_from`` of the model configurati
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,7 @@ from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, encode_motion
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
-from dancekit.pipelines.stages import energy_options, finish, song_beats_for
+from dancekit.pipelines.stages import energy_options, finish, seed_trace, song_beats_for
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -131,11 +132,13 @@ class DualPipeline:
     def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
                end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
                smooth_frames: int | None = None, lowpass_hz: float | None = None, progress: bool = False,
-               beat_sync: bool = True, cleanup: bool = True) -> list[DanceResult]:
+               beat_sync: bool = True, cleanup: bool = True,
+               stage_trace: Callable[[int, str, DanceResult], None] | None = None) -> list[DanceResult]:
         """One dance per seed for the song (the features and the song's beats once, G_M→D from each start pose
         on its own, the stages per dance): ``dances(song, seeds=[0, 1])[k]`` is bit for bit
         ``pipe(song, seed=[0, 1][k])``. Arguments as :meth:`__call__` (a ``start_pose``
-        starts every dance from it)."""
+        starts every dance from it). ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
+        :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran)."""
         if genre not in (None, "auto", "none"):
             raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
         seeds = check_seeds(seeds)
@@ -159,7 +162,7 @@ class DualPipeline:
             if beat_sync and result.looks_like_music and beats is None:
                 beats = song_beats_for(audio_path, start=start, end=end)
             results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
-                                  cleanup_on=cleanup, beats=beats))
+                                  cleanup_on=cleanup, beats=beats, trace=seed_trace(stage_trace, k)))
         return results
 
     def output_filter(self, y: np.ndarray, smooth_frames: int | None = None,

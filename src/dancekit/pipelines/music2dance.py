@@ -21,6 +21,7 @@ neither sinks nor floats away however long the song.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +37,13 @@ from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import finish, jitter_cap_from_entry, plausible_jitter_cap, song_beats_for
+from dancekit.pipelines.stages import (
+    finish,
+    jitter_cap_from_entry,
+    plausible_jitter_cap,
+    seed_trace,
+    song_beats_for,
+)
 
 
 class Music2DancePipeline:
@@ -104,6 +111,8 @@ class Music2DancePipeline:
         self.jitter_cap = jitter_cap_from_entry(meta.get("jitter_cap"), folder=folder)
         #: the entry's ``"after_lock"``: the cap's low-pass after the foot lock and its settle (default: before)
         self.jitter_after_lock = bool(self.jitter_cap and self.jitter_cap.pop("after_lock"))
+        #: the entry's ``"to_end"``: the cap holds for the finished dance (``stages.finish(jitter_to_end=True)``)
+        self.jitter_to_end = bool(self.jitter_cap and self.jitter_cap.pop("to_end"))
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
@@ -227,14 +236,16 @@ class Music2DancePipeline:
     def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], genre: str | list[str | None] | None = None,
                temperature: float | None = None, start: float | None = None, end: float | None = None,
                progress: bool = False, music: np.ndarray | None = None, beat_sync: bool = True,
-               cleanup: bool = True, genre_scale: float | None = None) -> list[DanceResult]:
+               cleanup: bool = True, genre_scale: float | None = None,
+               stage_trace: Callable[[int, str, DanceResult], None] | None = None) -> list[DanceResult]:
         """One dance per seed for the song (the features and the genre reading once, each seed's frame loop on
         its own): ``dances(song, seeds=[0, 1, 2])[k]`` is bit for bit ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
         :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type). ``music``:
         the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
         prepared dataset's), instead of extracting them from ``audio_path``. Rows whose genre is named and has
         an entry in :attr:`genre_sampling` sample with it over the plain settings (one batch per such genre);
-        ``temperature`` / ``genre_scale`` given here override both."""
+        ``temperature`` / ``genre_scale`` given here override both. ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
+        :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran)."""
         seeds = check_seeds(seeds)
         wanted = list(genre) if isinstance(genre, (list, tuple)) else [genre] * len(seeds)
         if len(wanted) != len(seeds):
@@ -299,7 +310,8 @@ class Music2DancePipeline:
                 beats = song_beats_for(audio_path, start=start, end=end)
             out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup,
                              beats=beats, max_jitter=self.max_jitter(danced, probs) if out[-1].looks_like_music else None,
-                             jitter_after_lock=self.jitter_after_lock)
+                             jitter_after_lock=self.jitter_after_lock, jitter_to_end=self.jitter_to_end,
+                             trace=seed_trace(stage_trace, k))
         return out
 
 

@@ -33,12 +33,14 @@ training dances' median jitter per genre) the checkpoint may (a) draw only genre
 ``"genre_max_jitter"`` k times that of the song's most likely genre, and (b) cap a drawn dance's jitter at
 ``"jitter_cap"`` s times the smallest real jitter among the song's plausible genres (``p_g ≥ "jitter_cap_min_ratio"
 · max(p)``, default 0.5), by a per-dance low-pass before the foot lock (:func:`dancekit.pipelines.stages.settle`,
-``max_jitter``); ``"jitter_cap_all": true`` caps the most likely genre's dances too (:func:`jitter_cap`).
+``max_jitter``); ``"jitter_cap_all": true`` caps the most likely genre's dances too (:func:`jitter_cap`);
+``"jitter_cap_to_end": true`` makes the cap hold for the finished dance (``stages.finish(jitter_to_end=True)``).
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -61,7 +63,13 @@ from dancekit.pipelines.base import (
     song_features,
 )
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import finish, plausible_jitter_cap, song_beats_for
+from dancekit.pipelines.stages import (
+    finish,
+    genre_jitter_table,
+    plausible_jitter_cap,
+    seed_trace,
+    song_beats_for,
+)
 
 
 class RevolutionPipeline:
@@ -240,12 +248,14 @@ class RevolutionPipeline:
         beat_sync: bool = True,
         cleanup: bool = True,
         variety: bool = True,
+        stage_trace: Callable[[int, str, DanceResult], None] | None = None,
     ) -> list[DanceResult]:
         """One dance per seed for the song: the features, the genre reading and the song's beats once, the
         music encoded once, the decoder run on each seed on its own (a batch of one: batched matrix products
         round differently for every batch size), the stages applied to each dance.
         ``dances(song, seeds=[0, 1, 2])[k]`` is bit for bit ``pipe(song, seed=[0, 1, 2][k])``. Other
-        arguments as :meth:`__call__`.
+        arguments as :meth:`__call__`. ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
+        :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran).
 
         Raises
         ------
@@ -288,7 +298,7 @@ class RevolutionPipeline:
                 motions[i] = motion
         beats = song_beats_for(audio_path, start=start, end=end) if beat_sync and music else None
         results = []
-        for seed, motion, (genre_k, drawn_p) in zip(seeds, motions, choices):
+        for k, (seed, motion, (genre_k, drawn_p)) in enumerate(zip(seeds, motions, choices)):
             if not music and self.representation == "positions3d":
                 motion = calm_motion(motion)
                 motion = clean_motion(motion) if postprocess else motion
@@ -297,7 +307,8 @@ class RevolutionPipeline:
                                  beat_strength=float(strength), looks_like_music=music, genre_drawn_p=drawn_p)
             cap = jitter_cap(probs, genre=genre_k, draw=self.genre_draw) if music else None
             results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
-                                  cleanup_on=cleanup, beats=beats, max_jitter=cap))
+                                  cleanup_on=cleanup, beats=beats, max_jitter=cap,
+                                  jitter_to_end=self.genre_draw.cap_to_end, trace=seed_trace(stage_trace, k)))
         return results
 
     @torch.no_grad()
@@ -429,6 +440,9 @@ class GenreDraw:
     cap_min_ratio: float = 0.5
     #: True: the cap applies to the most likely genre's dances (seed 0) too
     cap_all: bool = False
+    #: True: the cap holds for the finished dance (``stages.finish(jitter_to_end=True)``: the stages after it are
+    #: run again with a lower cut-off while the lock and the warp bring the jitter back over it)
+    cap_to_end: bool = False
 
     def __post_init__(self):
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -439,9 +453,8 @@ class GenreDraw:
             raise ParameterError(f"genre_draw_seed0 must be true or false, got {self.seed0!r}")
         if not (np.isfinite(self.min_ratio) and 0 <= self.min_ratio <= 1):
             raise ParameterError(f"genre_min_ratio must be in [0, 1], got {self.min_ratio!r}")
-        if not all(isinstance(g, str) and isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
-                   and v > 0 for g, v in self.genre_jitter):
-            raise ParameterError(f"genre_jitter must map genres to positive m/s, got {dict(self.genre_jitter)!r}")
+        if self.genre_jitter:  # the same check as a "jitter_cap" entry's table (empty: no table)
+            genre_jitter_table(self.genre_jitter)
         for key, v in (("genre_max_jitter", self.max_jitter), ("jitter_cap", self.jitter_cap)):
             if not (np.isfinite(v) and v >= 0):
                 raise ParameterError(f"{key} must be a finite number ≥ 0, got {v!r}")
@@ -451,6 +464,8 @@ class GenreDraw:
             raise ParameterError(f"jitter_cap_min_ratio must be in [0, 1], got {self.cap_min_ratio!r}")
         if not isinstance(self.cap_all, bool):
             raise ParameterError(f"jitter_cap_all must be true or false, got {self.cap_all!r}")
+        if not isinstance(self.cap_to_end, bool):
+            raise ParameterError(f"jitter_cap_to_end must be true or false, got {self.cap_to_end!r}")
 
     @property
     def active(self) -> bool:
@@ -543,6 +558,7 @@ def genre_draw_from_meta(meta: dict[str, Any], *, folder: str = "?") -> GenreDra
                          seed0=spec.get("genre_draw_seed0", False), min_ratio=number("genre_min_ratio"),
                          genre_jitter=tuple((str(g), v) for g, v in table.items()),
                          max_jitter=number("genre_max_jitter"), jitter_cap=number("jitter_cap"),
-                         cap_min_ratio=number("jitter_cap_min_ratio", 0.5), cap_all=spec.get("jitter_cap_all", False))
+                         cap_min_ratio=number("jitter_cap_min_ratio", 0.5), cap_all=spec.get("jitter_cap_all", False),
+                         cap_to_end=spec.get("jitter_cap_to_end", False))
     except ParameterError as exc:
         raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None

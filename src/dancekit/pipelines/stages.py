@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +45,8 @@ from dancekit.motion.skeleton import keep_bone_lengths
 from dancekit.pipelines.base import DanceResult
 
 __all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTHING_KEYS", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
-           "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_smoothing_targets", "jitter_cap_from_entry", "lift_energy", "plausible_jitter_cap", "settle", "settle_options", "smooth",
+           "STAGE_NAMES",
+           "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_jitter_table", "genre_smoothing_targets", "jitter_cap_from_entry", "lift_energy", "plausible_jitter_cap", "seed_trace", "settle", "settle_options", "smooth",
            "smoothing_options", "smoothing_target", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
@@ -55,6 +57,10 @@ __all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SM
 SMOOTH_TARGET = 0.09
 SMOOTH_TARGET_NOISY = 0.065
 NOISY_RATIO = 0.2
+#: The stages of :func:`finish`, in the order it runs them (the names its ``trace`` is called with, after
+#: ``"input"``): the per-dance jitter cap runs before the foot lock, or after the lock's settle with
+#: ``jitter_after_lock``.
+STAGE_NAMES = ("clean_up", "smooth", "lift_energy", "jitter_cap", "foot_lock", "settle", "reground", "beat_sync")
 #: The cut-off (Hz) of the light low-pass after the foot lock (:func:`settle`); 0: none.
 SETTLE_HZ = 0.0
 #: The smoothing stage's filter (:func:`smooth`): ``"lowpass"`` or ``"savgol"``.
@@ -280,7 +286,7 @@ def genre_smoothing_targets(model: str | os.PathLike | None) -> dict[str, float]
     """Per genre, the jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) that the
     smoothing stage brings a dance of that genre to: the checkpoint's ``"smoothing": {"genre_targets":
     {genre: ratio}}`` (the median of the real training dances of each genre,
-    ``benchmarks/genre_smoothing_targets.py``; docs/MUSIC2DANCE.md) times its ``"scale"`` (default 1).
+    ``benchmarks/genre_tables.py smoothing``; docs/MUSIC2DANCE.md) times its ``"scale"`` (default 1).
     ``{}`` for a folder without the entry or that is not a checkpoint."""
     return smoothing_options(model)[0]
 
@@ -620,6 +626,22 @@ def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
 
 
+def genre_jitter_table(table) -> dict[str, float]:
+    """A per-genre jitter table (genre name -> real dances' median jitter, m/s; ``benchmarks/genre_tables.py
+    jitter``) checked, as floats: the check of the genre draw's ``"genre_jitter"`` and of a ``"jitter_cap"``
+    entry's. A table that is not a non-empty mapping of names to finite numbers > 0 (not booleans) is a
+    :class:`~dancekit.errors.ParameterError` naming ``genre_jitter``."""
+    items = table.items() if isinstance(table, dict) else table
+    try:
+        pairs = [(g, v) for g, v in items]
+    except (TypeError, ValueError):
+        pairs = None
+    if not (pairs and all(isinstance(g, str) and _is_number(v) and v > 0 for g, v in pairs)):
+        shown = table if pairs is None else dict(pairs)
+        raise ParameterError(f"genre_jitter must map genres to positive m/s, got {shown!r}")
+    return {g: float(v) for g, v in pairs}
+
+
 def _raw_entry(model: str | os.PathLike | None, key: str):
     """The checkpoint folder's ``config.json`` entry ``key`` as stored (unchecked); ``{}`` for no model, a
     folder without the entry, or one that is not a checkpoint."""
@@ -649,14 +671,14 @@ def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str],
     return {k: v if k in flags else float(v) for k, v in spec.items()}
 
 
-JITTER_CAP_KEYS = ("genre_jitter", "jitter_cap", "jitter_cap_min_ratio", "after_lock")
+JITTER_CAP_KEYS = ("genre_jitter", "jitter_cap", "jitter_cap_min_ratio", "after_lock", "to_end")
 
 
 def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, float], scale: float,
                          min_ratio: float) -> float | None:
     """The per-dance jitter cap (m/s, the ``max_jitter`` of :func:`finish`) for a song whose genre posterior is
     ``probs`` (genre → p): ``scale`` × the smallest real jitter ``genre_jitter[g]`` (m/s, the real training
-    dances' median per genre, ``benchmarks/genre_jitter_table.py``) among the song's plausible genres
+    dances' median per genre, ``benchmarks/genre_tables.py jitter``) among the song's plausible genres
     (``p_g ≥ min_ratio · max(p)``, genres in the table). None (no cap) without a posterior, a scale or a
     plausible genre in the table. A genre asked for by name is ``probs = {genre: 1.0}``."""
     if not probs or not scale > 0 or not genre_jitter:
@@ -668,17 +690,18 @@ def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, flo
 
 def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "jitter_cap") -> dict | None:
     """A checkpoint's jitter cap entry ``{"genre_jitter": {genre: m/s}, "jitter_cap": s,
-    "jitter_cap_min_ratio": ρ, "after_lock": bool}`` (ρ default 0.5, ``after_lock`` default false) checked:
-    ``{"genre_jitter", "scale", "min_ratio"}`` (the keyword arguments of :func:`plausible_jitter_cap`) plus
-    ``"after_lock"`` (the ``jitter_after_lock`` of :func:`finish`: the cap's low-pass after the foot lock and
-    its settle instead of before the lock); None for no entry.
+    "jitter_cap_min_ratio": ρ, "after_lock": bool, "to_end": bool}`` (ρ default 0.5, the two flags default
+    false) checked: ``{"genre_jitter", "scale", "min_ratio"}`` (the keyword arguments of
+    :func:`plausible_jitter_cap`) plus ``"after_lock"`` (the ``jitter_after_lock`` of :func:`finish`: the cap's
+    low-pass after the foot lock and its settle instead of before the lock) and ``"to_end"`` (its
+    ``jitter_to_end``: the cap holds for the finished dance); None for no entry.
 
     Raises
     ------
     CheckpointError
         Naming ``config.json`` and ``key``, for an entry that is not an object, an unknown key, a table that
         does not map genres to positive m/s, a scale that is not a finite number > 0, ρ outside [0, 1], or an
-        ``after_lock`` that is not true / false."""
+        ``after_lock`` or ``to_end`` that is not true / false."""
     if spec is None:
         return None
     where = f"checkpoint {folder}: bad {key!r} entry in config.json"
@@ -686,26 +709,28 @@ def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "
     if not isinstance(spec, dict) or set(spec) - set(JITTER_CAP_KEYS):
         raise CheckpointError(f"{where}: takes {list(JITTER_CAP_KEYS)}, got {spec!r}")
     table = spec.get("genre_jitter")
-    if not (isinstance(table, dict) and table and all(isinstance(g, str) and _is_number(v) and v > 0
-                                                      for g, v in table.items())):
-        raise CheckpointError(f"{where}: genre_jitter must map genres to positive m/s, got {table!r}")
+    try:
+        table = genre_jitter_table(table if isinstance(table, dict) else None)
+    except ParameterError:
+        raise CheckpointError(f"{where}: genre_jitter must map genres to positive m/s, got {spec.get('genre_jitter')!r}") from None
     scale = spec.get("jitter_cap")
     if not (_is_number(scale) and scale > 0):
         raise CheckpointError(f"{where}: jitter_cap must be a finite number > 0, got {scale!r}")
     ratio = spec.get("jitter_cap_min_ratio", 0.5)
     if not (_is_number(ratio) and 0 <= ratio <= 1):
         raise CheckpointError(f"{where}: jitter_cap_min_ratio must be in [0, 1], got {ratio!r}")
-    after = spec.get("after_lock", False)
-    if not isinstance(after, bool):
-        raise CheckpointError(f"{where}: after_lock must be true or false, got {after!r}")
-    return {"genre_jitter": {g: float(v) for g, v in table.items()}, "scale": float(scale), "min_ratio": float(ratio),
-            "after_lock": after}
+    flags = {k: spec.get(k, False) for k in ("after_lock", "to_end")}
+    for k, v in flags.items():
+        if not isinstance(v, bool):
+            raise CheckpointError(f"{where}: {k} must be true or false, got {v!r}")
+    return {"genre_jitter": table, "scale": float(scale), "min_ratio": float(ratio), **flags}
 
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
            end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
            foot_lock_on: bool | None = None, smooth_on: bool | None = None, energy_on: bool | None = None,
-           beats=None, max_jitter: float | None = None, jitter_after_lock: bool = False) -> DanceResult:
+           beats=None, max_jitter: float | None = None, jitter_after_lock: bool = False,
+           jitter_to_end: bool = False, trace: Callable[[str, DanceResult], None] | None = None) -> DanceResult:
     """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
     a jittery dance is filtered), the energy lift the model's checkpoint asks for (:func:`lift_energy`,
     :func:`energy_options`: only a dance under its floor; after the smoothing, so the flicker it removed is
@@ -719,27 +744,85 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     lock plants the calmed dance's feet (after the lock, a 1-Hz cap lifted the feet off the floor);
     ``jitter_after_lock``: that low-pass runs after the foot lock and its settle instead (the jitter measured
     closer to its final value: the lock adds some back; a checkpoint's ``"after_lock"``,
-    :func:`jitter_cap_from_entry`). Last in the lock's block, the second grounding the checkpoint asks for
-    (:func:`reground`, :func:`ground_options`)."""
+    :func:`jitter_cap_from_entry`). ``jitter_to_end``: the cap holds for the finished dance, not only where
+    the low-pass runs: when the stages after it (the lock's stop-and-go, the regrounding, the warp's speed
+    changes) bring the jitter back over ``max_jitter``, they are run again from the cap on with its next lower
+    cut-off (:data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ`; from the highest for a dance the cap had left
+    alone), down to the lowest (a checkpoint's ``"to_end"``, :func:`jitter_cap_from_entry`, or revolution's
+    ``"jitter_cap_to_end"``). Last in the lock's block, the second grounding the checkpoint asks for
+    (:func:`reground`, :func:`ground_options`). ``trace``: called as ``trace("input", result)`` with the dance
+    as given, then as ``trace(name, result)`` after each stage that ran, with the names of :data:`STAGE_NAMES`
+    in that order (a stage-by-stage look at one dance, e.g. ``benchmarks/stage_ablation.py``, or the dance
+    before its warp, as ``dancekit evaluate`` keeps it; the ``"jitter_cap"`` and ``"reground"`` stages only
+    where they apply; with ``jitter_to_end``, the stages after the cap as last run)."""
+    steps: list[tuple[str, DanceResult]] = [("input", result)]  # kept only for a trace (memory: long songs)
+
+    def done(name: str, out: DanceResult) -> DanceResult:
+        if trace is not None:
+            steps.append((name, out))
+        return out
+
+    chosen: list[float] = []  # the cut-off the cap chose (Hz, 0: none), for jitter_to_end
+
+    def cap(r: DanceResult, cutoff: float | None) -> DanceResult:
+        if cutoff is None:  # the highest cut-off that brings the dance under the cap (0: none needed)
+            if jitter_to_end and _is_3d(r.motion):
+                from dancekit.motion.footlock import jitter_cutoff
+
+                m = r.motion
+                chosen.append(jitter_cutoff(m.to_positions(), skeleton=m.skeleton, fps=m.fps,
+                                            max_jitter=float(max_jitter)))
+            return settle(r, max_jitter=max_jitter)
+        return _with_note(settle(r, cutoff=cutoff), f"calmed to the song's genres ({cutoff:g}-Hz low-pass)")
+
+    def from_the_lock(r: DanceResult, cutoff: float | None) -> DanceResult:
+        """The lock's block and the beat sync, the cap's low-pass at ``cutoff`` Hz (None: as it chooses)."""
+        if cleanup_on if foot_lock_on is None else foot_lock_on:
+            if max_jitter is not None and not jitter_after_lock:  # before the lock: it plants the calmed feet
+                r = done("jitter_cap", cap(r, cutoff))
+            r = done("foot_lock", foot_lock(r))
+            r = done("settle", settle(r, **settle_options(r.model)))
+            if max_jitter is not None and jitter_after_lock:  # after: the jitter the lock added back is measured
+                r = done("jitter_cap", cap(r, cutoff))
+            ground = ground_options(r.model)
+            if ground:  # a lively model's dance, lifted again by the low-passes and the lock's IK
+                r = done("reground", reground(r, **ground))
+        if beat_sync_on:
+            r = done("beat_sync", beat_sync(r, audio_path, start=start, end=end, beats=beats))
+        return r
+
     if cleanup_on:
-        result = clean_up(result)
+        result = done("clean_up", clean_up(result))
     if cleanup_on if smooth_on is None else smooth_on:
-        result = smooth(result)
+        result = done("smooth", smooth(result))
     if cleanup_on if energy_on is None else energy_on:
-        result = lift_energy(result, **energy_options(result.model))
-    if cleanup_on if foot_lock_on is None else foot_lock_on:
-        if max_jitter is not None and not jitter_after_lock:  # before the lock: it plants the calmed dance's feet
-            result = settle(result, max_jitter=max_jitter)
-        result = foot_lock(result)
-        result = settle(result, **settle_options(result.model))
-        if max_jitter is not None and jitter_after_lock:  # after: the jitter the lock added back is measured too
-            result = settle(result, max_jitter=max_jitter)
-        ground = ground_options(result.model)
-        if ground:  # a lively model's dance, lifted again by the low-passes and the lock's IK
-            result = reground(result, **ground)
-    if beat_sync_on:
-        result = beat_sync(result, audio_path, start=start, end=end, beats=beats)
-    return result
+        result = done("lift_energy", lift_energy(result, **energy_options(result.model)))
+    head = len(steps)
+    out = from_the_lock(result, None)
+    locking = cleanup_on if foot_lock_on is None else foot_lock_on
+    if jitter_to_end and max_jitter is not None and locking and _is_3d(out.motion):
+        from dancekit.motion.footlock import CAP_CUTOFFS_HZ, jitter_speed
+
+        first = chosen[0] if chosen else 0.0
+        for c in (c for c in CAP_CUTOFFS_HZ if not first or c < first):
+            m = out.motion
+            if jitter_speed(m.to_positions(), skeleton=m.skeleton, fps=m.fps) <= max_jitter:
+                break
+            del steps[head:]
+            out = from_the_lock(result, c)
+    if trace is not None:
+        for name, r in steps:
+            trace(name, r)
+    return out
+
+
+def seed_trace(stage_trace: Callable[[int, str, DanceResult], None] | None,
+               k: int) -> Callable[[str, DanceResult], None] | None:
+    """The :func:`finish` ``trace`` of the ``k``-th dance of a pipeline's ``dances``, from its ``stage_trace``
+    (called as ``stage_trace(k, name, result)``); None for none."""
+    if stage_trace is None:
+        return None
+    return lambda name, result: stage_trace(k, name, result)
 
 
 def _with_note(result: DanceResult, note: str) -> DanceResult:
