@@ -5,13 +5,13 @@ the chosen entry scored on the test songs and the songs of ``../shared/music``, 
     PYTHONPATH=src:benchmarks python benchmarks/tune_energy.py dual val \
         '{"none": null, "f0.45": {"floor": 0.45}, "f0.45 b2": {"floor": 0.45, "band_hz": 2.0}}' [--fid] [-o OUT.json]
 
-Each setting runs the default stages on every cached dance of the split, as ``stages.finish`` does (clean-up,
-smoothing, the energy lift with the setting given here instead of the checkpoint's entry — ``null``: none —,
-the checkpoint's foot lock and settle, beat sync; a ``"settle"`` key in a setting, e.g. ``{"settle":
-{"ratio_target": 0.07}}``, replaces the checkpoint's settle entry; a ``"jitter_cap"`` key, e.g.
-``{"jitter_cap": {"genre_jitter": {...}, "jitter_cap": 1.5, "jitter_cap_min_ratio": 0.7}}``, caps each dance's jitter
-before the foot lock (after the lock and its settle with ``"after_lock": true``) as music2dance's entry of that name does, the song's genre read by music2dance's classifier), with the embedded model's folder as the result's model so
-its other entries apply. Per setting: per song (seeds averaged) smoothed energy, jitter (speed residual) and
+Each setting runs ``stages.finish`` itself on every cached dance, with a candidate folder of the embedded model
+(``benchmarks/candidate_folder.py``) whose ``"energy"`` entry is the setting (``null``: none); a ``"settle"``
+key in a setting, e.g. ``{"settle": {"ratio_target": 0.07}}``, replaces the checkpoint's settle entry, and a
+``"jitter_cap"`` key, e.g. ``{"jitter_cap": {"genre_jitter": {...}, "jitter_cap": 1.5, "jitter_cap_min_ratio":
+0.7}}``, is music2dance's entry of that name (the cap before the foot lock, after it with ``"after_lock": true``,
+held to the end with ``"to_end": true``; the song's genre read by music2dance's classifier). The checkpoint's
+other entries apply as in the pipeline (foot lock, settle, the second grounding), the beat sync last. Per setting: per song (seeds averaged) smoothed energy, jitter (speed residual) and
 their ratios to the song's real dance (``--split song``: the real test dances' mean), stillness; over all
 dances planted share, skating, jerk, floor, BAS / hit rate, the gains, and with ``--fid`` FID_k / FID_g
 against the training dances (10-s segments). Prints one block per setting.
@@ -21,12 +21,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 import time
 from pathlib import Path
 
 import bench_feet  # benchmarks/ is on the path when run as a script
 import bench_stages
 import numpy as np
+from candidate_folder import candidate_folder
 from genre_tables import genre_table
 
 from dancekit.data import PreparedData
@@ -37,36 +39,31 @@ from dancekit.pipelines.base import DanceResult, song_feature_set
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 
 
-def finish(motion, model: str, audio, beats, energy: dict | None, probs: dict[str, float], music: bool = True):
-    res = DanceResult(motion=motion, model=bench_feet.model_folder(model), seed=0, genre_probs=probs,
-                      looks_like_music=bool(music))
-    res = stages.clean_up(res)
-    res = stages.smooth(res)
-    before = res.motion
-    energy = dict(energy or {})
-    settle = energy.pop("settle", None)  # a "settle" entry in the setting replaces the checkpoint's
-    cap = energy.pop("jitter_cap", None)  # a "jitter_cap" entry (music2dance's): the per-dance cap before the lock
-    if energy:
-        res = stages.lift_energy(res, **energy)
-    gain = bench_stages.energy_gain(res)
-    max_jitter, after_lock = None, False
-    if cap is not None and music:
-        cap = stages.jitter_cap_from_entry(cap, folder=model)
-        after_lock = cap.pop("after_lock")
-        if cap.pop("to_end"):
-            raise SystemExit("tune_energy.py: a jitter cap with \"to_end\" re-runs the stages after it; score a "
-                             "candidate folder with `dancekit evaluate` (benchmarks/candidate_folder.py) instead")
-        max_jitter = stages.plausible_jitter_cap(probs, **cap)
-    if max_jitter is not None and not after_lock:
-        res = stages.settle(res, max_jitter=max_jitter)
-    res = stages.foot_lock(res)
-    res = stages.settle(res, **(stages.settle_options(res.model) if settle is None else
-                                {("cutoff" if k == "cutoff_hz" else k): v for k, v in settle.items()}))
-    if max_jitter is not None and after_lock:  # "after_lock": true, as stages.finish(jitter_after_lock=True)
-        res = stages.settle(res, max_jitter=max_jitter)
-    if beats is not None:
-        res = stages.beat_sync(res, audio[0], start=audio[1], end=audio[2], beats=beats)
-    return res.motion, gain, before
+def setting_folder(model: str, entry: dict | None, root: Path) -> str:
+    """A candidate folder (``benchmarks/candidate_folder.py``) of the embedded ``model`` whose ``"energy"`` entry
+    is the setting ``entry`` (None or only the keys below: no lift), its ``"settle"`` and ``"jitter_cap"``
+    entries replaced by the setting's keys of those names where it has them."""
+    entry = dict(entry or {})
+    change = {k: entry.pop(k) for k in ("settle", "jitter_cap") if k in entry}
+    change["energy"] = entry or None
+    root.mkdir(parents=True, exist_ok=True)
+    return str(candidate_folder(bench_feet.model_folder(model), root / f"setting{len(list(root.iterdir()))}",
+                                change, merge=False))
+
+
+def finish(motion, folder: str, audio, beats, probs: dict[str, float], music: bool = True):
+    """A cached raw dance through ``stages.finish`` with the candidate ``folder``'s entries (the song's genre
+    posterior ``probs`` for the energy floor and a ``"jitter_cap"`` entry's cap): (the finished motion, the
+    energy stage's gain, the motion before the lift)."""
+    res = DanceResult(motion=motion, model=folder, seed=0, genre_probs=probs, looks_like_music=bool(music))
+    cap = stages.jitter_cap_from_entry(json.loads((Path(folder) / "config.json").read_text()).get("jitter_cap"),
+                                       folder=folder)
+    flags = {"jitter_after_lock": bool(cap and cap.pop("after_lock")), "jitter_to_end": bool(cap and cap.pop("to_end"))}
+    max_jitter = stages.plausible_jitter_cap(probs, **cap) if cap and music else None
+    seen: dict[str, DanceResult] = {}
+    out = stages.finish(res, audio[0], start=audio[1], end=audio[2], beat_sync_on=beats is not None, beats=beats,
+                        max_jitter=max_jitter, trace=seen.__setitem__, **flags)
+    return out.motion, bench_stages.energy_gain(seen["lift_energy"]), seen["smooth"].motion
 
 
 def main() -> None:
@@ -104,13 +101,14 @@ def main() -> None:
     reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")] if args.fid else []
     cache: dict = {}
     report = {}
+    tmp = tempfile.TemporaryDirectory(prefix="tune_energy_")
     for name, entry in settings.items():
         t0, c0 = time.perf_counter(), time.process_time()
+        folder = setting_folder(args.model, entry, Path(tmp.name))
         rows, per_song, positions, gains = [], {}, [], []
         for f in files:
             song = f.stem.rsplit("__", 1)[0]
-            m, gain, _ = finish(bench_feet.load(f, sk), args.model, audio[song], beats[song], entry, probs[song],
-                                music[song])
+            m, gain, _ = finish(bench_feet.load(f, sk), folder, audio[song], beats[song], probs[song], music[song])
             r = bench_feet.metrics(m, beats[song].times, real.get(song, real_mean))
             r["gain"] = gain
             rows.append(r)
