@@ -137,7 +137,8 @@ class DualPipeline:
         """One dance per seed for the song (the features and the song's beats once, G_M→D from each start pose
         on its own, the stages per dance): ``dances(song, seeds=[0, 1])[k]`` is bit for bit
         ``pipe(song, seed=[0, 1][k])``. Arguments as :meth:`__call__` (a ``start_pose``
-        starts every dance from it). ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
+        starts every dance from it).
+        ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
         :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran)."""
         if genre not in (None, "auto", "none"):
             raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")

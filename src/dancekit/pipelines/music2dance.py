@@ -244,7 +244,8 @@ class Music2DancePipeline:
         the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
         prepared dataset's), instead of extracting them from ``audio_path``. Rows whose genre is named and has
         an entry in :attr:`genre_sampling` sample with it over the plain settings (one batch per such genre);
-        ``temperature`` / ``genre_scale`` given here override both. ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
+        ``temperature`` / ``genre_scale`` given here override both.
+        ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
         :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran)."""
         seeds = check_seeds(seeds)
         wanted = list(genre) if isinstance(genre, (list, tuple)) else [genre] * len(seeds)

@@ -254,7 +254,8 @@ class RevolutionPipeline:
         music encoded once, the decoder run on each seed on its own (a batch of one: batched matrix products
         round differently for every batch size), the stages applied to each dance.
         ``dances(song, seeds=[0, 1, 2])[k]`` is bit for bit ``pipe(song, seed=[0, 1, 2][k])``. Other
-        arguments as :meth:`__call__`. ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
+        arguments as :meth:`__call__`.
+        ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
         :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran).
 
         Raises

@@ -374,7 +374,7 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
 
         cutoff = jitter_cutoff(motion.to_positions(), skeleton=motion.skeleton, fps=motion.fps,
                                max_jitter=float(max_jitter))
-        note = f"calmed to the song's genres ({cutoff:g}-Hz low-pass)"
+        note = _calmed(cutoff)
     cutoff = SETTLE_HZ if cutoff is None else float(cutoff)
     if not cutoff or not _is_3d(motion):
         return result
@@ -709,10 +709,11 @@ def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "
     if not isinstance(spec, dict) or set(spec) - set(JITTER_CAP_KEYS):
         raise CheckpointError(f"{where}: takes {list(JITTER_CAP_KEYS)}, got {spec!r}")
     table = spec.get("genre_jitter")
-    try:
+    try:  # a mapping (JSON object), not a list of pairs
         table = genre_jitter_table(table if isinstance(table, dict) else None)
     except ParameterError:
-        raise CheckpointError(f"{where}: genre_jitter must map genres to positive m/s, got {spec.get('genre_jitter')!r}") from None
+        raise CheckpointError(f"{where}: genre_jitter must map genres to positive m/s, got {spec['genre_jitter']!r}"
+                              if "genre_jitter" in spec else f"{where}: genre_jitter is missing") from None
     scale = spec.get("jitter_cap")
     if not (_is_number(scale) and scale > 0):
         raise CheckpointError(f"{where}: jitter_cap must be a finite number > 0, got {scale!r}")
@@ -762,22 +763,25 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
             steps.append((name, out))
         return out
 
+    locking = cleanup_on if foot_lock_on is None else foot_lock_on
     chosen: list[float] = []  # the cut-off the cap chose (Hz, 0: none), for jitter_to_end
 
     def cap(r: DanceResult, cutoff: float | None) -> DanceResult:
-        if cutoff is None:  # the highest cut-off that brings the dance under the cap (0: none needed)
-            if jitter_to_end and _is_3d(r.motion):
-                from dancekit.motion.footlock import jitter_cutoff
+        if cutoff is None and jitter_to_end and _is_3d(r.motion):  # chosen here (as settle would), and kept
+            from dancekit.motion.footlock import jitter_cutoff
 
-                m = r.motion
-                chosen.append(jitter_cutoff(m.to_positions(), skeleton=m.skeleton, fps=m.fps,
-                                            max_jitter=float(max_jitter)))
+            m = r.motion
+            chosen.append(jitter_cutoff(m.to_positions(), skeleton=m.skeleton, fps=m.fps, max_jitter=float(max_jitter)))
+            cutoff = chosen[0]
+            if not cutoff:  # under the cap already
+                return r
+        if cutoff is None:  # the highest cut-off that brings the dance under the cap (0: none needed)
             return settle(r, max_jitter=max_jitter)
-        return _with_note(settle(r, cutoff=cutoff), f"calmed to the song's genres ({cutoff:g}-Hz low-pass)")
+        return _with_note(settle(r, cutoff=cutoff), _calmed(cutoff))
 
     def from_the_lock(r: DanceResult, cutoff: float | None) -> DanceResult:
         """The lock's block and the beat sync, the cap's low-pass at ``cutoff`` Hz (None: as it chooses)."""
-        if cleanup_on if foot_lock_on is None else foot_lock_on:
+        if locking:
             if max_jitter is not None and not jitter_after_lock:  # before the lock: it plants the calmed feet
                 r = done("jitter_cap", cap(r, cutoff))
             r = done("foot_lock", foot_lock(r))
@@ -799,7 +803,6 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
         result = done("lift_energy", lift_energy(result, **energy_options(result.model)))
     head = len(steps)
     out = from_the_lock(result, None)
-    locking = cleanup_on if foot_lock_on is None else foot_lock_on
     if jitter_to_end and max_jitter is not None and locking and _is_3d(out.motion):
         from dancekit.motion.footlock import CAP_CUTOFFS_HZ, jitter_speed
 
@@ -823,6 +826,11 @@ def seed_trace(stage_trace: Callable[[int, str, DanceResult], None] | None,
     if stage_trace is None:
         return None
     return lambda name, result: stage_trace(k, name, result)
+
+
+def _calmed(cutoff: float) -> str:
+    """The note of the jitter cap's low-pass at ``cutoff`` Hz."""
+    return f"calmed to the song's genres ({cutoff:g}-Hz low-pass)"
 
 
 def _with_note(result: DanceResult, note: str) -> DanceResult:
