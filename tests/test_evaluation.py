@@ -97,6 +97,34 @@ def test_evaluate_flags_are_checked(tiny_checkpoint, data_with_audio, tmp_path, 
     assert "--beat-sync" in capsys.readouterr().err
 
 
+def test_evaluate_first_seed_dances_another_seed_set(tiny_checkpoint, data_with_audio, tmp_path, capsys):
+    """--first-seed 3 --seeds 2: the files NAME__0 / NAME__1 hold the dances of seeds 3 and 4 (bit for bit the
+    pipeline's), the report records the first seed; a negative one is a one-line error naming it."""
+    from dancekit.data import PreparedData
+    from dancekit.motion import read_motion
+    from dancekit.pipelines import load_pipeline
+
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
+                 "--seeds", "2", "--first-seed", "3", "-o", str(out), "--quiet", "--no-style",
+                 "--segment-seconds", "1"]) == 0
+    ref = PreparedData(data_with_audio).audio("DANCE_W_2")
+    want = load_pipeline(str(tiny_checkpoint)).dances(ref.path, seeds=[3, 4], start=ref.start, end=ref.end)
+    for k in (0, 1):
+        got = read_motion(out / "pred" / f"DANCE_W_2__{k}.npz").positions
+        np.testing.assert_array_equal(got, want[k].motion.positions)
+    assert json.loads((out / "report.json").read_text())["generation"]["first_seed"] == 3
+    capsys.readouterr()
+    assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
+                 "--seeds", "1", "--first-seed", "-1", "-o", str(tmp_path / "bad"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "first seed must be a whole number >= 0, got -1" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "bad").exists()  # nothing half-written
+    assert main(["evaluate", "--pred", str(tmp_path), "--ref", str(tmp_path), "--first-seed", "2",
+                 "-o", str(tmp_path / "r.json")]) == 2
+    assert "--first-seed" in capsys.readouterr().err
+
+
 def test_baselines_and_compare(data_with_audio, tmp_path, capsys):
     split = {"train": ["DANCE_W_1", "DANCE_R_1"], "val": [], "test": ["DANCE_W_2"], "seed": 0}
     data = tmp_path / "data"

@@ -61,6 +61,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
                    help="with --checkpoint: output folder (pred/, report.json); with --pred: the report file")
     gen = p.add_argument_group("generation (--checkpoint)")
     gen.add_argument("--seeds", type=int, default=None, help="dances per song, seeds 0..N-1 (default 5)")
+    gen.add_argument("--first-seed", type=int, default=None, metavar="K",
+                     help="dance seeds K..K+N-1 instead (another seed set: how much the metrics move between sets)")
     gen.add_argument("--genre", default=None,
                      help="auto (the genre read from the music when the model has a music attribute classifier, "
                           "else the model alone; default), none (the model alone), true (each song's own genre), "
@@ -122,9 +124,9 @@ def run_music(args: argparse.Namespace) -> int:
     if args.data is None:
         raise ParameterError("--compose and --music need --data (the prepared dataset whose real music is the reference)")
     if args.ref is not None or args.pred is not None or args.seeds is not None or args.genre is not None \
-            or args.precision is not None:
-        raise ParameterError("--ref, --seeds, --genre and --precision go with --pred / --checkpoint, not with "
-                             "--compose / --music")
+            or args.precision is not None or args.first_seed is not None:
+        raise ParameterError("--ref, --seeds, --first-seed, --genre and --precision go with --pred / --checkpoint, "
+                             "not with --compose / --music")
     settings = MusicSettings(clip_lengths=_clip_lengths(args.clip_lengths), render=args.render, seed=args.seed,
                              baselines=not args.no_baselines)
     say = None if args.quiet else (lambda m: print(m, flush=True))
@@ -179,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
         report = evaluate_checkpoint(args.checkpoint, args.data, out, split=args.split, seeds=seeds,
                                      genre=args.genre or "auto", settings=settings, classifier=classifier,
                                      progress=not args.quiet, beat_sync=args.beat_sync != "off",
-                                     precision=args.precision or "fp32")
+                                     precision=args.precision or "fp32", first_seed=args.first_seed or 0)
         g = report["generation"]
         print(f"generated {g['seconds']:.0f} s of dance in {g['elapsed_s']:.1f} s "
               f"({g['elapsed_s'] / max(g['seconds'], 1e-9) * 60:.2f} s per minute)")
@@ -189,8 +191,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.ref is None:
         raise ParameterError("--pred needs --ref (the real dances)")
-    if args.seeds is not None or args.genre is not None or args.beat_sync is not None or args.precision is not None:
-        raise ParameterError("--seeds, --genre, --beat-sync and --precision go with --checkpoint")
+    if args.seeds is not None or args.genre is not None or args.beat_sync is not None or args.precision is not None \
+            or args.first_seed is not None:
+        raise ParameterError("--seeds, --first-seed, --genre, --beat-sync and --precision go with --checkpoint")
     if not out.parent.exists():
         raise ParameterError(f"output folder does not exist: {out.parent}")
     report = evaluate_dirs(args.pred, args.ref, data=args.data, audio_dir=args.audio, classifier=classifier,

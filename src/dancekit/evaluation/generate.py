@@ -36,7 +36,7 @@ def requested_genre(genre: str, song_genre: str) -> str | None:
 
 def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *, seeds: int = 5,
                 genre: str = "auto", progress: bool = True, beat_sync: bool | None = None,
-                unwarped_dir: str | os.PathLike | None = None) -> dict[str, float]:
+                unwarped_dir: str | os.PathLike | None = None, first_seed: int = 0) -> dict[str, float]:
     """Generate ``seeds`` dances for every song of ``split`` into ``out_dir`` (its old ``.npz`` files are
     removed first).
 
@@ -53,7 +53,10 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
         when it has ``pipe.dances(audio, seeds=[...], ...)``, the seeds of a song are danced at once)
     data : a :class:`~dancekit.data.PreparedData`
     split : the split whose songs are danced
-    seeds : dances per song (seeds ``0 .. seeds-1``)
+    seeds : dances per song (seeds ``first_seed .. first_seed + seeds - 1``, written as ``NAME__0`` …
+        ``NAME__{seeds-1}``)
+    first_seed : the first seed (default 0; another seed set of the same model, e.g. to see how much the
+        metrics move between sets of ``seeds`` seeds)
     genre : see :func:`requested_genre`
 
     Returns
@@ -66,6 +69,9 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
 
     if seeds < 1:
         raise ParameterError(f"seeds must be at least 1, got {seeds}")
+    if isinstance(first_seed, bool) or not isinstance(first_seed, int) or first_seed < 0:
+        raise ParameterError(f"the first seed must be a whole number >= 0, got {first_seed!r}")
+    numbers = list(range(first_seed, first_seed + seeds))
     names = data.names(split)
     if not names:
         raise ParameterError(f"the {split!r} split of {data.root} has no dances")
@@ -95,13 +101,12 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
         want = requested_genre(genre, data.genre(name))
         before.clear()
         if traced:
-            results = batch(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, genre=want,
-                            stage_trace=keep, **kwargs)
+            results = batch(ref.path, seeds=numbers, start=ref.start, end=ref.end, genre=want, stage_trace=keep,
+                            **kwargs)
         elif batch is not None:
-            results = batch(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, genre=want, **kwargs)
+            results = batch(ref.path, seeds=numbers, start=ref.start, end=ref.end, genre=want, **kwargs)
         else:
-            results = [pipe(ref.path, seed=k, start=ref.start, end=ref.end, genre=want, **kwargs)
-                       for k in range(seeds)]
+            results = [pipe(ref.path, seed=n, start=ref.start, end=ref.end, genre=want, **kwargs) for n in numbers]
         for k, result in enumerate(results):
             stem = name if seeds == 1 else f"{name}{SAMPLE_SEP}{k}"
             if traced:
@@ -133,6 +138,7 @@ def evaluate_checkpoint(
     progress: bool = True,
     beat_sync: bool = True,
     precision: str = "fp32",
+    first_seed: int = 0,
 ) -> dict[str, Any]:
     """Dance every song of ``split`` with a model and score the dances against the real ones.
 
@@ -145,7 +151,7 @@ def evaluate_checkpoint(
     checkpoint : a checkpoint folder or a model name (``dancekit models``)
     data : prepared dataset folder
     out_dir : output folder
-    split, seeds, genre : see :func:`dance_split`
+    split, seeds, genre, first_seed : see :func:`dance_split`
     settings, classifier : see :func:`~dancekit.evaluation.evaluate_dirs`
     beat_sync : the pipeline's beat-synchronous stage on (default) or off; when on, the dances before the
         warp go to ``OUT/pred_unwarped`` and the report's ``beat_sync`` entry compares the beat metrics
@@ -161,11 +167,12 @@ def evaluate_checkpoint(
     pred = out / "pred"
     unwarped = out / "pred_unwarped"
     gen = dance_split(pipe, prepared, split, pred, seeds=seeds, genre=genre, progress=progress, beat_sync=beat_sync,
-                      unwarped_dir=unwarped if beat_sync else None)
+                      unwarped_dir=unwarped if beat_sync else None, first_seed=first_seed)
     report = evaluate_dirs(pred, data, data=data, classifier=classifier, settings=settings, split=split)
     if beat_sync:
         report["beat_sync"] = _beat_sync_section(pred, unwarped, prepared, report)
-    report["generation"] = {"checkpoint": str(checkpoint), "split": split, "seeds": seeds, "genre": genre,
+    report["generation"] = {"checkpoint": str(checkpoint), "split": split, "seeds": seeds, "first_seed": first_seed,
+                            "genre": genre,
                             "beat_sync": bool(beat_sync), "precision": precision,
                             "files": gen["files"], "seconds": round(gen["seconds"], 3),
                             "elapsed_s": round(gen["elapsed_s"], 3)}
