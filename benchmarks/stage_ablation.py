@@ -9,9 +9,8 @@ Each song of the split is danced with ``--seeds`` seeds by the pipeline with eve
 :func:`dancekit.pipelines.stages.finish` with every stage on, exactly as ``dancekit dance`` and ``dancekit
 evaluate`` do, its ``trace`` keeping the dance after each stage (:data:`~dancekit.pipelines.stages.STAGE_NAMES`;
 a stage that does not apply to a dance, e.g. the jitter cap of a dance under its cap, passes it on unchanged).
-The per-dance jitter cap is the pipeline's own: the genre draw's (:func:`dancekit.pipelines.revolution.jitter_cap`)
-for Dance Revolution, the ``"jitter_cap"`` entry's for music2dance (``max_jitter``, before or after the lock as
-the entry says), none for the others. FID as ``dancekit evaluate`` computes it (AIST++ features of 10-s segments, z-scored
+The per-dance settings (a jitter cap) are the pipeline's own (``pipe.stage_options``): the genre draw's cap for
+Dance Revolution, the ``"jitter_cap"`` entry's for music2dance, none for dual. FID as ``dancekit evaluate`` computes it (AIST++ features of 10-s segments, z-scored
 with the training dances' statistics, against the training dances): the last column is evaluate's number.
 Printed: one row per feature kind, the FID after each stage; with ``--json``, also the mean and covariance terms.
 """
@@ -33,24 +32,15 @@ ROWS = ("raw", *S.STAGE_NAMES)
 
 def stage_dances(model: str, data: PreparedData, split: str, seeds: int) -> dict[str, list[np.ndarray]]:
     """Per stage name (``"raw"`` first), the positions ``(T, J, 3)`` of every dance of the split after it."""
-    from dancekit.pipelines.revolution import jitter_cap
-
     pipe = load_pipeline(model)
-    draw = getattr(pipe, "genre_draw", None)
     out: dict[str, list[np.ndarray]] = {n: [] for n in ROWS}
     for name in data.names(split):
         ref = data.audio(name)
         beats = S.song_beats_for(ref.path, start=ref.start, end=ref.end)
         for r in pipe.dances(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, beat_sync=False,
                              cleanup=False):
-            cap = None
-            if draw is not None and r.looks_like_music:  # revolution's genre draw
-                cap = jitter_cap(r.genre_probs, genre=r.genre, draw=draw)
-            elif hasattr(pipe, "max_jitter") and r.looks_like_music:  # music2dance's "jitter_cap" entry
-                cap = pipe.max_jitter(r.genre, r.genre_probs)
             seen: dict[str, object] = {}
-            S.finish(r, ref.path, start=ref.start, end=ref.end, beats=beats, max_jitter=cap,
-                     jitter_after_lock=bool(getattr(pipe, "jitter_after_lock", False)),
+            S.finish(r, ref.path, start=ref.start, end=ref.end, beats=beats, **pipe.stage_options(r),
                      trace=lambda stage, res, _seen=seen: _seen.__setitem__("raw" if stage == "input" else stage, res))
             last = r
             for stage in ROWS:  # a stage that did not run passes the dance before it on

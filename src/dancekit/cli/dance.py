@@ -153,8 +153,8 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
         beats = song_beats_for(str(audio), start=args.start, end=args.end) if stages_on["beat_sync"] else None
         results = [finish(dataclasses.replace(r, motion=r.motion if fix is None else fix(r.motion)), str(audio),
                           start=args.start, end=args.end, beat_sync_on=stages_on["beat_sync"],
-                          cleanup_on=stages_on["cleanup"], beats=beats, **extra)
-                   for r in results]
+                          cleanup_on=stages_on["cleanup"], beats=beats, **extra, **pipe.stage_options(r))
+                   for r in results]  # the checkpoint's own per-dance settings (a jitter cap) as in pipe.dances
     for result in results:
         motion = result.motion
         if args.fps is not None and args.fps != motion.fps:

@@ -163,8 +163,15 @@ class DualPipeline:
             if beat_sync and result.looks_like_music and beats is None:
                 beats = song_beats_for(audio_path, start=start, end=end)
             results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
-                                  cleanup_on=cleanup, beats=beats, trace=seed_trace(stage_trace, k)))
+                                  cleanup_on=cleanup, beats=beats, trace=seed_trace(stage_trace, k),
+                                  **self.stage_options(result)))
         return results
+
+    def stage_options(self, result: DanceResult) -> dict[str, Any]:
+        """What :func:`~dancekit.pipelines.stages.finish` needs to know of this checkpoint for one of its dances
+        beside the stage switches: nothing (the dual model has no jitter cap); ``dancekit dance`` asks every
+        pipeline the same."""
+        return {}
 
     def output_filter(self, y: np.ndarray, smooth_frames: int | None = None,
                       lowpass_hz: float | None = None) -> np.ndarray:

@@ -310,10 +310,17 @@ class Music2DancePipeline:
             if beat_sync and out[-1].looks_like_music and beats is None:  # the song's beats once for all seeds
                 beats = song_beats_for(audio_path, start=start, end=end)
             out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup,
-                             beats=beats, max_jitter=self.max_jitter(danced, probs) if out[-1].looks_like_music else None,
-                             jitter_after_lock=self.jitter_after_lock, jitter_to_end=self.jitter_to_end,
-                             trace=seed_trace(stage_trace, k))
+                             beats=beats, trace=seed_trace(stage_trace, k), **self.stage_options(out[-1]))
         return out
+
+    def stage_options(self, result: DanceResult) -> dict[str, Any]:
+        """What :func:`~dancekit.pipelines.stages.finish` needs to know of this checkpoint for one of its dances
+        (beside the stage switches): the ``"jitter_cap"`` entry's cap of a dance of ``result.genre`` for a song
+        whose genre posterior is ``result.genre_probs`` (:meth:`max_jitter`; none for a song that does not look
+        like music), where it runs and whether it holds to the end. :meth:`dances` passes it; so does
+        ``dancekit dance`` when it runs the stages itself."""
+        cap = self.max_jitter(result.genre, result.genre_probs) if result.looks_like_music else None
+        return {"max_jitter": cap, "jitter_after_lock": self.jitter_after_lock, "jitter_to_end": self.jitter_to_end}
 
 
 def on_the_floor(motion: Motion) -> Motion:

@@ -306,11 +306,20 @@ class RevolutionPipeline:
             result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
                                  genre=genre_k, genre_probs=probs, danced_by=danced_by[genre_k],
                                  beat_strength=float(strength), looks_like_music=music, genre_drawn_p=drawn_p)
-            cap = jitter_cap(probs, genre=genre_k, draw=self.genre_draw) if music else None
             results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
-                                  cleanup_on=cleanup, beats=beats, max_jitter=cap,
-                                  jitter_to_end=self.genre_draw.cap_to_end, trace=seed_trace(stage_trace, k)))
+                                  cleanup_on=cleanup, beats=beats, trace=seed_trace(stage_trace, k),
+                                  **self.stage_options(result)))
         return results
+
+    def stage_options(self, result: DanceResult) -> dict[str, Any]:
+        """What :func:`~dancekit.pipelines.stages.finish` needs to know of this checkpoint for one of its dances
+        (beside the stage switches): the genre draw's jitter cap of a dance of ``result.genre`` for a song whose
+        genre posterior is ``result.genre_probs`` (:func:`jitter_cap`; none for a song that does not look like
+        music) and whether it holds to the end. :meth:`dances` passes it; so does ``dancekit dance`` when it
+        runs the stages itself (a foot model, ``--smooth`` / ``--foot-lock``)."""
+        cap = jitter_cap(result.genre_probs, genre=result.genre, draw=self.genre_draw) \
+            if result.looks_like_music else None
+        return {"max_jitter": cap, "jitter_to_end": self.genre_draw.cap_to_end}
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
