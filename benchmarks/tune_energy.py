@@ -39,25 +39,26 @@ from dancekit.pipelines.base import DanceResult, song_feature_set
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 
 
-def setting_folder(model: str, entry: dict | None, root: Path) -> str:
+def setting_folder(model: str, entry: dict | None, root: Path) -> tuple[str, dict | None]:
     """A candidate folder (``benchmarks/candidate_folder.py``) of the embedded ``model`` whose ``"energy"`` entry
     is the setting ``entry`` (None or only the keys below: no lift), its ``"settle"`` and ``"jitter_cap"``
-    entries replaced by the setting's keys of those names where it has them."""
+    entries replaced by the setting's keys of those names where it has them; and that ``"jitter_cap"`` entry
+    checked (:func:`dancekit.pipelines.stages.jitter_cap_from_entry`; None for none), once per setting."""
     entry = dict(entry or {})
     change = {k: entry.pop(k) for k in ("settle", "jitter_cap") if k in entry}
     change["energy"] = entry or None
     root.mkdir(parents=True, exist_ok=True)
-    return str(candidate_folder(bench_feet.model_folder(model), root / f"setting{len(list(root.iterdir()))}",
-                                change, merge=False))
+    folder = str(candidate_folder(bench_feet.model_folder(model), root / f"setting{len(list(root.iterdir()))}",
+                                  change, merge=False))
+    return folder, stages.jitter_cap_from_entry(change.get("jitter_cap"), folder=folder)
 
 
-def finish(motion, folder: str, audio, beats, probs: dict[str, float], music: bool = True):
+def finish(motion, folder: str, cap: dict | None, audio, beats, probs: dict[str, float], music: bool = True):
     """A cached raw dance through ``stages.finish`` with the candidate ``folder``'s entries (the song's genre
-    posterior ``probs`` for the energy floor and a ``"jitter_cap"`` entry's cap): (the finished motion, the
-    energy stage's gain, the motion before the lift)."""
+    posterior ``probs`` for the energy floor and for ``cap``, the folder's checked ``"jitter_cap"`` entry):
+    (the finished motion, the energy stage's gain, the motion before the lift)."""
     res = DanceResult(motion=motion, model=folder, seed=0, genre_probs=probs, looks_like_music=bool(music))
-    cap = stages.jitter_cap_from_entry(json.loads((Path(folder) / "config.json").read_text()).get("jitter_cap"),
-                                       folder=folder)
+    cap = dict(cap) if cap else None  # its flags popped below, the setting's own entry kept
     flags = {"jitter_after_lock": bool(cap and cap.pop("after_lock")), "jitter_to_end": bool(cap and cap.pop("to_end"))}
     max_jitter = stages.plausible_jitter_cap(probs, **cap) if cap and music else None
     seen: dict[str, DanceResult] = {}
@@ -104,11 +105,12 @@ def main() -> None:
     tmp = tempfile.TemporaryDirectory(prefix="tune_energy_")
     for name, entry in settings.items():
         t0, c0 = time.perf_counter(), time.process_time()
-        folder = setting_folder(args.model, entry, Path(tmp.name))
+        folder, cap = setting_folder(args.model, entry, Path(tmp.name))
         rows, per_song, positions, gains = [], {}, [], []
         for f in files:
             song = f.stem.rsplit("__", 1)[0]
-            m, gain, _ = finish(bench_feet.load(f, sk), folder, audio[song], beats[song], probs[song], music[song])
+            m, gain, _ = finish(bench_feet.load(f, sk), folder, cap, audio[song], beats[song], probs[song],
+                                music[song])
             r = bench_feet.metrics(m, beats[song].times, real.get(song, real_mean))
             r["gain"] = gain
             rows.append(r)

@@ -84,9 +84,10 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
             old.unlink()
     batch = getattr(pipe, "dances", None)  # a pipeline that dances several seeds at once (equal results)
     traced = split_warp and batch is not None and "stage_trace" in inspect.signature(batch).parameters
-    kwargs = {} if beat_sync is None and not split_warp else {"beat_sync": bool(beat_sync) and not split_warp}
     if traced:  # the pipeline's own warp; the dance before it from the stages' trace
         kwargs = {"beat_sync": True}
+    else:  # None: the pipeline's default; split: the warp after it, here
+        kwargs = {} if beat_sync is None and not split_warp else {"beat_sync": bool(beat_sync) and not split_warp}
     t0 = time.perf_counter()
     seconds, files = 0.0, 0
     before: dict[int, Any] = {}  # per seed index of the song, the dance before its warp
