@@ -398,3 +398,51 @@ def test_the_draw_and_a_jitter_cap_entry_judge_a_genre_jitter_table_alike():
             jitter_cap_from_entry({"genre_jitter": table, "jitter_cap": 1.0}, folder="m2d")
     good = {"genre_jitter": {"waltz": 0.026, "rumba": 0.05}, "jitter_cap": 1.2}
     assert jitter_cap_from_entry(good)["genre_jitter"] == {"waltz": 0.026, "rumba": 0.05}
+
+
+def test_a_spread_draw_is_the_golden_ratio_sequence_worked_independently():
+    from decimal import Decimal, getcontext
+
+    from dancekit.pipelines.revolution import draw_uniform
+
+    getcontext().prec = 60
+    g = (Decimal(5).sqrt() - 1) / 2  # 0.6180339887…, to 60 digits
+    for seed in (0, 1, 2, 3, 4, 17, 10**6, 2**40 + 3):
+        exact = (seed * g) % 1
+        # the 64-bit step is g within 2^-65, so seed k may differ from the exact fraction by k · 2^-65 (+ rounding)
+        assert draw_uniform(seed, spread=True) == pytest.approx(float(exact), abs=(seed + 2) * 2.0**-64), seed
+    # seeds 1-4 by hand: 0.618, 0.236, 0.854, 0.472
+    assert [round(draw_uniform(s, spread=True), 3) for s in range(1, 5)] == [0.618, 0.236, 0.854, 0.472]
+    # without spread: the generator's draw, as before
+    from dancekit.pipelines.revolution import GENRE_DRAW_STREAM
+    assert draw_uniform(5) == np.random.default_rng([GENRE_DRAW_STREAM, 5]).random()
+
+
+def test_a_spread_draw_gives_every_option_its_share_over_a_few_consecutive_seeds():
+    probs = {"waltz": 0.5, "rumba": 0.3, "chacha": 0.15, "tango": 0.05}
+    spread = GenreDraw(temperature=1.0, alone=0.2, spread=True)
+    plain = GenreDraw(temperature=1.0, alone=0.2)
+    options = genre_options(probs, spread)
+    worst = {"spread": 0.0, "plain": 0.0}
+    for name, draw in (("spread", spread), ("plain", plain)):
+        drawn = [draw_genre(probs, seed=s, draw=draw)[0] for s in range(1, 400)]
+        for n in (5, 10, 30, 100):
+            for start in range(0, len(drawn) - n, 7):
+                window = drawn[start:start + n]
+                for g, q in options.items():
+                    worst[name] = max(worst[name], abs(window.count(g) - n * q))
+    assert worst["spread"] <= 3.0, worst
+    assert worst["plain"] > 4.0, worst  # independent draws stray much further over the same windows
+    # seed 0 still keeps the most likely genre; the draw still follows the options in the long run
+    assert draw_genre(probs, seed=0, draw=spread) == ("waltz", None)
+    f = frequencies(probs, spread)
+    for g, q in options.items():
+        assert f.get(g, 0.0) == pytest.approx(q, abs=0.002), (g, f)
+
+
+def test_the_spread_key_is_read_from_the_checkpoint_and_checked():
+    assert genre_draw_from_meta({"sampling": {"genre_temperature": 2, "genre_draw_spread": True}}) == \
+        GenreDraw(temperature=2.0, spread=True)
+    assert genre_draw_from_meta({"sampling": {"genre_temperature": 2}}).spread is False
+    with pytest.raises(CheckpointError, match="ckpt: bad 'sampling' entry in config.json: genre_draw_spread"):
+        genre_draw_from_meta({"sampling": {"genre_temperature": 2, "genre_draw_spread": "yes"}}, folder="ckpt")

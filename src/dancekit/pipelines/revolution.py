@@ -453,6 +453,10 @@ class GenreDraw:
     #: True: the cap holds for the finished dance (``stages.finish(jitter_to_end=True)``: the stages after it are
     #: run again with a lower cut-off while the lock and the warp bring the jitter back over it)
     cap_to_end: bool = False
+    #: True: seed k's uniform number is the golden-ratio sequence ``frac(k · 0.618…)`` instead of a generator's draw,
+    #: so that any run of consecutive seeds spreads its draws over the options in proportion to their probability
+    #: (each option's count among n ≤ 100 consecutive seeds is within 3 of n · q); False: a generator seeded by the seed
+    spread: bool = False
 
     def __post_init__(self):
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -476,6 +480,8 @@ class GenreDraw:
             raise ParameterError(f"jitter_cap_all must be true or false, got {self.cap_all!r}")
         if not isinstance(self.cap_to_end, bool):
             raise ParameterError(f"jitter_cap_to_end must be true or false, got {self.cap_to_end!r}")
+        if not isinstance(self.spread, bool):
+            raise ParameterError(f"genre_draw_spread must be true or false, got {self.spread!r}")
 
     @property
     def active(self) -> bool:
@@ -484,6 +490,20 @@ class GenreDraw:
 
 #: mixed into the seed of the genre draw's generator, so that it is a stream of its own (not the decoder's)
 GENRE_DRAW_STREAM = 0x67656E72  # "genr"
+#: round(2^64 · (√5 − 1) / 2): the golden-ratio step of a spread draw, in 64-bit fixed point
+GOLDEN_STEP_64 = 0x9E3779B97F4A7C15
+
+
+def draw_uniform(seed: int, *, spread: bool = False) -> float:
+    """The uniform number in [0, 1) that seed ``seed`` inverts through a genre draw's options.
+
+    ``spread=False``: one draw of a generator seeded by (:data:`GENRE_DRAW_STREAM`, seed). ``spread=True``: the
+    golden-ratio (Weyl) sequence ``frac(seed · (√5 − 1) / 2)``, in exact 64-bit fixed point (the same number on
+    every machine): any n consecutive seeds then fall into every interval of [0, 1) of length q about n · q
+    times, so a handful of seeds already dances each option about as often as its probability says."""
+    if spread:
+        return ((int(seed) * GOLDEN_STEP_64) % (1 << 64)) / float(1 << 64)
+    return float(np.random.default_rng([GENRE_DRAW_STREAM, int(seed) % (1 << 64)]).random())
 
 
 def genre_options(probs: dict[str, float], draw: GenreDraw) -> dict[str | None, float]:
@@ -518,16 +538,16 @@ def draw_genre(probs: dict[str, float], *, seed: int, draw: GenreDraw) -> tuple[
     probability the draw gave it, or ``(most likely genre, None)`` when nothing is drawn (no ``draw``, seed 0
     without ``draw.seed0``). No posterior: ``(None, None)``.
 
-    Deterministic per (posterior, seed): one uniform number from a generator seeded by (stream, seed) alone,
-    inverted through the options' cumulative probabilities (:func:`genre_options`, in the posterior's genre
-    order, the model alone last)."""
+    Deterministic per (posterior, seed): one uniform number per seed (:func:`draw_uniform`: a generator seeded by
+    (stream, seed) alone, or with ``draw.spread`` the golden-ratio sequence), inverted through the options'
+    cumulative probabilities (:func:`genre_options`, in the posterior's genre order, the model alone last)."""
     if not probs:
         return None, None
     best = max(probs, key=probs.get)
     if not draw.active or (seed == 0 and not draw.seed0):
         return best, None
     options = genre_options(probs, draw)
-    u = np.random.default_rng([GENRE_DRAW_STREAM, int(seed) % (1 << 64)]).random()
+    u = draw_uniform(seed, spread=draw.spread)
     cdf = np.cumsum(list(options.values()))
     k = int(np.searchsorted(cdf, u * cdf[-1], side="right"))
     keys = list(options)
@@ -569,6 +589,7 @@ def genre_draw_from_meta(meta: dict[str, Any], *, folder: str = "?") -> GenreDra
                          genre_jitter=tuple((str(g), v) for g, v in table.items()),
                          max_jitter=number("genre_max_jitter"), jitter_cap=number("jitter_cap"),
                          cap_min_ratio=number("jitter_cap_min_ratio", 0.5), cap_all=spec.get("jitter_cap_all", False),
-                         cap_to_end=spec.get("jitter_cap_to_end", False))
+                         cap_to_end=spec.get("jitter_cap_to_end", False),
+                         spread=spec.get("genre_draw_spread", False))
     except ParameterError as exc:
         raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None
