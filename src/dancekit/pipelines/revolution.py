@@ -24,7 +24,9 @@ the checkpoint may let the *seed* draw it (:class:`GenreDraw`, ``"sampling": {"g
 (seed 0 keeps the most likely genre unless ``genre_draw_seed0``) draws the genre model from the classifier's
 posterior sharpened or softened by τ, ``q_g ∝ p_g^(1/τ)``, among the song's plausible genres only
 (``p_g ≥ ρ · max(p)``), with the model alone as one more option of weight w. The draw depends on
-the seed and the song's posterior only (:func:`draw_genre`), so it is the same in a batch and alone; the
+the seed and the song's posterior only (:func:`draw_genre`; ``"genre_draw_spread": true``: seeds draw along the
+golden-ratio sequence, so a few consecutive seeds already cover the options in proportion), so it is the same in
+a batch and alone; the
 result says what was drawn (:meth:`DanceResult.summary`: ``"as rumba (drawn by seed 3, p = 0.31)"``).
 ``genre="waltz"`` still forces the waltz model, and ``genre="none"`` the model alone.
 
