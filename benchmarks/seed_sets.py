@@ -23,20 +23,22 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
+from dancekit.evaluation.score import SAMPLE_SEP
+
 COLOURS = [(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40)]
 
 
 def seed_sets(folder: Path, *, split: str, data: str, size: int) -> tuple[list[tuple[float, float]], dict]:
     """Per set of ``size`` consecutive seeds: (FID_k, FID_g); and the folder's pooled metrics."""
-    files = sorted((folder / "pred").glob("*__*.npz"))
-    seeds = sorted({int(f.stem.rsplit("__", 1)[1]) for f in files})
+    seed_of = {f: int(f.stem.rsplit(SAMPLE_SEP, 1)[1]) for f in (folder / "pred").glob(f"*{SAMPLE_SEP}*.npz")}
+    seeds = sorted(set(seed_of.values()))
     if not seeds or len(seeds) % size:
         sys.exit(f"{folder}: {len(seeds)} seeds in pred/, not a multiple of --set-size {size}")
     out = []
     for first in range(0, len(seeds), size):
         with tempfile.TemporaryDirectory() as tmp:
-            for f in files:
-                if first <= int(f.stem.rsplit("__", 1)[1]) < first + size:
+            for f, seed in seed_of.items():
+                if first <= seed < first + size:
                     os.symlink(f.resolve(), Path(tmp) / f.name)
             report = Path(tmp) / "report.json"
             subprocess.run([sys.executable, "-m", "dancekit.cli.main", "evaluate", "--pred", tmp, "--ref", data,
