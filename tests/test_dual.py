@@ -56,6 +56,22 @@ def test_rot6d_representation_round_trip(rng):
     np.testing.assert_allclose(encode_motion(m, "rot6d"), x, atol=1e-5)
     # the translation columns are the root; the decoded positions are the IK'd ones (rest bone lengths)
     np.testing.assert_allclose(m.positions[:, sk.root], x[:, :3], atol=1e-4)
+    # the root decoded by Procrustes: the same for unit, orthogonal 6D columns, and only the root changes when
+    # they are not (the up column three times as long as a root heading column that leans 45 degrees)
+    from dancekit.errors import ParameterError
+    from dancekit.motion.representations import decode_rot6d
+
+    same = decode_rot6d(x, sk, 25.0, root_decode="procrustes")
+    np.testing.assert_allclose(same.rotations, m.rotations, atol=1e-5)
+    r = 3 + 6 * sk.root
+    bent = x.copy()
+    bent[:, r : r + 6] = [0.0, 0.1, 0.1, 0.0, 3.0, 0.0]
+    gs, pr = decode_motion(bent, sk, 25.0, "rot6d"), decode_rot6d(bent, sk, 25.0, root_decode="procrustes")
+    assert pr.rotations[:, sk.root, 1, 1].min() > 0.99 > 0.75 > gs.rotations[:, sk.root, 1, 1].max()
+    others = [j for j in range(sk.rig().num_joints) if j != sk.root]
+    np.testing.assert_allclose(pr.rotations[:, others], gs.rotations[:, others], atol=1e-6)
+    with pytest.raises(ParameterError, match="root_decode"):
+        decode_rot6d(x, sk, 25.0, root_decode="svd")
 
 
 # ---------------------------------------------------------------------------------------------- losses
@@ -744,3 +760,23 @@ def test_dances_batches_the_seeds_and_equals_one_call_per_seed(tiny_checkpoint, 
         one = pipe(song, seed=seed, **kw)
         np.testing.assert_allclose(result.motion.to_positions(), one.motion.to_positions(), atol=1e-3, rtol=1e-3)
     assert np.abs(batch[0].motion.to_positions() - batch[1].motion.to_positions()).max() > 1e-2
+
+
+def test_embedded_dual_dances_upright_with_its_jitter_cap(tmp_path):
+    """The shipped dual decodes its root by Procrustes (docs/DUAL.md): its torso leans like the real tang2018
+    dances (6-20 degrees per dance), not the 35-48 degrees of the Gram-Schmidt decode; its jitter cap applies
+    to a song that reads as music."""
+    from dancekit.audio import save_wav
+    from dancekit.audio.synth import ode_to_joy
+    from dancekit.metrics import torso_lean
+    from dancekit.pipelines.dual import DualPipeline
+
+    song = tmp_path / "ode.wav"
+    save_wav(song, ode_to_joy(sr=22050, bpm=120)[: 12 * 22050], sr=22050)
+    pipe = DualPipeline.from_pretrained("dual")
+    assert pipe.root_decode == "procrustes" and pipe.jitter_cap is not None
+    result = pipe(song, seed=0)
+    lean = torso_lean(result.motion.to_positions(), skeleton=result.motion.skeleton)["median_deg"]
+    assert lean < 28.0
+    options = pipe.stage_options(result)
+    assert options["max_jitter"] > 0 and options["jitter_to_end"] is True

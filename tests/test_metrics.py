@@ -475,3 +475,53 @@ def test_mean_joint_distance():
     assert mean_joint_distance(p + [3.0, 4.0, 0.0], p) == pytest.approx(5.0)
     with pytest.raises(ParameterError, match="frames"):
         mean_joint_distance(p[:10], p, crop=False)
+
+
+def test_fid_breakdown_known_answers():
+    """One-dimensional Fréchet distances worked by hand: column a's generated values sit 3 SDs off
+    with the reference's spread (d = 9), column b's sit on the reference mean with no spread (d = 1)."""
+    from dancekit.metrics import fid_breakdown
+
+    ref_z = np.array([[-1.0, -1.0], [1.0, 1.0]])  # both columns: mean 0, std 1
+    pred_z = np.array([[2.0, 0.0], [4.0, 0.0]])
+    out = fid_breakdown(pred_z, ref_z, ["a", "b"])
+    assert [o["feature"] for o in out] == ["a", "b"]
+    assert out[0]["d"] == pytest.approx(9.0) and out[1]["d"] == pytest.approx(1.0)
+    assert out[0]["share"] == pytest.approx(0.9) and out[1]["share"] == pytest.approx(0.1)
+    assert out[0]["mean_z"] == pytest.approx(3.0) and out[0]["std_z"] == pytest.approx(1.0)
+    assert out[1]["std_z"] == 0.0
+    assert len(fid_breakdown(pred_z, ref_z, ["a", "b"], top=1)) == 1
+    with pytest.raises(ParameterError):
+        fid_breakdown(pred_z, ref_z, ["a"])
+
+
+def test_feature_names_match_the_feature_vectors():
+    from dancekit.metrics import feature_names
+
+    names = feature_names("kinetic", SK)
+    assert len(names) == 3 * SK.num_joints and names[:3] == (f"{SK.joint_names[0]}:KE_h",
+                                                             f"{SK.joint_names[0]}:KE_v", f"{SK.joint_names[0]}:EE")
+    assert feature_names("geometric", SK) == GEOMETRIC_FEATURE_NAMES
+    with pytest.raises(ParameterError):
+        feature_names("spectral", SK)
+
+
+def test_torso_lean_known_answers():
+    """The shoulders' midpoint straight above the pelvis is 0 degrees; tipped 30 degrees forward, 30; the
+    median and 90th percentile over frames that lean 0, 10, 20, ..., 90 degrees are 45 and 81."""
+    from dancekit.metrics import torso_lean
+
+    pelvis, ls, rs = SK.index("pelvis"), SK.index("left_shoulder"), SK.index("right_shoulder")
+    angles = np.radians(np.arange(0, 100, 10))
+    p = np.zeros((len(angles), SK.num_joints, 3))
+    p[:, pelvis] = [5.0, 90.0, -3.0]
+    torso = 50.0 * np.stack([np.zeros_like(angles), np.cos(angles), np.sin(angles)], axis=1)  # tips along z
+    p[:, ls] = p[:, pelvis] + torso + [15.0, 0.0, 0.0]
+    p[:, rs] = p[:, pelvis] + torso - [15.0, 0.0, 0.0]
+    out = torso_lean(p, skeleton=SK)
+    assert out["median_deg"] == pytest.approx(45.0) and out["p90_deg"] == pytest.approx(81.0)
+    assert torso_lean(p[:1], skeleton=SK)["median_deg"] == pytest.approx(0.0, abs=1e-6)
+    assert torso_lean(p[3:4], skeleton=SK)["median_deg"] == pytest.approx(30.0)
+    p[0, ls] = p[0, rs] = p[0, pelvis]
+    with pytest.raises(ParameterError, match="torso lean"):
+        torso_lean(p, skeleton=SK)

@@ -259,3 +259,29 @@ def test_evaluate_real_dances_with_the_shipped_classifier(tang2018_dir):
     assert real["style_acc"] == 1.0 and real["style_fid"] == pytest.approx(0.0, abs=1e-3)
     assert m["style_fid"] > 1.0 and m["style_multimodality"] > 0
     assert len(report["fid_curve"]) >= 10 and report["classifier"]["genres"] == ["waltz", "rumba", "chacha", "tango"]
+
+
+def test_fid_breakdown_names_a_feature_the_reference_barely_shows(tmp_path):
+    """The reference dances keep the right foot down except for 1 s of one dance; the generated ones lift it
+    (60 cm: above the 1.2-humerus threshold of Müller's r_foot_raised) the whole time. That one nearly
+    constant reference column then decides FID_g, and the report says so. (Lifting the foot also bends
+    the knee, so the reference dances bend it often too, knee 30 cm forward: r_knee_bent varies there.)"""
+    from dancekit.evaluation import evaluate_motions
+
+    foot = [SK.index(j) for j in ("right_ankle", "right_heel", "right_toe")]
+    ref, pred = {}, {}
+    for k in range(4):
+        p = dance(k, seconds=12.0)
+        if k == 0:
+            p[25:50, foot, 1] += 60.0  # 1 s of one reference dance
+        p[(k * 50) % 300 : (k * 50) % 300 + 150, SK.index("right_knee"), 2] += 30.0
+        ref[f"D{k}"] = Motion(skeleton=SK, fps=25.0, positions=p)
+        lifted = dance(k + 10, seconds=12.0)
+        lifted[:, foot, 1] += 60.0
+        pred[f"D{k}"] = [Motion(skeleton=SK, fps=25.0, positions=lifted)]
+    report = evaluate_motions(pred, ref, classifier=None, settings=EvalSettings(segment_seconds=4.0))
+    top = report["fid_breakdown"]["fid_g"]
+    assert top[0]["feature"] == "r_foot_raised" and top[0]["share"] > 0.5
+    assert top[0]["mean_z"] > 3.0 and [t["d"] for t in top] == sorted((t["d"] for t in top), reverse=True)
+    assert any("FID_g" in n and "r_foot_raised" in n for n in report["notes"])
+    assert len(report["fid_breakdown"]["fid_k"]) == 5 and ":" in report["fid_breakdown"]["fid_k"][0]["feature"]

@@ -23,6 +23,7 @@ from dancekit.motion.rotations import (
     quaternion_to_axis_angle,
     quaternion_to_matrix,
     rotation_6d_to_matrix,
+    rotation_6d_to_matrix_procrustes,
 )
 
 F64 = torch.float64
@@ -233,3 +234,28 @@ def test_bad_euler_order_and_geodesic_shape():
         euler_angles_to_matrix(torch.zeros(3, dtype=F64), "XyZ")
     with pytest.raises(ParameterError):
         geodesic_distance(torch.eye(3, dtype=F64), torch.zeros(3, dtype=F64))
+
+
+def test_6d_procrustes_matches_scipy_align_vectors(rng):
+    """The nearest rotation to the two 6D columns, each weighted by its length: Wahba's problem, which
+    scipy's ``Rotation.align_vectors`` solves on its own (unit columns onto the x and y axes)."""
+    from scipy.spatial.transform import Rotation
+
+    d6 = torch.from_numpy(rng.standard_normal((300, 6)) * np.array([0.2] * 3 + [3.0] * 3))
+    R = rotation_6d_to_matrix_procrustes(d6).numpy()
+    for k in range(len(R)):
+        a1, a2 = d6[k, :3].numpy(), d6[k, 3:].numpy()
+        n1, n2 = np.linalg.norm(a1), np.linalg.norm(a2)
+        expected, _ = Rotation.align_vectors(np.stack([a1 / n1, a2 / n2]), np.eye(3)[:2], weights=[n1, n2])
+        np.testing.assert_allclose(R[k], expected.as_matrix(), atol=1e-9)
+    assert _is_rotation(torch.from_numpy(R), atol=1e-10)
+
+
+def test_6d_procrustes_of_an_orthonormal_pair_is_gram_schmidt(rots):
+    d6 = matrix_to_rotation_6d(rots) * torch.tensor([1.0, 1.0, 1.0, 2.5, 2.5, 2.5], dtype=F64)  # lengths 1, 2.5
+    assert torch.allclose(rotation_6d_to_matrix_procrustes(d6), rots, atol=1e-10)
+    # a short, wrong first column: Gram-Schmidt keeps its direction, Procrustes keeps the long second one
+    lopsided = torch.tensor([[0.0, 0.1, 0.1, 0.0, 3.0, 0.0]], dtype=F64)  # a1 45 degrees up, a2 = 3 * up
+    up = torch.tensor([0.0, 1.0, 0.0], dtype=F64)
+    assert float(rotation_6d_to_matrix_procrustes(lopsided)[0, :, 1] @ up) > 0.99
+    assert float(rotation_6d_to_matrix(lopsided)[0, :, 1] @ up) < 0.75

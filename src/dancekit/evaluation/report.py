@@ -44,6 +44,7 @@ TABLE_ROWS: tuple[tuple[str, str, str], ...] = (
     ("pfc", "PFC (EDGE)", "{:.3f}"),
     ("bone_length_variation", "Bone-length variation (std/mean)", "{:.4f}"),
     ("ground_penetration_m", "Ground penetration (mean depth, m)", "{:.4f}"),
+    ("torso_lean_deg", "Torso lean from vertical (median, degrees)", "{:.1f}"),
 )
 
 

@@ -118,6 +118,7 @@ def dance_metrics(positions: np.ndarray, *, fps: float, skeleton: Any, music_bea
     out["pfc"] = physics.pfc(positions, fps=fps, skeleton=skeleton)
     out["bone_length_variation"] = physics.bone_length_variation(positions, skeleton=skeleton)["mean"]
     out["ground_penetration_m"] = physics.ground_penetration(positions, skeleton=skeleton)["mean_depth"]
+    out["torso_lean_deg"] = physics.torso_lean(positions, skeleton=skeleton)["median_deg"]
     return out
 
 
@@ -160,7 +161,8 @@ def evaluate_motions(
     Returns
     -------
     The report dict: ``settings``, ``counts``, ``metrics`` (generated), ``real`` (the reference
-    dances, same metrics), ``per_dance``, ``fid_curve``, ``classifier``, ``notes``.
+    dances, same metrics), ``per_dance``, ``fid_curve``, ``fid_breakdown`` (the features each FID comes from,
+    :func:`dancekit.metrics.fid.fid_breakdown`), ``classifier``, ``notes``.
     """
     settings = settings or EvalSettings()
     notes: list[str] = []
@@ -219,6 +221,7 @@ def evaluate_motions(
             by_fps.setdefault(float(m.fps), []).append(np.asarray(m.to_positions(), np.float64) * scale)
         sets[label] = by_fps
     ref_pos = [m.to_positions() for m in fid_ref]
+    breakdown: dict[str, list[dict]] = {}
     for kind, short in (("kinetic", "k"), ("geometric", "g")):
         fr = fid_mod.feature_sets(ref_pos, fps=fid_ref_fps, skeleton=skeleton, kind=kind,
                                   segment_seconds=settings.segment_seconds, bug_compatible=settings.bug_compatible)
@@ -234,6 +237,16 @@ def evaluate_motions(
                 value, info = fid_mod.frechet_distance(fp_z, fr_z, return_info=True)
                 target[f"fid_{short}"] = value
                 target[f"div_{short}"] = fid_mod.average_pairwise_distance(fp_z)
+                if label == "pred":
+                    names_kept = np.asarray(fid_mod.feature_names(kind, skeleton))[keep]
+                    top = fid_mod.fid_breakdown(fp_z, fr_z, names_kept, top=5)
+                    breakdown[f"fid_{short}"] = top
+                    if top and top[0]["share"] >= 0.5:
+                        notes.append(
+                            f"FID_{short}: {top[0]['share']:.0%} of its per-feature distance is one feature, "
+                            f"{top[0]['feature']} (generated mean {top[0]['mean_z']:+.1f} reference SDs from the "
+                            f"reference mean); see the report's fid_breakdown"
+                        )
                 if info["retried"]:
                     notes.append(f"FID_{short} ({label}): sqrtm needed {info['offset']:.3g} * I (max imag {info['max_imag']:.3g})")
             else:
@@ -287,6 +300,7 @@ def evaluate_motions(
         "real": _clean(real),
         "per_dance": {k: _clean(v) for k, v in per_dance.items()},
         "fid_curve": _clean(fid_curve),
+        "fid_breakdown": _clean(breakdown),
         "classifier": clf_info,
         "notes": notes,
     }

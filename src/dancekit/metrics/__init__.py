@@ -13,7 +13,8 @@ module                 metrics
                        coverage and hit rate (Dance Revolution)
 :mod:`.style`          on style-classifier features: FID, ACC, Diversity, Multimodality
 :mod:`.stability`      FID over windows, freeze score, stillness share, smoothed energy, jitter
-:mod:`.physics`        foot skating, PFC, bone-length variation, ground penetration
+:mod:`.physics`        foot skating, PFC, bone-length variation, ground penetration,
+                       torso lean
 :mod:`.music`          dance-to-music: notes accuracy (key-normalised), chroma L1, beat L1
 :mod:`.music_beats`    composed music against a reference: beat coverage / hit (BCS, BHS; the
                        D2M-GAN/CDCD and LORIS protocols), beat F1 (mir_eval), tempo, click baselines
@@ -34,6 +35,8 @@ from dancekit.metrics.distance import mean_joint_distance
 from dancekit.metrics.fid import (
     GEOMETRIC_FEATURE_NAMES,
     average_pairwise_distance,
+    feature_names,
+    fid_breakdown,
     fid_diversity,
     frechet_distance,
     frechet_distance_from_stats,
@@ -59,7 +62,7 @@ from dancekit.metrics.music_beats import (
     tempo_hit,
     wrong_tempo_metronome,
 )
-from dancekit.metrics.physics import bone_length_variation, foot_skating, ground_penetration, pfc
+from dancekit.metrics.physics import bone_length_variation, foot_skating, ground_penetration, pfc, torso_lean
 from dancekit.metrics.stability import (
     freeze_score,
     jitter,
@@ -105,6 +108,8 @@ __all__ = [
     "classification_scores",
     "dance_genre",
     "estimate_key",
+    "feature_names",
+    "fid_breakdown",
     "fid_diversity",
     "foot_skating",
     "freeze_score",
@@ -124,6 +129,7 @@ __all__ = [
     "stillness_share",
     "style_diversity",
     "style_fid",
+    "torso_lean",
     "transpose_to_c",
     "windowed_fid",
 ]

@@ -87,6 +87,8 @@ __all__ = [
     "fid_diversity",
     "frechet_distance",
     "frechet_distance_from_stats",
+    "feature_names",
+    "fid_breakdown",
     "geometric_features",
     "kinetic_features",
     "normalize_features",
@@ -523,6 +525,55 @@ def normalize_features(
             raise ParameterError(f"features must be (N, {ref.shape[1]}), got {o.shape}")
         out.append((o[:, keep] - mean[keep]) / std[keep])
     return (*out, keep)
+
+
+def feature_names(kind: str, skeleton: Skeleton) -> tuple[str, ...]:
+    """Names of the columns of :func:`kinetic_features` (``"joint:KE_h"``, ``"joint:KE_v"``,
+    ``"joint:EE"``, joint-major) or :func:`geometric_features` (:data:`GEOMETRIC_FEATURE_NAMES`)."""
+    if kind == "geometric":
+        return GEOMETRIC_FEATURE_NAMES
+    if kind != "kinetic":
+        raise ParameterError(f"feature kind must be 'kinetic' or 'geometric', got {kind!r}")
+    return tuple(f"{j}:{q}" for j in skeleton.joint_names for q in ("KE_h", "KE_v", "EE"))
+
+
+def fid_breakdown(
+    pred_z: np.ndarray, ref_z: np.ndarray, names: Sequence[str], *, top: int = 5
+) -> list[dict]:
+    """Which features a Fréchet distance comes from: the one-dimensional Fréchet distance of each column.
+
+    For column ``i`` of z-scored features, ``d_i = (mean_p - mean_r)² + (std_p - std_r)²`` (the
+    Fréchet distance of the two columns' Gaussians on their own). The FID is not the sum of the
+    ``d_i`` (it also sees correlations), but with the reference z-scored a column whose reference
+    barely varies (a geometric feature true in one reference segment) shows up here with a huge
+    ``d_i``: a few generated segments that differ from the reference there then decide the FID.
+
+    Parameters
+    ----------
+    pred_z : (N, D) z-scored generated features (:func:`normalize_features`)
+    ref_z : (M, D) z-scored reference features
+    names : the D column names (after dropping the constant reference columns)
+    top : how many columns to return
+
+    Returns
+    -------
+    list of ``{"feature", "d", "share", "mean_z", "std_z"}``, largest ``d`` first: ``share`` is
+    ``d`` over the sum of all columns' ``d``; ``mean_z`` / ``std_z`` are the generated column's
+    mean and standard deviation in reference standard deviations from the reference mean.
+    """
+    p, r = np.asarray(pred_z, np.float64), np.asarray(ref_z, np.float64)
+    if p.ndim != 2 or r.ndim != 2 or p.shape[1] != r.shape[1] or len(names) != p.shape[1]:
+        raise ParameterError(
+            f"fid_breakdown: shapes do not match: pred {p.shape}, ref {r.shape}, {len(names)} names"
+        )
+    d = (p.mean(0) - r.mean(0)) ** 2 + (p.std(0) - r.std(0)) ** 2
+    total = float(d.sum())
+    order = np.argsort(-d, kind="stable")[: max(int(top), 0)]
+    return [
+        {"feature": str(names[i]), "d": float(d[i]), "share": float(d[i] / total) if total > 0 else 0.0,
+         "mean_z": float(p[:, i].mean() - r[:, i].mean()), "std_z": float(p[:, i].std())}
+        for i in order
+    ]
 
 
 def average_pairwise_distance(features: np.ndarray) -> float:

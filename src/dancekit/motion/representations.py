@@ -179,20 +179,34 @@ def encode_rot6d(motion: Motion) -> np.ndarray:
     return np.concatenate([np.asarray(m.root_translation, np.float64), d6.reshape(T, -1)], axis=1).astype(np.float32)
 
 
-def decode_rot6d(x: np.ndarray, skeleton: Skeleton, fps: float) -> Motion:
-    """``rot6d`` features ``(T, 3 + 6·J_rig)`` → a Motion with rotations (Gram-Schmidt: always proper rotations)
-    and positions by forward kinematics."""
+def decode_rot6d(x: np.ndarray, skeleton: Skeleton, fps: float, *, root_decode: str = "gram_schmidt") -> Motion:
+    """``rot6d`` features ``(T, 3 + 6·J_rig)`` → a Motion with rotations (always proper rotations) and positions by
+    forward kinematics.
+
+    Every joint's 6D is decoded by Gram-Schmidt (:func:`~dancekit.motion.rotations.rotation_6d_to_matrix`); with
+    ``root_decode="procrustes"`` the root's is decoded to the nearest rotation, both columns weighted by their
+    length (:func:`~dancekit.motion.rotations.rotation_6d_to_matrix_procrustes`): for a model whose root heading
+    column comes out short and noisy while its up column is long and sure, that keeps the body upright
+    (docs/DUAL.md).
+    """
     import torch
 
-    from dancekit.motion.rotations import rotation_6d_to_matrix
+    from dancekit.motion.rotations import rotation_6d_to_matrix, rotation_6d_to_matrix_procrustes
 
+    if root_decode not in ("gram_schmidt", "procrustes"):
+        raise ParameterError(f"root_decode must be 'gram_schmidt' or 'procrustes', got {root_decode!r}")
     x = np.asarray(x, dtype=np.float64)
-    Jr = skeleton.rig().num_joints
+    rig = skeleton.rig()
+    Jr = rig.num_joints
     if x.ndim != 2 or x.shape[1] != ROT6D_TRANSLATION + 6 * Jr:
         raise ParameterError(f"rot6d features must have shape (T, {ROT6D_TRANSLATION + 6 * Jr}) for skeleton "
                              f"{skeleton.name!r}, got {x.shape}")
     T = len(x)
-    rot = rotation_6d_to_matrix(torch.from_numpy(x[:, ROT6D_TRANSLATION:].reshape(T, Jr, 6))).numpy()
+    d6 = torch.from_numpy(x[:, ROT6D_TRANSLATION:].reshape(T, Jr, 6))
+    rot = rotation_6d_to_matrix(d6).numpy()
+    if root_decode == "procrustes":
+        r = [j for j in range(Jr) if rig.parents[j] < 0]
+        rot[:, r] = rotation_6d_to_matrix_procrustes(d6[:, r]).numpy()
     m = Motion(skeleton=skeleton, fps=float(fps), rotations=rot.astype(np.float32),
                root_translation=x[:, :ROT6D_TRANSLATION].astype(np.float32))
     return m.with_positions()

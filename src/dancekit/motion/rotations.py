@@ -10,7 +10,9 @@ Conventions (one note for the whole module):
 - **6D** ``(..., 6)``: the first two **columns** of the matrix, concatenated
   ``(R[:, 0], R[:, 1])`` (Zhou et al., "On the Continuity of Rotation
   Representations in Neural Networks", CVPR 2019). Decoding uses Gram-Schmidt,
-  so any input with two non-parallel 3-vectors gives a proper rotation.
+  so any input with two non-parallel 3-vectors gives a proper rotation;
+  :func:`rotation_6d_to_matrix_procrustes` decodes to the nearest rotation instead,
+  both columns weighted by their length (see there why that matters).
 - **Euler angles** ``(..., 3)`` in radians with an ``order`` string of three
   axes, e.g. ``"XYZ"``. Upper case = **intrinsic** (rotations about the moving
   axes, as BVH ``CHANNELS`` use them): ``R = R_X(a0) @ R_Y(a1) @ R_Z(a2)``,
@@ -46,6 +48,7 @@ __all__ = [
     "quaternion_to_axis_angle",
     "quaternion_to_matrix",
     "rotation_6d_to_matrix",
+    "rotation_6d_to_matrix_procrustes",
 ]
 
 
@@ -195,6 +198,29 @@ def rotation_6d_to_matrix(d6: torch.Tensor) -> torch.Tensor:
     b2 = torch.where(n2 > eps, a2 / n2.clamp_min(eps), alt)
     b3 = torch.linalg.cross(b1, b2, dim=-1)
     return torch.stack([b1, b2, b3], dim=-1)
+
+
+def rotation_6d_to_matrix_procrustes(d6: torch.Tensor) -> torch.Tensor:
+    """6D ``(..., 6)`` → the rotation whose first two columns fit it best: ``(..., 3, 3)``.
+
+    ``R = argmax_R tr(R^T [a1 a2 0])`` over proper rotations (orthogonal Procrustes / Wahba's problem,
+    solved by SVD with a determinant correction): each column pulls on ``R`` in proportion to its length.
+    For an orthonormal pair it is the Gram-Schmidt result. It differs where a network's output is
+    lopsided: Gram-Schmidt keeps ``a1``'s direction exactly, however short and noisy ``a1`` is, and
+    bends ``a2`` to it; here a long ``a2`` wins. A model that cannot tell a root's heading (its ``a1``,
+    for a y-up body) regresses it towards a short average vector, and Gram-Schmidt then tilts the
+    well-known up axis ``a2`` to fit whatever direction that average has.
+    Equal to ``scipy.spatial.transform.Rotation.align_vectors`` of the unit columns onto the first two
+    axes, weighted by the columns' lengths. Degenerate input (zeros) gives some proper rotation.
+    """
+    _check(d6, (6,), "d6")
+    a1, a2 = d6[..., :3], d6[..., 3:]
+    m = torch.stack([a1, a2, torch.zeros_like(a1)], dim=-1)  # (..., 3, 3): columns a1, a2, 0
+    u, _, vh = torch.linalg.svd(m)
+    d = torch.linalg.det(u @ vh)
+    fix = torch.ones(d.shape + (3,), dtype=d6.dtype, device=d6.device)
+    fix[..., 2] = torch.where(d < 0, -1.0, 1.0).to(d6.dtype)
+    return u @ (fix[..., :, None] * vh)
 
 
 def matrix_to_rotation_6d(matrix: torch.Tensor) -> torch.Tensor:

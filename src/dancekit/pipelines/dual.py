@@ -25,9 +25,16 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
 from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
-from dancekit.motion.representations import decode_motion, encode_motion
+from dancekit.motion.representations import decode_rot6d, encode_motion
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
-from dancekit.pipelines.stages import energy_options, finish, seed_trace, song_beats_for
+from dancekit.pipelines.stages import (
+    energy_options,
+    finish,
+    jitter_cap_from_entry,
+    plausible_jitter_cap,
+    seed_trace,
+    song_beats_for,
+)
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -66,6 +73,15 @@ class DualPipeline:
         self.smooth_frames = int(meta.get("smooth_frames", 1))  # the checkpoint's sampling setting
         lp = meta.get("lowpass_hz")  # the checkpoint's low-pass cut-off (Hz); when set, used instead of smooth_frames
         self.lowpass_hz = None if lp is None else float(lp)
+        #: how the root's 6D is decoded: "gram_schmidt" (as in training) or "procrustes" (chosen on the validation
+        #: songs for the shipped model: its root heading column is short and noisy, docs/DUAL.md)
+        self.root_decode = str(meta.get("root_6d_decode", "gram_schmidt"))
+        #: the per-dance jitter cap (issue 15), as music2dance's: the checkpoint's ``"jitter_cap"`` entry
+        #: (:func:`~dancekit.pipelines.stages.jitter_cap_from_entry`) over the genres the ``genre_reader`` reads
+        #: from the song; None: no cap
+        self.jitter_cap = jitter_cap_from_entry(meta.get("jitter_cap"), folder=folder)
+        self.jitter_after_lock = bool(self.jitter_cap and self.jitter_cap.pop("after_lock"))
+        self.jitter_to_end = bool(self.jitter_cap and self.jitter_cap.pop("to_end"))
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu", precision: str = "fp32") -> DualPipeline:
@@ -150,12 +166,13 @@ class DualPipeline:
         y = np.stack([self.model.generate_dance(feats, start=s[k : k + 1])[0].cpu().numpy()
                       for k in range(len(seeds))])  # (B, T, P)
         results, beats = [], None
-        probs = {}  # the genres the music calls for, read only where the energy stage's floor needs them
-        if cleanup and self.genre_reader is not None and energy_options(self.folder).get("genre_energy"):
+        probs = {}  # the genres the music calls for, read only where the energy floor or the jitter cap needs them
+        if cleanup and self.genre_reader is not None and (energy_options(self.folder).get("genre_energy")
+                                                          or self.jitter_cap is not None):
             probs = self.genre_reader(audio_path, start=start, end=end)
         for k, seed in enumerate(seeds):
-            motion = decode_motion(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
-                                   self.skeleton, self.fps, "rot6d")
+            motion = decode_rot6d(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
+                                  self.skeleton, self.fps, root_decode=self.root_decode)
             result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_probs=dict(probs),
                                  genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
             result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
@@ -169,9 +186,14 @@ class DualPipeline:
 
     def stage_options(self, result: DanceResult) -> dict[str, Any]:
         """What :func:`~dancekit.pipelines.stages.finish` needs to know of this checkpoint for one of its dances
-        beside the stage switches: nothing (the dual model has no jitter cap); ``dancekit dance`` asks every
+        beside the stage switches: the ``"jitter_cap"`` entry's cap for a song whose genre posterior (read by the
+        ``genre_reader``) is ``result.genre_probs`` (none without the entry, a posterior, or for a song that does
+        not look like music), where it runs and whether it holds to the end; ``dancekit dance`` asks every
         pipeline the same."""
-        return {}
+        if self.jitter_cap is None or not result.genre_probs or not result.looks_like_music:
+            return {}
+        return {"max_jitter": plausible_jitter_cap(result.genre_probs, **self.jitter_cap),
+                "jitter_after_lock": self.jitter_after_lock, "jitter_to_end": self.jitter_to_end}
 
     def output_filter(self, y: np.ndarray, smooth_frames: int | None = None,
                       lowpass_hz: float | None = None) -> np.ndarray:
