@@ -30,7 +30,7 @@ from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds,
 from dancekit.pipelines.stages import (
     energy_options,
     finish,
-    jitter_cap_from_entry,
+    jitter_cap_setting,
     plausible_jitter_cap,
     seed_trace,
     song_beats_for,
@@ -79,9 +79,8 @@ class DualPipeline:
         #: the per-dance jitter cap (issue 15), as music2dance's: the checkpoint's ``"jitter_cap"`` entry
         #: (:func:`~dancekit.pipelines.stages.jitter_cap_from_entry`) over the genres the ``genre_reader`` reads
         #: from the song; None: no cap
-        self.jitter_cap = jitter_cap_from_entry(meta.get("jitter_cap"), folder=folder)
-        self.jitter_after_lock = bool(self.jitter_cap and self.jitter_cap.pop("after_lock"))
-        self.jitter_to_end = bool(self.jitter_cap and self.jitter_cap.pop("to_end"))
+        self.jitter_cap, self.jitter_after_lock, self.jitter_to_end = jitter_cap_setting(meta.get("jitter_cap"),
+                                                                                         folder=folder)
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu", precision: str = "fp32") -> DualPipeline:

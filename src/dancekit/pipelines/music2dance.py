@@ -39,7 +39,7 @@ from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds,
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 from dancekit.pipelines.stages import (
     finish,
-    jitter_cap_from_entry,
+    jitter_cap_setting,
     plausible_jitter_cap,
     seed_trace,
     song_beats_for,
@@ -108,11 +108,10 @@ class Music2DancePipeline:
         #: "jitter_cap": s, "jitter_cap_min_ratio": ρ}`` (:func:`~dancekit.pipelines.stages.jitter_cap_from_entry`),
         #: None: no cap. A dance is low-passed before the foot lock until its jitter is at most s × the smallest real
         #: jitter among the song's plausible genres (a genre asked for by name: that genre's), :meth:`max_jitter`
-        self.jitter_cap = jitter_cap_from_entry(meta.get("jitter_cap"), folder=folder)
-        #: the entry's ``"after_lock"``: the cap's low-pass after the foot lock and its settle (default: before)
-        self.jitter_after_lock = bool(self.jitter_cap and self.jitter_cap.pop("after_lock"))
-        #: the entry's ``"to_end"``: the cap holds for the finished dance (``stages.finish(jitter_to_end=True)``)
-        self.jitter_to_end = bool(self.jitter_cap and self.jitter_cap.pop("to_end"))
+        #: with the entry's ``"after_lock"`` (the cap's low-pass after the foot lock and its settle; default: before)
+        #: and ``"to_end"`` (the cap holds for the finished dance, ``stages.finish(jitter_to_end=True)``)
+        self.jitter_cap, self.jitter_after_lock, self.jitter_to_end = jitter_cap_setting(meta.get("jitter_cap"),
+                                                                                         folder=folder)
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")

@@ -46,7 +46,7 @@ from dancekit.pipelines.base import DanceResult
 
 __all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTHING_KEYS", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
            "STAGE_NAMES",
-           "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_jitter_table", "genre_smoothing_targets", "jitter_cap_from_entry", "lift_energy", "plausible_jitter_cap", "seed_trace", "settle", "settle_options", "smooth",
+           "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_jitter_table", "genre_smoothing_targets", "jitter_cap_from_entry", "jitter_cap_setting", "lift_energy", "plausible_jitter_cap", "seed_trace", "settle", "settle_options", "smooth",
            "smoothing_options", "smoothing_target", "song_beats_for"]
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
@@ -725,6 +725,16 @@ def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "
         if not isinstance(v, bool):
             raise CheckpointError(f"{where}: {k} must be true or false, got {v!r}")
     return {"genre_jitter": table, "scale": float(scale), "min_ratio": float(ratio), **flags}
+
+
+def jitter_cap_setting(spec, *, folder: str | os.PathLike = "?") -> tuple[dict | None, bool, bool]:
+    """A checkpoint's ``"jitter_cap"`` entry as a pipeline keeps it: ``(cap, after_lock, to_end)``, ``cap`` the
+    keyword arguments of :func:`plausible_jitter_cap` (None: no entry, then both flags false) and the two flags
+    the ``jitter_after_lock`` / ``jitter_to_end`` of :func:`finish`; checked by :func:`jitter_cap_from_entry`."""
+    cap = jitter_cap_from_entry(spec, folder=folder)
+    if cap is None:
+        return None, False, False
+    return cap, bool(cap.pop("after_lock")), bool(cap.pop("to_end"))
 
 
 def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
