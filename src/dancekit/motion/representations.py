@@ -205,8 +205,7 @@ def decode_rot6d(x: np.ndarray, skeleton: Skeleton, fps: float, *, root_decode: 
     d6 = torch.from_numpy(x[:, ROT6D_TRANSLATION:].reshape(T, Jr, 6))
     rot = rotation_6d_to_matrix(d6).numpy()
     if root_decode == "procrustes":
-        r = [j for j in range(Jr) if rig.parents[j] < 0]
-        rot[:, r] = rotation_6d_to_matrix_procrustes(d6[:, r]).numpy()
+        rot[:, rig.root] = rotation_6d_to_matrix_procrustes(d6[:, rig.root]).numpy()
     m = Motion(skeleton=skeleton, fps=float(fps), rotations=rot.astype(np.float32),
                root_translation=x[:, :ROT6D_TRANSLATION].astype(np.float32))
     return m.with_positions()
