@@ -9,7 +9,8 @@ clean-up, smoothing, energy lift, foot lock or warp) is scored by its stillness 
 body-relative joint speed is under 0.10 m/s, :func:`dancekit.metrics.stability.stillness_share`).
 
 Why: a fine-tuned genre model can settle into a still pose on a song it does not know and stay there for most of
-the song (the larger model's 400-step fine-tunes: 0.86-0.93 of the windows still on some songs). The pipeline's
+the song (the larger model's 400-step fine-tunes: 0.86 of the windows still on a validation song, 0.91-0.93 on
+test songs). The pipeline's
 stages hide part of it (the energy lift and the foot lock add motion), so the finished dances show it as a few
 per cent of stillness on one seed, which looks like noise on 5 validation songs. Forcing every genre model on
 every song shows it directly. The default's genre models never exceed 0.14 here on the validation and test songs.
