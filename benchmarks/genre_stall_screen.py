@@ -4,9 +4,10 @@
         --split val [--genres waltz,rumba,chacha,tango,none] [--seeds 5] [--bound 0.2]
 
 For every checkpoint, every genre model (``none``: the base model alone) is forced on every song of the split
-(``genre=G``) for seeds 0..N-1, and the **raw decoder output** (the pipeline's ``input`` stage, before the
-clean-up, smoothing, energy lift, foot lock or warp) is scored by its stillness share (1-s windows whose mean
-body-relative joint speed is under 0.10 m/s, :func:`dancekit.metrics.stability.stillness_share`).
+(``genre=G``) for seeds 0..N-1, and the **raw decoder output** (``cleanup=False, beat_sync=False``: none of
+the pipeline's stages, the clean-up, smoothing, energy lift, foot lock or warp, is run) is scored by its
+stillness share (1-s windows whose mean body-relative joint speed is under 0.10 m/s,
+:func:`dancekit.metrics.stability.stillness_share`).
 
 Why: a fine-tuned genre model can settle into a still pose on a song it does not know and stay there for most of
 the song (the larger model's 400-step fine-tunes: 0.86 of the windows still on a validation song, 0.91-0.93 on
@@ -31,15 +32,9 @@ from dancekit.pipelines import load_pipeline
 def raw_stillness(pipe, data: PreparedData, name: str, *, genre: str, seeds: int) -> list[float]:
     """Stillness share of the raw decoder output of seeds 0..seeds-1 on the song of dance ``name``."""
     ref = data.audio(name)
-    raw: dict[int, float] = {}
-
-    def keep(k: int, stage: str, result) -> None:
-        if stage == "input":
-            m = result.motion
-            raw[k] = stillness_share(m.to_positions(), fps=m.fps, skeleton=m.skeleton)
-
-    pipe.dances(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, genre=genre, stage_trace=keep)
-    return [raw[k] for k in range(seeds)]
+    results = pipe.dances(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, genre=genre,
+                          cleanup=False, beat_sync=False)  # the decoder's output, no stage run
+    return [stillness_share(r.motion.to_positions(), fps=r.motion.fps, skeleton=r.motion.skeleton) for r in results]
 
 
 def main() -> None:
