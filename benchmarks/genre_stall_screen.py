@@ -48,13 +48,12 @@ def raw_stillness(pipe, data: PreparedData, name: str, *, genre: str, seeds: int
     return [stillness_share(r.motion.to_positions(), fps=r.motion.fps, skeleton=r.motion.skeleton) for r in results]
 
 
-def forced_fid(pipe, data: PreparedData, names: list[str], *, genre: str, seeds: int,
+def forced_fid(pipe, data: PreparedData, names: list[str], ref_p: list[np.ndarray], *, genre: str, seeds: int,
                cache: dict) -> tuple[dict[str, float], dict[str, float]]:
     """Pooled FID_k / FID_g and per-song FID_g of the finished dances (every default stage) of ``genre`` forced
-    on the songs ``names``, seeds 0..seeds-1, against the ``train`` split of ``data`` (10-s segments)."""
-    ref = [data.motion(n) for n in data.names("train")]
-    sk, fps = ref[0].skeleton, ref[0].fps
-    ref_p = [np.asarray(m.to_positions()) for m in ref]
+    on the songs ``names``, seeds 0..seeds-1, against ``ref_p`` (the ``train`` split's dances, ``(T, J, 3)``
+    each; 10-s segments). ``cache`` keeps the reference's feature sets between calls."""
+    sk, fps = data.skeleton, data.fps
     pooled, per = [], {}
     for n in names:
         a = data.audio(n)
@@ -79,6 +78,7 @@ def main() -> None:
     data = PreparedData(args.data)
     names = [n for n in data.names(args.split) if n not in args.skip]
     cache: dict = {}
+    ref_p = [np.asarray(data.motion(n).to_positions()) for n in data.names("train")] if args.fid else []
     for ck in args.checkpoints:
         pipe = load_pipeline(ck)
         for genre in args.genres.split(","):
@@ -90,7 +90,7 @@ def main() -> None:
             verdict = "stalls" if worst > args.bound else "ok"
             print(f"{ck} {genre:6s} worst {worst:.2f} {verdict}: {songs}", flush=True)
             if args.fid:
-                f, per = forced_fid(pipe, data, names, genre=genre, seeds=args.seeds, cache=cache)
+                f, per = forced_fid(pipe, data, names, ref_p, genre=genre, seeds=args.seeds, cache=cache)
                 print(f"{ck} {genre:6s} forced FID_k {f['fid_k']:.2f} FID_g {f['fid_g']:.2f}; per song FID_g "
                       + " ".join(f"{n.removeprefix('DANCE_')} {v:.1f}" for n, v in per.items()), flush=True)
 
