@@ -32,6 +32,7 @@ from dancekit.data import PreparedData
 from dancekit.metrics import beat_metrics, foot_skating, jitter
 from dancekit.metrics import fid as fid_mod
 from dancekit.motion.analysis import heights, mean_joint_speed
+from dancekit.motion.footlock import planted_share
 from dancekit.pipelines import load_pipeline, stages
 
 SONGS = ("Kevin_MacLeod_-_Vibe_Ace.ogg", "brahms_hungarian_dance_5.ogg",
@@ -57,21 +58,13 @@ def physical(p: np.ndarray, sk, fps: float) -> dict[str, float]:
     low = h.min(axis=1)
     local = minimum_filter1d(low, size=2 * int(round(fps)) + 1, mode="nearest")  # ±1 s
     above = low - local
-    planted = []
-    for side in ("left", "right"):
-        foot = [sk.index(f"{side}_{j}") for j in ("ankle", "heel", "toe")]
-        speed = np.linalg.norm(np.gradient(p[:, foot], axis=0), axis=-1) * fps * sk.unit_scale  # (T, 3) m/s
-        lowest = h[:, foot].argmin(axis=1)
-        t = np.arange(len(p))
-        planted.append((h[t, np.array(foot)[lowest]] - local <= 3.0) & (speed[t, lowest] < 0.15))
-    planted = np.stack(planted, axis=1)
     root = p[:, sk.root][:, [0, 2]]
     dist = np.hypot(*(root - root[0]).T) * sk.unit_scale
     knees = knee_angles(p, sk)
     return {
         "floor_median_cm": float(np.median(above)),
         "floor_within_2cm": float(np.mean(above <= 2.0)),
-        "planted_foot_share": float(planted.mean()),
+        "planted_foot_share": planted_share(p, skeleton=sk, fps=fps),  # within 3 cm of the local floor, < 0.15 m/s
         "max_distance_m": float(dist.max()),
         "knee_min_deg": float(knees.min()),
         "knee_p5_deg": float(np.percentile(knees, 5)),

@@ -16,6 +16,10 @@ function                       what
                                solved by :func:`two_bone_ik`, offsets carried smoothly across the
                                swing between contacts (positions blended: the foot's velocity
                                is continuous at every edge of a hold)
+:func:`planted_share`          the share of foot-frames whose lowest joint is on the local floor and
+                               still (the planted-foot share of docs/BENCHMARKS.md)
+:func:`lock_feet_to_share`     :func:`lock_feet` with its contact speeds scaled down until the locked
+                               dance plants its feet no longer than a target share (a genre's real one)
 :func:`leg_rotations`          the local rotations of a rotation-based motion updated for new leg
                                positions (twist kept)
 :func:`smooth_positions`       a Savitzky-Golay filter on the joint positions, its window chosen per
@@ -34,8 +38,8 @@ from dancekit.errors import ParameterError
 from dancekit.motion.analysis import heights, horizontal_axes, up_sign
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["CAP_CUTOFFS_HZ", "FootLockReport", "foot_contacts", "jitter_cutoff", "jitter_speed", "leg_chains",
-           "leg_rotations", "lock_feet", "lowpass_cutoff",
+__all__ = ["CAP_CUTOFFS_HZ", "PLANT_SCALES", "FootLockReport", "foot_contacts", "jitter_cutoff", "jitter_speed",
+           "leg_chains", "leg_rotations", "lock_feet", "lock_feet_to_share", "lowpass_cutoff", "planted_share",
            "lowpass_rows", "smooth_positions", "smoothing_window", "two_bone_ik"]
 
 #: Contact thresholds (metres above the local floor, m/s), chosen on the validation songs
@@ -55,6 +59,12 @@ MIN_HOLD_S = 0.12
 MAX_DRIFT_M = 0.2
 #: The most the whole body is lowered (m) so that a held foot stays within ``reach_share`` of the leg's reach.
 MAX_DROP_M = 0.12
+#: :func:`planted_share`'s thresholds: the foot's lowest joint at most this high over the local floor (m) ...
+PLANTED_HEIGHT_M = 0.03
+#: ... and slower than this (m/s, the joint's speed in 3-D).
+PLANTED_SPEED = 0.15
+#: The factors :func:`lock_feet_to_share` tries on the lock's contact speeds, the lock as set first.
+PLANT_SCALES = (1.0, 0.8, 0.6, 0.45, 0.3)
 
 
 def _check(positions: np.ndarray, name: str) -> np.ndarray:
@@ -154,6 +164,87 @@ def foot_contacts(
         cols.append(_hysteresis((h <= height_on) & (speed <= speed_on), (h <= height_off) & (speed <= speed_off),
                                 min_len))
     return np.stack(cols, axis=1)
+
+
+def planted_share(positions: np.ndarray, *, skeleton: Skeleton, fps: float,
+                  height_m: float = PLANTED_HEIGHT_M, speed: float = PLANTED_SPEED) -> float:
+    """The share of foot-frames in which the foot is planted (0-1; NaN for a skeleton without legs).
+
+    Per leg of :func:`leg_chains` and frame, the foot's lowest joint (ankle, heel or toe) counts as planted
+    when it is at most ``height_m`` metres above the *local floor* (the lowest joint of the whole body within
+    ±1 s) and that joint moves slower than ``speed`` m/s (central differences, in 3-D). This is the
+    planted-foot share docs/BENCHMARKS.md reports (issue 15): real tang2018 dances read 0.09-0.50 per dance,
+    0.28 on average for the training waltzes.
+
+    Parameters
+    ----------
+    positions : (T, J, 3) world positions in skeleton units at ``fps``
+    skeleton, fps : the skeleton (up axis, units, legs) and the frame rate
+    height_m, speed : the thresholds (m, m/s)
+    """
+    fps = check_fps(fps)
+    p = _check(positions, "planted_share")
+    legs = leg_chains(skeleton)
+    if not legs:
+        return float("nan")
+    from dancekit.motion._filters import minimum_filter1d
+
+    h = heights(p, skeleton) * skeleton.unit_scale  # (T, J) metres
+    local = minimum_filter1d(h.min(axis=1), 2 * int(round(fps)) + 1)  # the lowest joint within ±1 s
+    t = np.arange(len(p))
+    cols = []
+    for _hip, _knee, ankle, below in legs:
+        foot = np.array([ankle, *below])
+        v = np.linalg.norm(np.gradient(p[:, foot], axis=0), axis=-1) * fps * skeleton.unit_scale if len(p) > 1 \
+            else np.zeros((len(p), len(foot)))
+        low = h[:, foot].argmin(axis=1)
+        cols.append((h[t, foot[low]] - local <= height_m) & (v[t, low] < speed))
+    return float(np.mean(np.stack(cols, axis=1)))
+
+
+def lock_feet_to_share(positions: np.ndarray, *, skeleton: Skeleton, fps: float, target: float,
+                       scales: tuple[float, ...] = PLANT_SCALES, speed_on: float = CONTACT_SPEED_ON,
+                       speed_off: float = CONTACT_SPEED_OFF, **lock_options) -> tuple[np.ndarray, float]:
+    """:func:`lock_feet`, holding the feet no longer than real dancers plant theirs: ``(locked, scale)``.
+
+    The lock holds every stop of a foot near the floor; on a slow, calm dance that plants the feet far
+    longer than real dancers of the genre do (a waltz drawn for a quiet song: 0.36-0.43 of the foot-frames
+    against the real waltzes' 0.28). Here the lock's contact speeds (``speed_on``, ``speed_off``, m/s) are
+    scaled by each factor of ``scales`` in turn (the first is the lock as set, normally 1); the first lock
+    whose :func:`planted_share` is at most ``target`` ends the search, and of it and the one before, the
+    share closer to ``target`` is kept. A dance already at or under ``target`` is locked as set: the lock
+    never holds more than it would without a target.
+
+    Parameters
+    ----------
+    positions : (T, J, 3) world positions in skeleton units at ``fps``
+    target : the planted-foot share to stay near (0-1), e.g. the genre's real share
+    scales : decreasing positive factors on the contact speeds
+    speed_on, speed_off, **lock_options : :func:`lock_feet`'s settings
+
+    Returns
+    -------
+    locked : (T, J, 3) float64, as :func:`lock_feet` returns
+    scale : the factor kept
+    """
+    if not (np.isfinite(target) and 0.0 <= target <= 1.0):
+        raise ParameterError(f"target must be a share in [0, 1], got {target!r}")
+    if not scales or any(not (np.isfinite(x) and x > 0) for x in scales) or list(scales) != sorted(scales, reverse=True):
+        raise ParameterError(f"scales must be decreasing positive numbers, got {scales!r}")
+    best: tuple[float, np.ndarray, float] | None = None  # (|share - target|, locked, scale)
+    for x in scales:
+        locked = lock_feet(positions, skeleton=skeleton, fps=fps, speed_on=speed_on * x, speed_off=speed_off * x,
+                           **lock_options)
+        share = planted_share(locked, skeleton=skeleton, fps=fps)
+        if not np.isfinite(share):  # no legs: nothing to hold
+            return locked, float(x)
+        gap = abs(share - target)
+        if best is None or gap < best[0]:
+            best = (gap, locked, float(x))
+        if share <= target:
+            break
+    assert best is not None
+    return best[1], best[2]
 
 
 def two_bone_ik(hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray, target: np.ndarray, *,

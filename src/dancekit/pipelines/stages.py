@@ -322,7 +322,9 @@ def foot_lock(result: DanceResult) -> DanceResult:
     """The result with its planted feet pinned (:func:`dancekit.motion.footlock.lock_feet`: contacts from
     foot height and speed, the foot held where it was planted, the leg solved by two-bone IK, blended in
     and out), with the settings of the model's checkpoint (:func:`foot_lock_options` of ``result.model``).
-    Only the legs change; a motion with rotations has its leg rotations updated
+    Where the checkpoint gives its genres' real planted-foot shares (:func:`plant_options`), the lock holds
+    the feet no longer than that (:func:`plant_target`,
+    :func:`~dancekit.motion.footlock.lock_feet_to_share`). Only the legs change; a motion with rotations has its leg rotations updated
     (:func:`~dancekit.motion.footlock.leg_rotations`). Skeletons without legs are returned unchanged."""
     from dancekit.motion.footlock import leg_chains, leg_rotations, lock_feet
 
@@ -331,7 +333,13 @@ def foot_lock(result: DanceResult) -> DanceResult:
         return result
     sk, fps = motion.skeleton, motion.fps
     p = motion.to_positions()  # lock_feet works on its own float64 copy
-    locked = lock_feet(p, skeleton=sk, fps=fps, **foot_lock_options(result.model))
+    target = plant_target(result, **plant_options(result.model))
+    if target is None:
+        locked = lock_feet(p, skeleton=sk, fps=fps, **foot_lock_options(result.model))
+    else:  # no longer than the genre's real dancers plant their feet
+        from dancekit.motion.footlock import lock_feet_to_share
+
+        locked, _ = lock_feet_to_share(p, skeleton=sk, fps=fps, target=target, **foot_lock_options(result.model))
     rot = tr = None
     if motion.rotations is not None:
         rot = leg_rotations(motion.rotations, np.asarray(p, np.float64), locked,
@@ -452,6 +460,39 @@ def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
         raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'foot_lock' needs positive "
                               f"numbers with *_on <= *_off, got {bad[0]} in {spec!r}")
     return spec
+
+
+def plant_options(model: str | os.PathLike | None) -> dict:
+    """The planted-share target a model's checkpoint folder carries in its ``config.json`` (``"plant":
+    {"genre_share": {genre: share}}``: each genre's real planted-foot share, the mean over its training
+    dances of :func:`dancekit.motion.footlock.planted_share`), chosen per model on the validation songs
+    (docs/BENCHMARKS.md, issue 15). ``{}`` (the lock as set) for a folder without the entry or that is not a
+    checkpoint. An entry that is not ``{"genre_share": {genre: share in (0, 1]}}`` is a
+    :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
+    spec = _raw_entry(model, "plant")
+    if not spec:
+        return {}
+    table = spec.get("genre_share") if isinstance(spec, dict) else None
+    if set(spec) != {"genre_share"} or not isinstance(table, dict) or not table or not all(
+            _is_number(v) and 0 < v <= 1 for v in table.values()):
+        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'plant' takes "
+                              f"{{\"genre_share\": {{genre: share in (0, 1]}}}}, got {spec!r}")
+    return {"genre_share": {str(g): float(v) for g, v in table.items()}}
+
+
+def plant_target(result: DanceResult, *, genre_share: dict[str, float] | None = None) -> float | None:
+    """The planted-foot share :func:`foot_lock` keeps ``result`` under: the real share of the genre danced
+    (``result.genre``), or, for a dance of the model alone, the shares weighted by the genre probabilities
+    read from the music (``result.genre_probs``, over the genres of the table, renormalised); None (the lock
+    as set) without a table or when neither applies."""
+    if not genre_share:
+        return None
+    if result.genre in genre_share:
+        return float(genre_share[result.genre])
+    probs = {g: p for g, p in (result.genre_probs or {}).items() if g in genre_share and p > 0}
+    if probs:
+        return float(sum(p * genre_share[g] for g, p in probs.items()) / sum(probs.values()))
+    return None
 
 
 #: The keys a checkpoint's ``"beat_sync"`` entry may carry (:func:`beat_sync_options`), all

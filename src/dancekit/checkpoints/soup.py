@@ -1,0 +1,128 @@
+"""Weight averaging of checkpoints fine-tuned from one base ("model soup", Wortsman et al., ICML 2022).
+
+Runs of one fine-tuning recipe that start from the same pretrained weights and differ only in their seed
+tend to stay in one basin of the loss; the element-wise mean of their weights then keeps what the runs
+share and averages out each run's own drift. :func:`average_checkpoints` writes that mean as a new
+checkpoint folder (:mod:`dancekit.checkpoints.folder`), which loads like any other.
+
+Only checkpoints that can be averaged are accepted: the same model family and configuration, the same
+tensor names, shapes and dtypes, identical integer tensors and identical normalisation statistics (the
+same training data). Anything else is a :class:`~dancekit.errors.CheckpointError` naming the folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dancekit._io import atomic_dir
+from dancekit.errors import CheckpointError, ParameterError
+
+__all__ = ["average_checkpoints"]
+
+
+def _load(folder: Path) -> tuple[dict[str, Any], dict[str, Any], dict[str, np.ndarray]]:
+    from safetensors import SafetensorError
+    from safetensors.torch import load_file
+
+    from dancekit.checkpoints.folder import STATS_FILE, WEIGHTS_FILE, read_config
+
+    meta = read_config(folder)
+    weights = folder / WEIGHTS_FILE
+    if not weights.is_file():
+        raise CheckpointError(f"not a checkpoint: {weights} is missing")
+    try:
+        state = load_file(str(weights))
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise CheckpointError(f"corrupt weights file {weights}: {exc}") from exc
+    stats_path = folder / STATS_FILE
+    if not stats_path.is_file():
+        raise CheckpointError(f"not a checkpoint: {stats_path} is missing")
+    try:
+        with np.load(stats_path, allow_pickle=False) as z:
+            stats = {k: np.asarray(z[k]) for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise CheckpointError(f"corrupt statistics file {stats_path}: {exc}") from exc
+    return meta, state, stats
+
+
+def average_checkpoints(
+    folders: Sequence[str | os.PathLike],
+    out: str | os.PathLike,
+    *,
+    weights: Sequence[float] | None = None,
+) -> Path:
+    """Write the (weighted) element-wise mean of several checkpoints' weights as a new checkpoint.
+
+    Parameters
+    ----------
+    folders : two or more checkpoint folders of one family and configuration, trained on the same data
+        (identical ``stats.npz``)
+    out : the folder to write (replaced atomically if it exists)
+    weights : one non-negative weight per folder (normalised to sum 1); default: equal weights
+
+    Returns
+    -------
+    ``out``. Its ``config.json`` is the first folder's, with ``"soup": {"folders": [...], "weights": [...]}``
+    added; floating-point tensors are averaged in float64 and stored in their own dtype, integer tensors
+    (which must be equal) are copied.
+
+    Raises
+    ------
+    ParameterError
+        Fewer than two folders, or bad weights.
+    CheckpointError
+        A folder that is not a checkpoint, or checkpoints that cannot be averaged.
+    """
+    import torch
+    from safetensors.torch import save_file
+
+    from dancekit.checkpoints.folder import CONFIG_FILE, STATS_FILE, WEIGHTS_FILE
+
+    paths = [Path(f) for f in folders]
+    if len(paths) < 2:
+        raise ParameterError(f"averaging needs at least two checkpoints, got {len(paths)}")
+    if weights is None:
+        w = np.full(len(paths), 1.0 / len(paths))
+    else:
+        w = np.asarray(weights, dtype=np.float64)
+        if w.shape != (len(paths),) or not np.all(np.isfinite(w)) or np.any(w < 0) or w.sum() <= 0:
+            raise ParameterError(f"weights must be {len(paths)} non-negative numbers with a positive sum, got "
+                                 f"{list(weights)}")
+        w = w / w.sum()
+    first_meta, first_state, first_stats = _load(paths[0])
+    acc = {k: v.to(torch.float64) * w[0] if v.is_floating_point() else v.clone() for k, v in first_state.items()}
+    for path, wi in zip(paths[1:], w[1:], strict=True):
+        meta, state, stats = _load(path)
+        if meta["model"] != first_meta["model"] or meta["config"] != first_meta["config"]:
+            raise CheckpointError(f"cannot average {path}: its model family or configuration differs from "
+                                  f"{paths[0]}'s")
+        if set(state) != set(first_state):
+            diff = sorted(set(state) ^ set(first_state))[:3]
+            raise CheckpointError(f"cannot average {path}: its tensors differ from {paths[0]}'s (e.g. {diff})")
+        for k, v in state.items():
+            ref = first_state[k]
+            if v.shape != ref.shape or v.dtype != ref.dtype:
+                raise CheckpointError(f"cannot average {path}: tensor {k!r} is {tuple(v.shape)} {v.dtype}, "
+                                      f"{tuple(ref.shape)} {ref.dtype} in {paths[0]}")
+            if v.is_floating_point():
+                acc[k] += v.to(torch.float64) * wi
+            elif not torch.equal(v, ref):
+                raise CheckpointError(f"cannot average {path}: integer tensor {k!r} differs from {paths[0]}'s")
+        if set(stats) != set(first_stats) or any(not np.array_equal(stats[k], first_stats[k]) for k in stats):
+            raise CheckpointError(f"cannot average {path}: its {STATS_FILE} differs from {paths[0]}'s "
+                                  "(trained on other data?)")
+    state = {k: (v.to(first_state[k].dtype) if first_state[k].is_floating_point() else v).contiguous()
+             for k, v in acc.items()}
+    doc = dict(first_meta)
+    doc["soup"] = {"folders": [os.fspath(p.resolve()) for p in paths], "weights": [float(x) for x in w]}
+    with atomic_dir(out) as tmp:
+        (tmp / CONFIG_FILE).write_text(json.dumps(doc, indent=1))
+        save_file(state, str(tmp / WEIGHTS_FILE))
+        np.savez(tmp / STATS_FILE, **first_stats)
+    return Path(out)
