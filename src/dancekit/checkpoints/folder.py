@@ -161,29 +161,40 @@ def load_pretrained(
     CheckpointError
         When the folder or one of its files is missing or corrupt, or does not match the code.
     """
-    from safetensors import SafetensorError
-    from safetensors.torch import load_file
-
     folder = Path(folder)
     meta = read_config(folder)
     model = build_model(meta["model"], meta["config"], folder=folder)
-    weights = folder / WEIGHTS_FILE
-    if not weights.is_file():
-        raise CheckpointError(f"not a checkpoint: {weights} is missing")
-    try:
-        state = load_file(str(weights))
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise CheckpointError(f"corrupt weights file {weights}: {exc}") from exc
+    state = read_weights(folder)
     try:
         model.load_state_dict(state)
     except RuntimeError as exc:
-        raise CheckpointError(f"weights in {weights} do not match the configuration: {exc}") from exc
-    stats_path = folder / STATS_FILE
+        raise CheckpointError(f"weights in {folder / WEIGHTS_FILE} do not match the configuration: {exc}") from exc
+    return model.to(device).eval(), meta, read_stats(folder)
+
+
+def read_weights(folder: str | os.PathLike) -> dict[str, torch.Tensor]:
+    """The tensors of a checkpoint folder's ``model.safetensors`` (a missing or corrupt file is a
+    :class:`~dancekit.errors.CheckpointError` naming it)."""
+    from safetensors import SafetensorError
+    from safetensors.torch import load_file
+
+    weights = Path(folder) / WEIGHTS_FILE
+    if not weights.is_file():
+        raise CheckpointError(f"not a checkpoint: {weights} is missing")
+    try:
+        return load_file(str(weights))
+    except (SafetensorError, OSError, ValueError) as exc:
+        raise CheckpointError(f"corrupt weights file {weights}: {exc}") from exc
+
+
+def read_stats(folder: str | os.PathLike) -> dict[str, np.ndarray]:
+    """The arrays of a checkpoint folder's ``stats.npz`` (a missing or corrupt file is a
+    :class:`~dancekit.errors.CheckpointError` naming it)."""
+    stats_path = Path(folder) / STATS_FILE
     if not stats_path.is_file():
         raise CheckpointError(f"not a checkpoint: {stats_path} is missing")
     try:
         with np.load(stats_path, allow_pickle=False) as z:
-            stats = {k: np.asarray(z[k]) for k in z.files}
+            return {k: np.asarray(z[k]) for k in z.files}
     except (OSError, ValueError, zipfile.BadZipFile) as exc:
         raise CheckpointError(f"corrupt statistics file {stats_path}: {exc}") from exc
-    return model.to(device).eval(), meta, stats

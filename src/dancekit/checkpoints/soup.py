@@ -27,28 +27,9 @@ __all__ = ["average_checkpoints"]
 
 
 def _load(folder: Path) -> tuple[dict[str, Any], dict[str, Any], dict[str, np.ndarray]]:
-    from safetensors import SafetensorError
-    from safetensors.torch import load_file
+    from dancekit.checkpoints.folder import read_config, read_stats, read_weights
 
-    from dancekit.checkpoints.folder import STATS_FILE, WEIGHTS_FILE, read_config
-
-    meta = read_config(folder)
-    weights = folder / WEIGHTS_FILE
-    if not weights.is_file():
-        raise CheckpointError(f"not a checkpoint: {weights} is missing")
-    try:
-        state = load_file(str(weights))
-    except (SafetensorError, OSError, ValueError) as exc:
-        raise CheckpointError(f"corrupt weights file {weights}: {exc}") from exc
-    stats_path = folder / STATS_FILE
-    if not stats_path.is_file():
-        raise CheckpointError(f"not a checkpoint: {stats_path} is missing")
-    try:
-        with np.load(stats_path, allow_pickle=False) as z:
-            stats = {k: np.asarray(z[k]) for k in z.files}
-    except (OSError, ValueError) as exc:
-        raise CheckpointError(f"corrupt statistics file {stats_path}: {exc}") from exc
-    return meta, state, stats
+    return read_config(folder), read_weights(folder), read_stats(folder)
 
 
 def average_checkpoints(
