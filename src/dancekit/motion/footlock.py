@@ -187,10 +187,8 @@ def planted_share(positions: np.ndarray, *, skeleton: Skeleton, fps: float,
     legs = leg_chains(skeleton)
     if not legs:
         return float("nan")
-    from dancekit.motion._filters import minimum_filter1d
-
     h = heights(p, skeleton) * skeleton.unit_scale  # (T, J) metres
-    local = minimum_filter1d(h.min(axis=1), 2 * int(round(fps)) + 1)  # the lowest joint within ±1 s
+    local = _local_floor(p, skeleton, fps, 2.0)  # the lowest joint within ±1 s
     t = np.arange(len(p))
     cols = []
     for _hip, _knee, ankle, below in legs:

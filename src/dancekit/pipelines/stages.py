@@ -323,8 +323,8 @@ def foot_lock(result: DanceResult) -> DanceResult:
     foot height and speed, the foot held where it was planted, the leg solved by two-bone IK, blended in
     and out), with the settings of the model's checkpoint (:func:`foot_lock_options` of ``result.model``).
     Where the checkpoint gives its genres' real planted-foot shares (:func:`plant_options`), the lock holds
-    the feet no longer than that (:func:`plant_target`,
-    :func:`~dancekit.motion.footlock.lock_feet_to_share`). Only the legs change; a motion with rotations has its leg rotations updated
+    the feet no longer than that (:func:`plant_target`, :func:`~dancekit.motion.footlock.lock_feet_to_share`).
+    Only the legs change; a motion with rotations has its leg rotations updated
     (:func:`~dancekit.motion.footlock.leg_rotations`). Skeletons without legs are returned unchanged."""
     from dancekit.motion.footlock import leg_chains, leg_rotations, lock_feet
 
@@ -333,13 +333,14 @@ def foot_lock(result: DanceResult) -> DanceResult:
         return result
     sk, fps = motion.skeleton, motion.fps
     p = motion.to_positions()  # lock_feet works on its own float64 copy
+    options = foot_lock_options(result.model)
     target = plant_target(result, **plant_options(result.model))
     if target is None:
-        locked = lock_feet(p, skeleton=sk, fps=fps, **foot_lock_options(result.model))
+        locked = lock_feet(p, skeleton=sk, fps=fps, **options)
     else:  # no longer than the genre's real dancers plant their feet
         from dancekit.motion.footlock import lock_feet_to_share
 
-        locked, _ = lock_feet_to_share(p, skeleton=sk, fps=fps, target=target, **foot_lock_options(result.model))
+        locked, _ = lock_feet_to_share(p, skeleton=sk, fps=fps, target=target, **options)
     rot = tr = None
     if motion.rotations is not None:
         rot = leg_rotations(motion.rotations, np.asarray(p, np.float64), locked,
@@ -489,10 +490,16 @@ def plant_target(result: DanceResult, *, genre_share: dict[str, float] | None = 
         return None
     if result.genre in genre_share:
         return float(genre_share[result.genre])
-    probs = {g: p for g, p in (result.genre_probs or {}).items() if g in genre_share and p > 0}
-    if probs:
-        return float(sum(p * genre_share[g] for g, p in probs.items()) / sum(probs.values()))
-    return None
+    return posterior_mean(result, genre_share)
+
+
+def posterior_mean(result: DanceResult, table: dict[str, float]) -> float | None:
+    """The mean of a per-genre ``table`` weighted by the genre probabilities read from the music
+    (``result.genre_probs``, over the genres of the table, renormalised); None when none of them was read."""
+    probs = {g: p for g, p in (result.genre_probs or {}).items() if g in table and p > 0}
+    if not probs:
+        return None
+    return float(sum(p * table[g] for g, p in probs.items()) / sum(probs.values()))
 
 
 #: The keys a checkpoint's ``"beat_sync"`` entry may carry (:func:`beat_sync_options`), all
@@ -588,10 +595,9 @@ def energy_floor(result: DanceResult, *, floor: float | None = None, fraction: f
     over the genres of the table, renormalised), or of the genre danced (``result.genre``) when none were read;
     else ``floor``; None (no lift) when neither applies."""
     if fraction is not None and genre_energy:
-        probs = {g: p for g, p in (result.genre_probs or {}).items() if g in genre_energy and p > 0}
-        if probs:
-            total = sum(probs.values())
-            return float(fraction * sum(p * genre_energy[g] for g, p in probs.items()) / total)
+        mean = posterior_mean(result, genre_energy)
+        if mean is not None:
+            return float(fraction * mean)
         if result.genre in genre_energy:
             return float(fraction * genre_energy[result.genre])
     return None if floor is None else float(floor)
