@@ -286,9 +286,11 @@ def test_models_lists_the_embedded_models(capsys):
     cards = json.loads(capsys.readouterr().out)
     assert set(cards) == set(embedded_models())
     total = sum(f.stat().st_size for f in MODELS_DIR.rglob("*") if f.is_file())
-    assert total <= 50e6  # all embedded models together
+    # all embedded models together: the default's three genre models at its base's larger size (L, float32)
+    # take the default to about 47.4 MB and the four models to about 50.6 MB (docs/BENCHMARKS.md, round 31)
+    assert total <= 52e6
     for card in cards.values():
-        assert card["size_mb"] <= 20
+        assert card["size_mb"] <= 48
 
 
 def test_output_folder_that_cannot_be_created(capsys, song, checkpoint):

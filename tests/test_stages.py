@@ -295,6 +295,17 @@ def test_seed_distance_counts_the_seconds_until_seeds_converge():
     assert out["converged_after_s"] == 3.0 and out["pairs"] == {"seed": 1, "song": 1}
     never = seed_distance({"a": [a0, dance(np.full(T, 46.0))], "b": [b0]})
     assert never["converged_after_s"] is None
+    # two dances for each song: the songs are compared seed by seed, (a0, b0) 23 cm apart throughout and
+    # (a1, b1) 46 cm for the first 3 s then 0, so the between-song curve is their mean; the first seed's
+    # pair alone is kept as song_seed0_cm
+    b1 = dance(np.zeros(T))
+    both = seed_distance({"a": [a0, a1], "b": [b0, b1]})
+    np.testing.assert_allclose(both["song_cm"], [34.5 / J] * 3 + [11.5 / J] * 7, atol=1e-4)
+    np.testing.assert_allclose(both["song_seed0_cm"], [23.0 / J] * 10, atol=1e-4)
+    assert both["pairs"] == {"seed": 2, "song": 2}
+    # seed distance (b0, b1) is 23 cm throughout, (a0, a1) 46 cm then 0: mean 34.5 then 11.5, never below half
+    np.testing.assert_allclose(both["seed_cm"], [34.5 / J] * 3 + [11.5 / J] * 7, atol=1e-4)
+    assert both["converged_after_s"] is None
 
 
 def test_song_beats_are_cached(tmp_path):

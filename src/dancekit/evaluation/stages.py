@@ -6,7 +6,8 @@
 
 ``seed_distance`` (:func:`seed_distance`)
     Per second of the song, the mean per-frame distance (cm) between the dances of two seeds for one
-    song, and, for scale, between the dances of two different songs (same seed, cropped to the shorter).
+    song, and, for scale, between the dances of two different songs (same seed, for every seed both songs
+    have, cropped to the shorter; averaged over those pairs, so one song pair is not one sample).
     Poses are compared relative to their root and in the body's heading frame
     (:func:`dancekit.motion.analysis.heading_rotation`: the root's travel and the figure's turns left out,
     so the same dance drifting or facing elsewhere is not "different"); joint distances are averaged over joints, then over frames of each
@@ -83,9 +84,14 @@ def _mean_curves(curves: list[np.ndarray]) -> np.ndarray:
 def seed_distance(pred: Mapping[str, Sequence[Any]]) -> dict[str, Any]:
     """The ``seed_distance`` section (see the module docstring) for name → the dances of several seeds.
 
-    Returns ``{"seed_cm": [...], "song_cm": [...]`` (per second), ``"seed_mean_cm"``, ``"song_mean_cm"``,
-    ``"seed_after_2s_cm"``, ``"converged_after_s"``, ``"pairs": {"seed": n, "song": n}}``; empty curves
-    when no song has two dances (or there are fewer than two songs).
+    ``pred[name][k]`` is the dance of seed index ``k`` (``NAME__k``); two songs are compared seed by seed
+    (their ``k``-th dances, for every ``k`` both have), and the curves of all these pairs are averaged.
+
+    Returns ``{"seed_cm": [...], "song_cm": [...]`` (per second), ``"song_seed0_cm"`` (the between-song
+    curve of the first dances alone, one pair per song pair: what the report gave before the fifteenth
+    session), ``"seed_mean_cm"``, ``"song_mean_cm"``, ``"seed_after_2s_cm"``, ``"converged_after_s"``,
+    ``"pairs": {"seed": n, "song": n}}`` (dance pairs behind each curve); empty curves when no song has
+    two dances (or there are fewer than two songs).
     """
     names = sorted(pred)
     seed_curves = []
@@ -94,10 +100,13 @@ def seed_distance(pred: Mapping[str, Sequence[Any]]) -> dict[str, Any]:
         fps = float(pred[name][0].fps) if pred[name] else 1.0
         for i, j in itertools.combinations(range(len(poses)), 2):
             seed_curves.append(_per_second(poses[i], poses[j], fps))
-    song_curves = []
+    song_curves, first_curves = [], []
     for a, b in itertools.combinations(names, 2):
-        if pred[a] and pred[b]:
-            song_curves.append(_per_second(_pose(pred[a][0]), _pose(pred[b][0]), float(pred[a][0].fps)))
+        for k in range(min(len(pred[a]), len(pred[b]))):  # the k-th dance of each song: the same seed
+            curve = _per_second(_pose(pred[a][k]), _pose(pred[b][k]), float(pred[a][k].fps))
+            song_curves.append(curve)
+            if k == 0:
+                first_curves.append(curve)
     seed_c, song_c = _mean_curves(seed_curves), _mean_curves(song_curves)
     converged = None
     if len(seed_c) and len(song_c):
@@ -109,6 +118,7 @@ def seed_distance(pred: Mapping[str, Sequence[Any]]) -> dict[str, Any]:
     return {
         "seed_cm": [round(float(v), 3) for v in seed_c],
         "song_cm": [round(float(v), 3) for v in song_c],
+        "song_seed0_cm": [round(float(v), 3) for v in _mean_curves(first_curves)],
         "seed_mean_cm": float(seed_c.mean()) if len(seed_c) else float("nan"),
         "song_mean_cm": float(song_c.mean()) if len(song_c) else float("nan"),
         "seed_after_2s_cm": float(seed_c[2:].mean()) if len(seed_c) > 2 else float("nan"),
