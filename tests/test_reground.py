@@ -131,3 +131,68 @@ def test_finish_traces_every_stage_it_runs_in_order_and_each_traced_dance_is_tha
     none = []
     stages.finish(res, "unused.wav", beat_sync_on=False, cleanup_on=False, trace=lambda name, r: none.append(name))
     assert none == ["input"]
+
+
+def _touching_every(period: int, lift_cm: float, T: int = 240) -> np.ndarray:
+    """The standing figure ``lift_cm`` up except at every ``period``-th frame, where it touches the floor."""
+    p = _standing(T)
+    lift = np.full(T, lift_cm)
+    lift[::period] = 0.0
+    p[:, :, 1] += lift[:, None]
+    return p
+
+
+def test_floor_float_is_the_median_height_over_the_lowest_point_within_one_second():
+    from scipy.ndimage import minimum_filter1d
+
+    from dancekit.motion.footlock import floor_float_cm
+
+    # touching every 24 frames (< 1 s): every ±1 s window holds a touch, so the float is the lift itself
+    assert floor_float_cm(_touching_every(24, 4.0), skeleton=SK, fps=FPS) == pytest.approx(4.0, abs=1e-6)
+    # a random lowest-joint path, against SciPy's running minimum (51 frames = ±1 s at 25 fps, ends held)
+    rng = np.random.default_rng(0)
+    p = _standing(300)
+    low = np.cumsum(rng.normal(0.0, 0.4, 300))  # cm
+    p[:, :, 1] += low[:, None] - low.min()
+    low = p[:, :, 1].min(axis=1)
+    want = np.median(low - minimum_filter1d(low, 51, mode="nearest"))
+    assert floor_float_cm(p, skeleton=SK, fps=FPS) == pytest.approx(want, abs=1e-5)
+
+
+def test_reground_tries_shorter_windows_only_while_the_dance_floats_over_the_bound():
+    from dancekit.motion.footlock import floor_float_cm
+
+    def result(p):
+        return DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32)), model=None, seed=0)
+
+    floating = result(_touching_every(24, 4.0))
+    # by hand: a 1-s window (25 frames) always holds a touch, so nothing moves and the float stays 4 cm; a
+    # 0.6-s window (15 frames, ±7) takes down only the 9 frames 8-12 away from a touch (blurred by the 1.25-frame
+    # Gaussian), so 12 of the 24 frames of a period stay 4 cm up and 2 more about 2.7 cm: the median is over 2;
+    # a 0.4-s window (11 frames, ±5) leaves 10 of 24 up: the median is down near the floor
+    plain = stages.reground(floating, window_s=1.0).motion.positions
+    assert floor_float_cm(plain, skeleton=SK, fps=FPS) == pytest.approx(4.0, abs=1e-4)
+    bounded = stages.reground(floating, window_s=1.0, max_float_cm=2.0).motion.positions
+    assert floor_float_cm(stages.reground(floating, window_s=0.6).motion.positions, skeleton=SK, fps=FPS) > 2.0
+    np.testing.assert_array_equal(bounded, stages.reground(floating, window_s=0.4).motion.positions)
+    assert floor_float_cm(bounded, skeleton=SK, fps=FPS) <= 2.0
+    # a dance that floats less than the bound keeps the checkpoint's window, bit for bit
+    low = result(_touching_every(24, 1.5))
+    np.testing.assert_array_equal(stages.reground(low, window_s=1.0, max_float_cm=2.0).motion.positions,
+                                  stages.reground(low, window_s=1.0).motion.positions)
+    # no window reaches the bound (0.25 s, ±3 frames, still leaves the blurred edges next to each touch up):
+    # the shortest is kept
+    np.testing.assert_array_equal(stages.reground(floating, window_s=1.0, max_float_cm=0.001).motion.positions,
+                                  stages.reground(floating, window_s=0.25).motion.positions)
+
+
+def test_ground_options_read_the_float_bound(tmp_path):
+    folder = tmp_path / "m"
+    folder.mkdir()
+    cfg = json.loads((ASSETS / "revolution" / "config.json").read_text())
+    (folder / "config.json").write_text(json.dumps({**cfg, "ground": {"after_lock_s": 1.0, "max_float_cm": 2}}))
+    assert stages.ground_options(str(folder)) == {"window_s": 1.0, "max_float_cm": 2.0}
+    for bad in ({"max_float_cm": 2.0}, {"after_lock_s": 1.0, "max_float_cm": 0}, {"after_lock_s": 1.0, "max_float_cm": "2"}):
+        (folder / "config.json").write_text(json.dumps({**cfg, "ground": bad}))
+        with pytest.raises(CheckpointError, match="config.json"):
+            stages.ground_options(str(folder))

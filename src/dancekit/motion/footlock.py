@@ -39,7 +39,8 @@ from dancekit.motion.analysis import heights, horizontal_axes, up_sign
 from dancekit.motion.skeleton import Skeleton
 
 __all__ = ["CAP_CUTOFFS_HZ", "PLANT_SCALES", "FootLockReport", "foot_contacts", "jitter_cutoff", "jitter_speed",
-           "leg_chains", "leg_rotations", "lock_feet", "lock_feet_to_share", "lowpass_cutoff", "planted_share",
+           "floor_float_cm", "leg_chains", "leg_rotations", "lock_feet", "lock_feet_to_share", "lowpass_cutoff",
+           "planted_share",
            "lowpass_rows", "smooth_positions", "smoothing_window", "two_bone_ik"]
 
 #: Contact thresholds (metres above the local floor, m/s), chosen on the validation songs
@@ -164,6 +165,22 @@ def foot_contacts(
         cols.append(_hysteresis((h <= height_on) & (speed <= speed_on), (h <= height_off) & (speed <= speed_off),
                                 min_len))
     return np.stack(cols, axis=1)
+
+
+def floor_float_cm(positions: np.ndarray, *, skeleton: Skeleton, fps: float) -> float:
+    """How far the figure floats: the median, over frames, of the lowest joint's height above the *local
+    floor* (the lowest point of the lowest joint within ±1 s), in cm. This is the floor median
+    docs/BENCHMARKS.md reports (issue 15; real tang2018 dances 0.8-1.3 cm, the issue's bound 2 cm).
+
+    Parameters
+    ----------
+    positions : (T, J, 3) world positions in skeleton units at ``fps``
+    skeleton, fps : the skeleton (up axis, units) and the frame rate
+    """
+    fps = check_fps(fps)
+    p = _check(positions, "floor_float_cm")
+    low = heights(p, skeleton).min(axis=1) * skeleton.unit_scale  # (T,) metres
+    return float(np.median(low - _local_floor(p, skeleton, fps, 2.0)) * 100.0)
 
 
 def planted_share(positions: np.ndarray, *, skeleton: Skeleton, fps: float,

@@ -143,21 +143,37 @@ def clean_up(result: DanceResult) -> DanceResult:
     return dataclasses.replace(result, motion=cleaned)
 
 
-def reground(result: DanceResult, *, window_s: float) -> DanceResult:
+#: The windows :func:`reground` tries after the checkpoint's own when the dance still floats over its
+#: ``max_float_cm`` (fractions of that window, longest first).
+REGROUND_SHORTER = (0.6, 0.4, 0.25)
+
+
+def reground(result: DanceResult, *, window_s: float, max_float_cm: float | None = None) -> DanceResult:
     """The result with its lowest joint put back on the floor (:func:`dancekit.motion.cleanup.ground_contact`
     over a centred ``window_s`` window, s): a vertical shift per frame, run after the foot lock and its settle
     when the model's checkpoint asks for it (:func:`ground_options`). The stages after the clean-up (the
     low-passes, the lock's IK) can lift a lively model's dance off the floor again; this one lets it touch
-    the floor at least once in every window, while a rise shorter than ``window_s / 2`` stays. A motion with
-    rotations keeps them (its root translation moved); 2D dances are returned unchanged."""
+    the floor at least once in every window, while a rise shorter than ``window_s / 2`` stays.
+
+    ``max_float_cm``: when the regrounded dance still floats higher than this (its lowest joint's median
+    height over the local floor, :func:`dancekit.motion.footlock.floor_float_cm`, cm), shorter windows are
+    tried in turn (``REGROUND_SHORTER`` × ``window_s``) and the first that brings it to the bound is kept (the
+    shortest when none does). A dance under the bound keeps the checkpoint's window, so only the dances a
+    strong low-pass lifted are touched. A motion with rotations keeps them (its root translation moved); 2D
+    dances are returned unchanged."""
     from dancekit.motion.cleanup import ground_contact
+    from dancekit.motion.footlock import floor_float_cm
 
     motion = result.motion
     if not _is_3d(motion):
         return result
     sk, fps = motion.skeleton, motion.fps
     before = np.asarray(motion.to_positions(), np.float64)
-    p = ground_contact(before, skeleton=sk, fps=fps, window_s=window_s)  # (T, J, 3), shifted along the up axis
+    windows = [window_s] + ([window_s * f for f in REGROUND_SHORTER] if max_float_cm is not None else [])
+    for w in windows:
+        p = ground_contact(before, skeleton=sk, fps=fps, window_s=w)  # (T, J, 3), shifted along the up axis
+        if max_float_cm is None or floor_float_cm(p, skeleton=sk, fps=fps) <= max_float_cm:
+            break
     tr = None
     if motion.rotations is not None:  # the same shift on the root translation
         tr = (motion.root_translation + (p[:, sk.root] - before[:, sk.root])).astype(np.float32)
@@ -167,15 +183,22 @@ def reground(result: DanceResult, *, window_s: float) -> DanceResult:
 
 def ground_options(model: str | os.PathLike | None) -> dict[str, float]:
     """The :func:`reground` settings a model's checkpoint folder carries in its ``config.json`` (``"ground":
-    {"after_lock_s": s}``, the window in seconds), chosen on the validation songs (docs/BENCHMARKS.md,
-    "Livelier genre models"); ``{}`` (no second grounding) for a folder without the entry or that is not a
-    checkpoint. A window that is not a positive finite number is a :class:`~dancekit.errors.CheckpointError`
-    naming the ``config.json``."""
-    spec = _stage_entry(model, "ground", {"after_lock_s"})
-    if "after_lock_s" in spec and not (np.isfinite(spec["after_lock_s"]) and spec["after_lock_s"] > 0):
+    {"after_lock_s": s}``, the window in seconds, and optionally ``"max_float_cm": cm``, the float above
+    which shorter windows are tried), chosen on the validation songs (docs/BENCHMARKS.md, "Livelier genre
+    models", "Fifteenth session"); ``{}`` (no second grounding) for a folder without the entry or that is not
+    a checkpoint. A window or bound that is not a positive finite number, or a bound without a window, is a
+    :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
+    spec = _stage_entry(model, "ground", {"after_lock_s", "max_float_cm"})
+    if ("max_float_cm" in spec and "after_lock_s" not in spec) or not all(
+            np.isfinite(v) and v > 0 for v in spec.values()):
         raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'ground' takes a positive "
-                              f"after_lock_s (s), got {spec!r}")
-    return {"window_s": spec["after_lock_s"]} if "after_lock_s" in spec else {}
+                              f"after_lock_s (s) and optionally a positive max_float_cm, got {spec!r}")
+    if "after_lock_s" not in spec:
+        return {}
+    out = {"window_s": spec["after_lock_s"]}
+    if "max_float_cm" in spec:
+        out["max_float_cm"] = spec["max_float_cm"]
+    return out
 
 
 def smooth(result: DanceResult, *, target: float | None = None, kind: str | None = None) -> DanceResult:
