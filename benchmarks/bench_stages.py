@@ -25,14 +25,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import minimum_filter1d
 
 from dancekit.audio import load, save_wav
 from dancekit.data import PreparedData
 from dancekit.metrics import beat_metrics, foot_skating, jitter
 from dancekit.metrics import fid as fid_mod
-from dancekit.motion.analysis import heights, mean_joint_speed
-from dancekit.motion.footlock import planted_share
+from dancekit.motion.analysis import mean_joint_speed
+from dancekit.motion.footlock import floor_gap_cm, planted_share
 from dancekit.pipelines import load_pipeline, stages
 
 SONGS = ("Kevin_MacLeod_-_Vibe_Ace.ogg", "brahms_hungarian_dance_5.ogg",
@@ -53,11 +52,7 @@ def knee_angles(p: np.ndarray, sk) -> np.ndarray:
 
 def physical(p: np.ndarray, sk, fps: float) -> dict[str, float]:
     """Floor, planted ankles, travel and knee metrics of one dance ``(T, J, 3)`` in skeleton units."""
-    cm = sk.unit_scale * 100.0
-    h = heights(p, sk) * cm  # (T, J) cm
-    low = h.min(axis=1)
-    local = minimum_filter1d(low, size=2 * int(round(fps)) + 1, mode="nearest")  # ±1 s
-    above = low - local
+    above = floor_gap_cm(p, skeleton=sk, fps=fps)  # (T,) cm over the lowest point within ±1 s
     root = p[:, sk.root][:, [0, 2]]
     dist = np.hypot(*(root - root[0]).T) * sk.unit_scale
     knees = knee_angles(p, sk)

@@ -145,7 +145,7 @@ def _touching_every(period: int, lift_cm: float, T: int = 240) -> np.ndarray:
 def test_floor_float_is_the_median_height_over_the_lowest_point_within_one_second():
     from scipy.ndimage import minimum_filter1d
 
-    from dancekit.motion.footlock import floor_float_cm
+    from dancekit.motion.footlock import floor_float_cm, floor_gap_cm
 
     # touching every 24 frames (< 1 s): every ±1 s window holds a touch, so the float is the lift itself
     assert floor_float_cm(_touching_every(24, 4.0), skeleton=SK, fps=FPS) == pytest.approx(4.0, abs=1e-6)
@@ -157,6 +157,8 @@ def test_floor_float_is_the_median_height_over_the_lowest_point_within_one_secon
     low = p[:, :, 1].min(axis=1)
     want = np.median(low - minimum_filter1d(low, 51, mode="nearest"))
     assert floor_float_cm(p, skeleton=SK, fps=FPS) == pytest.approx(want, abs=1e-5)
+    above = floor_gap_cm(p, skeleton=SK, fps=FPS)  # the per-frame gap behind it, also for the within-2-cm share
+    np.testing.assert_allclose(above, low - minimum_filter1d(low, 51, mode="nearest"), atol=1e-5)
 
 
 def test_reground_tries_shorter_windows_only_while_the_dance_floats_over_the_bound():
