@@ -94,16 +94,16 @@ def seed_distance(pred: Mapping[str, Sequence[Any]]) -> dict[str, Any]:
     two dances (or there are fewer than two songs).
     """
     names = sorted(pred)
+    poses = {name: [_pose(m) for m in pred[name]] for name in names}  # each dance's poses once, for both curves
     seed_curves = []
     for name in names:
-        poses = [_pose(m) for m in pred[name]]
         fps = float(pred[name][0].fps) if pred[name] else 1.0
-        for i, j in itertools.combinations(range(len(poses)), 2):
-            seed_curves.append(_per_second(poses[i], poses[j], fps))
+        for i, j in itertools.combinations(range(len(poses[name])), 2):
+            seed_curves.append(_per_second(poses[name][i], poses[name][j], fps))
     song_curves, first_curves = [], []
     for a, b in itertools.combinations(names, 2):
         for k in range(min(len(pred[a]), len(pred[b]))):  # the k-th dance of each song: the same seed
-            curve = _per_second(_pose(pred[a][k]), _pose(pred[b][k]), float(pred[a][k].fps))
+            curve = _per_second(poses[a][k], poses[b][k], float(pred[a][k].fps))
             song_curves.append(curve)
             if k == 0:
                 first_curves.append(curve)
