@@ -115,6 +115,9 @@ class DualConfig:
     self_feed: float = 0.0  # share of G_M→D's decoder inputs replaced by its own (detached) outputs (0: the paper)
     rollout_frames: int = 0  # frames G_M→D decodes free-running from each window's start in training (0: off)
     rollout_weight: float = 0.0  # weight of the velocity + acceleration L1 on that free-running rollout
+    latent_dim: int = 0  # G_M→D's per-window dance latent z (a conditional VAE; 0: off, the paper)
+    kl_weight: float = 0.05  # weight of KL(q(z | dance window) || N(0, I)) (with latent_dim > 0)
+    kl_free_bits: float = 0.25  # nats per latent dimension below which the KL is not penalised
 
     def __post_init__(self) -> None:
         for name in ("music_dim", "pose_dim", "m2d_d_model", "m2d_layers", "m2d_heads", "m2d_ff", "d2m_d_model",
@@ -154,6 +157,12 @@ class DualConfig:
         if isinstance(self.self_feed, bool) or not isinstance(self.self_feed, (int, float)) \
                 or not 0.0 <= self.self_feed <= 1.0:
             raise ParameterError(f"DualConfig.self_feed must be a share in [0, 1], got {self.self_feed!r}")
+        if isinstance(self.latent_dim, bool) or not isinstance(self.latent_dim, int) or self.latent_dim < 0:
+            raise ParameterError(f"DualConfig.latent_dim must be an integer >= 0, got {self.latent_dim!r}")
+        for name in ("kl_weight", "kl_free_bits"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+                raise ParameterError(f"DualConfig.{name} must be a number >= 0, got {value!r}")
         if not self.beat_pos_weight > 0 or not self.decoder_noise >= 0:
             raise ParameterError(f"DualConfig.beat_pos_weight must be positive and decoder_noise >= 0, got "
                                  f"{self.beat_pos_weight!r}, {self.decoder_noise!r}")
@@ -286,17 +295,20 @@ class Seq2Seq(nn.Module):
         x = x + sinusoidal_encoding(x.shape[1], x.shape[2], device=x.device, dtype=x.dtype)
         return self.encoder(x)
 
-    def decode(self, prev: torch.Tensor, memory: torch.Tensor) -> torch.Tensor:
-        """Decoder inputs ``prev (B, L, out)`` (start token first) → next frames (B, L, out), causally."""
+    def decode(self, prev: torch.Tensor, memory: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
+        """Decoder inputs ``prev (B, L, out)`` (start token first) → next frames (B, L, out), causally.
+        ``cond (B, d)``, if given, is added to every input embedding (G_M→D's projected latent)."""
         L = prev.shape[1]
         x = self.tgt_embed(prev)  # (B, L, d)
+        if cond is not None:
+            x = x + cond[:, None, :]
         x = x + sinusoidal_encoding(L, x.shape[2], device=x.device, dtype=x.dtype)
         mask = torch.triu(torch.full((L, L), float("-inf"), device=x.device, dtype=x.dtype), diagonal=1)
         y = self.head(self.decoder(x, memory, tgt_mask=mask))  # (B, L, out)
         return torch.sigmoid(y) if self.sigmoid else y
 
     def teacher_forced(self, src: torch.Tensor, tgt: torch.Tensor, memory: torch.Tensor | None = None, *,
-                       noise: float = 0.0) -> torch.Tensor:
+                       noise: float = 0.0, cond: torch.Tensor | None = None) -> torch.Tensor:
         """Training output ``[tgt_0, ŷ_1..ŷ_{T-1}]`` (B, T, out): the start token is the first target frame,
         ``ŷ_t`` is predicted from ``tgt_0..tgt_{t-1}`` (plus Gaussian noise of std ``noise`` in training: the
         decoder learns to recover from its own small errors instead of copying its input) and the whole
@@ -305,18 +317,19 @@ class Seq2Seq(nn.Module):
         prev = tgt[:, :-1]
         if noise > 0 and self.training:
             prev = prev + noise * torch.randn_like(prev)
-        return torch.cat([tgt[:, :1], self.decode(prev, memory)], dim=1)
+        return torch.cat([tgt[:, :1], self.decode(prev, memory, cond)], dim=1)
 
-    def generate(self, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
+    def generate(self, src: torch.Tensor, start: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
         """Autoregressive output for one window: ``start (B, out)`` then T - 1 generated frames → (B, T, out).
 
         Incremental decoding: each layer keeps the normalised inputs of the frames decoded so far (its
         self-attention keys and values), so a new frame costs one query per layer instead of a pass over the
         whole prefix. The same numbers as :meth:`decode` on the prefix (tests/test_dual.py), in eval mode.
         """
-        return self.rollout(self.encode(src), start, src.shape[1])
+        return self.rollout(self.encode(src), start, src.shape[1], cond)
 
-    def rollout(self, memory: torch.Tensor, start: torch.Tensor, n: int) -> torch.Tensor:
+    def rollout(self, memory: torch.Tensor, start: torch.Tensor, n: int,
+                cond: torch.Tensor | None = None) -> torch.Tensor:
         """Free-running decoding from ``start (B, out)`` over ``memory (B, T, d)``: ``start`` then ``n - 1``
         frames, each fed back as the next input → (B, n, out). Differentiable (used in training by
         ``DualConfig.rollout_frames``); :meth:`generate` is this after encoding."""
@@ -326,6 +339,8 @@ class Seq2Seq(nn.Module):
         frames = [start[:, None, :]]  # (B, 1, out) each
         for t in range(n - 1):
             h = self.tgt_embed(frames[-1]) + pe[t]  # (B, 1, d)
+            if cond is not None:
+                h = h + cond[:, None, :]
             for i, layer in enumerate(self.decoder.layers):
                 hn = layer.norm1(h)
                 caches[i] = hn if caches[i] is None else torch.cat([caches[i], hn], dim=1)  # (B, t + 1, d)
@@ -337,12 +352,12 @@ class Seq2Seq(nn.Module):
             frames.append(torch.sigmoid(y) if self.sigmoid else y)
         return torch.cat(frames, dim=1)
 
-    def generate_full(self, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
+    def generate_full(self, src: torch.Tensor, start: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
         """:meth:`generate` by re-decoding the whole prefix at every step (the reference for its tests)."""
         memory = self.encode(src)  # (B, T, d)
         out = start[:, None, :]  # (B, 1, out)
         for _ in range(src.shape[1] - 1):
-            nxt = self.decode(out, memory)[:, -1:]  # (B, 1, out)
+            nxt = self.decode(out, memory, cond)[:, -1:]  # (B, 1, out)
             out = torch.cat([out, nxt], dim=1)
         return out
 
@@ -376,6 +391,11 @@ class DualModel(nn.Module):
                            ff=c.m2d_ff, dropout=c.dropout)
         self.d2m = Seq2Seq(c.pose_dim, c.music_out_dim, d_model=c.d2m_d_model, layers=c.d2m_layers,
                            heads=c.d2m_heads, ff=c.d2m_ff, dropout=c.dropout, sigmoid=True)
+        if c.latent_dim > 0:
+            # q(z | dance window): the window's frames embedded, averaged over time, → (mu, log variance)
+            self.m2d_posterior = nn.Sequential(nn.Linear(c.pose_dim, c.m2d_d_model), nn.GELU(),
+                                               nn.Linear(c.m2d_d_model, 2 * c.latent_dim))
+            self.m2d_latent = nn.Linear(c.latent_dim, c.m2d_d_model)  # z → the decoder's input space
         # start poses of training windows (a ring buffer, saved with the weights), sampled at inference
         self.register_buffer("pose_pool", torch.zeros(c.pool_size, c.pose_dim))
         self.register_buffer("pool_count", torch.zeros((), dtype=torch.long))
@@ -406,8 +426,12 @@ class DualModel(nn.Module):
         parts: dict[str, torch.Tensor] = {}
         if c.generators in ("both", "m2d"):
             memory_x = self.m2d.encode(music)  # (B, T, d_x)
-            dance_in = self._self_fed(dance, memory_x) if c.self_feed > 0 and self.training else dance
-            dance_hat = self.m2d.teacher_forced(music, dance_in, memory_x, noise=c.decoder_noise)  # (B, T, P)
+            cond = None
+            if c.latent_dim > 0:
+                cond, parts["kl"] = self._posterior(dance)  # (B, d_x), scalar
+            dance_in = self._self_fed(dance, memory_x, cond) if c.self_feed > 0 and self.training else dance
+            dance_hat = self.m2d.teacher_forced(music, dance_in, memory_x, noise=c.decoder_noise,
+                                                cond=cond)  # (B, T, P)
             parts["dance_rec"] = dance_loss(dance_hat, dance, raw_from=c.dance_raw_from)
             if c.velocity_weight > 0:
                 parts["dance_vel"] = dance_difference_loss(dance_hat, dance, order=1)
@@ -415,7 +439,7 @@ class DualModel(nn.Module):
                 parts["dance_acc"] = dance_difference_loss(dance_hat, dance, order=2)
             if c.rollout_frames > 0 and c.rollout_weight > 0 and self.training:
                 # the closed loop of inference: frames fed back, scored on their first and second differences
-                roll = self.m2d.rollout(memory_x, dance[:, 0], c.rollout_frames + 1)  # (B, K + 1, P)
+                roll = self.m2d.rollout(memory_x, dance[:, 0], c.rollout_frames + 1, cond)  # (B, K + 1, P)
                 truth = dance[:, : c.rollout_frames + 1]
                 parts["dance_roll"] = dance_difference_loss(roll, truth, order=1) + \
                     dance_difference_loss(roll, truth, order=2)
@@ -431,21 +455,33 @@ class DualModel(nn.Module):
         if c.cycle:
             # dance cycle G_M→D(G_D→M(y)) updates G_M→D; music cycle G_D→M(G_M→D(x)) updates G_D→M
             dance_cyc = self.m2d.teacher_forced(self.music_from_composed(music_hat.detach()), dance,
-                                                noise=c.decoder_noise)
+                                                noise=c.decoder_noise, cond=cond)
             parts["dance_cycle"] = dance_loss(dance_cyc, dance, raw_from=c.dance_raw_from)
             music_cyc = self.d2m.teacher_forced(dance_hat.detach(), target_music)
             parts["music_cycle"] = music_loss(music_cyc, target_music, beat_pos_weight=c.beat_pos_weight)
         weights = {"gw": c.gw_weight, "dance_cycle": c.cycle_weight, "music_cycle": c.cycle_weight,
-                   "dance_vel": c.velocity_weight, "dance_acc": c.accel_weight, "dance_roll": c.rollout_weight}
+                   "dance_vel": c.velocity_weight, "dance_acc": c.accel_weight, "dance_roll": c.rollout_weight,
+                   "kl": c.kl_weight}
         loss = sum(weights.get(k, 1.0) * v for k, v in parts.items())
         return loss, parts
 
+    def _posterior(self, dance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The latent of each window, sampled from q(z | dance (B, T, P)) by reparameterisation, projected to the
+        decoder's width → (B, d_x), and the KL to N(0, I) (free bits: each dimension's batch-mean KL below
+        ``kl_free_bits`` nats costs nothing, so the decoder is not pushed to ignore z)."""
+        c = self.config
+        mu, logvar = self.m2d_posterior(dance).mean(1).chunk(2, dim=-1)  # (B, Z) each
+        logvar = logvar.clamp(-8.0, 8.0)
+        z = mu + torch.exp(0.5 * logvar) * torch.randn_like(mu) if self.training else mu
+        kl = 0.5 * (mu.pow(2) + logvar.exp() - 1.0 - logvar).mean(0)  # (Z,) nats
+        return self.m2d_latent(z), kl.clamp(min=c.kl_free_bits).sum()
+
     @torch.no_grad()
-    def _self_fed(self, dance: torch.Tensor, memory_x: torch.Tensor) -> torch.Tensor:
+    def _self_fed(self, dance: torch.Tensor, memory_x: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
         """Scheduled sampling in one extra pass (not the paper): G_M→D's teacher-forced prediction of ``dance``
         (B, T, P), detached, replaces each frame t ≥ 1 of the decoder input with probability ``self_feed``, so the
         decoder also learns from inputs that carry its own errors. Frame 0 (the start token) stays true."""
-        pred = self.m2d.decode(dance[:, :-1], memory_x)  # (B, T-1, P): ŷ_1..ŷ_{T-1}
+        pred = self.m2d.decode(dance[:, :-1], memory_x, cond)  # (B, T-1, P): ŷ_1..ŷ_{T-1}
         use = torch.rand(dance.shape[0], dance.shape[1] - 1, 1, device=dance.device) < self.config.self_feed
         return torch.cat([dance[:, :1], torch.where(use, pred, dance[:, 1:])], dim=1)
 
@@ -472,16 +508,21 @@ class DualModel(nn.Module):
     # ---- inference ----------------------------------------------------------------------------------
 
     @torch.no_grad()
-    def generate_dance(self, music: torch.Tensor, *, start: torch.Tensor) -> torch.Tensor:
-        """Dance for music of any length: ``music (B, n, music_dim)``, ``start (B, P)`` → (B, n, P)."""
-        return self._generate(self.m2d, music, start)
+    def generate_dance(self, music: torch.Tensor, *, start: torch.Tensor,
+                       generator: torch.Generator | None = None) -> torch.Tensor:
+        """Dance for music of any length: ``music (B, n, music_dim)``, ``start (B, P)`` → (B, n, P).
+
+        With a latent (``latent_dim > 0``) each window's z is drawn from N(0, I) with ``generator`` (one draw
+        per window and batch row, in order), so each seed dances its own choices through the whole song."""
+        return self._generate(self.m2d, music, start, generator=generator, latent=self.config.latent_dim > 0)
 
     @torch.no_grad()
     def generate_music(self, dance: torch.Tensor, *, start: torch.Tensor) -> torch.Tensor:
         """Chroma + beat for a dance of any length: ``dance (B, n, P)``, ``start (B, 13)`` → (B, n, 13)."""
         return self._generate(self.d2m, dance, start)
 
-    def _generate(self, net: Seq2Seq, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
+    def _generate(self, net: Seq2Seq, src: torch.Tensor, start: torch.Tensor, *,
+                  generator: torch.Generator | None = None, latent: bool = False) -> torch.Tensor:
         """Windows of T frames overlapping by one; each starts from the last generated frame of the previous.
 
         Runs on one torch thread (restored after): the incremental decoding's attention rounds differently
@@ -500,7 +541,11 @@ class DualModel(nn.Module):
             out, s, prev = [start[:, None, :]], 0, start
             while s + 1 < n:
                 chunk = src[:, s: s + T]  # (B, ≤T, in)
-                y = net.generate(chunk, prev)  # (B, ≤T, out)
+                cond = None
+                if latent:
+                    z = torch.randn(B, self.config.latent_dim, generator=generator)  # (B, Z) from the prior
+                    cond = self.m2d_latent(z.to(src.device, src.dtype))  # (B, d)
+                y = net.generate(chunk, prev, cond)  # (B, ≤T, out)
                 out.append(y[:, 1:])
                 prev, s = y[:, -1], s + chunk.shape[1] - 1
             return torch.cat(out, dim=1)

@@ -162,8 +162,9 @@ class DualPipeline:
         s = torch.stack([self.start_pose(start_pose, seed) for seed in seeds])  # (B, P)
         # each seed on its own, as a batch of one: the batched products round differently for every batch size
         # (and row), so a batch would not give bit for bit the dance of the seed alone
-        y = np.stack([self.model.generate_dance(feats, start=s[k : k + 1])[0].cpu().numpy()
-                      for k in range(len(seeds))])  # (B, T, P)
+        y = np.stack([self.model.generate_dance(feats, start=s[k : k + 1],
+                                                generator=torch.Generator().manual_seed(int(seed)))[0].cpu().numpy()
+                      for k, seed in enumerate(seeds)])  # (B, T, P)
         results, beats = [], None
         probs = {}  # the genres the music calls for, read only where the energy floor or the jitter cap needs them
         if cleanup and self.genre_reader is not None and (energy_options(self.folder).get("genre_energy")
