@@ -1,5 +1,9 @@
 #!/usr/bin/env bash
-# The device call: re-solve the slim dataset's rotations, then three trainings side by side on the one GPU.
+# One GPU round (issue 41): three trainings side by side on one GPU, each within BUDGET_S seconds.
+# Here, first:  python scripts/gpu_data.py slim data/tang2018 data/gpu/tang2018
+#               cp -r src/dancekit/assets/models/revolution/music_attributes data/gpu/
+# then the device call runs `bash scripts/gpu_round.sh` with carry ["data/gpu"] (the tracked models must not
+# travel: the working tree's limit is 64 MiB); OUT holds each run's tar parts and log.txt.
 cd "$(dirname "$0")/../.."
 export PYTHONUNBUFFERED=1
 nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
