@@ -31,7 +31,7 @@ from dancekit.data import PreparedData
 from dancekit.metrics import beat_metrics, foot_skating, jitter
 from dancekit.metrics import fid as fid_mod
 from dancekit.motion.analysis import mean_joint_speed
-from dancekit.motion.footlock import floor_gap_cm, planted_share
+from dancekit.motion.floor import floor_gap_cm, planted_share
 from dancekit.pipelines import load_pipeline, stages
 
 SONGS = ("Kevin_MacLeod_-_Vibe_Ace.ogg", "brahms_hungarian_dance_5.ogg",

@@ -38,7 +38,7 @@ def _jitter(m: Motion) -> float:
 
 
 def _smoothing(m: Motion) -> float:
-    from dancekit.motion.footlock import _jitter_ratio
+    from dancekit.motion.jitter import jitter_ratio as _jitter_ratio
 
     return float(_jitter_ratio(np.asarray(m.to_positions()), m.skeleton, m.fps))
 

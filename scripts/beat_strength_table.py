@@ -20,7 +20,7 @@ from dancekit.features import MUSIC_BEAT_STRENGTH, beat_strength, rhythm  # noqa
 
 
 def strength(y, sr) -> float:
-    env = rhythm._fine_onset(rhythm._fine_log_mel(rhythm._to_beat_sr(y, sr)))
+    env = rhythm.fine_onset(rhythm.fine_log_mel(rhythm.to_beat_sr(y, sr)))
     return beat_strength(onset_envelope=env, rate=rhythm.BEAT_SR / rhythm.BEAT_HOP)
 
 

@@ -1,4 +1,4 @@
-"""The layer order of docs/ARCHITECTURE.md, checked on the import graph of ``src/dancekit``.
+"""The layer order and the private-name rule of docs/ARCHITECTURE.md, checked on the AST of ``src/dancekit``.
 
 Every ``import dancekit.X`` / ``from dancekit.X import ...`` of every module — at the top or inside a
 function, since a lazy import is still a dependency — must name a package its layer may use. The table
@@ -116,3 +116,97 @@ def test_every_package_is_in_the_table():
     packages = {_package_of(p, SRC) for p in SRC.iterdir() if (p.is_dir() and (p / "__init__.py").exists())
                 or (p.suffix == ".py")}
     assert packages <= set(ALLOWED), sorted(packages - set(ALLOWED))
+
+
+# --- no private names across modules --------------------------------------------------------------------------
+
+
+def _module_name(path: Path, root: Path) -> str:
+    """``dancekit.motion.footlock`` for ``root/motion/footlock.py``; ``dancekit.motion`` for its ``__init__``."""
+    parts = ("dancekit", *path.relative_to(root).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _is_private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def _owner(dotted: str) -> str | None:
+    """The scope a dotted dancekit path is private to: the path before its first private part (``dancekit.motion``
+    for ``dancekit.motion._filters.gaussian_filter1d``, ``dancekit.motion.footlock`` for
+    ``dancekit.motion.footlock._savgol``); None when no part is private."""
+    parts = dotted.split(".")
+    for i, part in enumerate(parts):
+        if _is_private(part):
+            return ".".join(parts[:i])
+    return None
+
+
+def private_access(src: Path = SRC) -> list[str]:
+    """Every use, inside ``src``, of a dancekit name that is private to another scope.
+
+    The rule: a name whose dotted path has a part starting with ``_`` (dunders such as ``__version__`` aside)
+    is private to the module or package that holds that part, its *owner*: ``_savgol`` in
+    ``dancekit.motion.footlock`` is private to that module; the module ``dancekit.render._scene`` is private
+    to the package ``dancekit.render`` (every module inside ``render/`` may import it); ``dancekit._io`` to
+    ``dancekit`` (every module). A module may use a private name only when it is the owner or lies inside it.
+    Checked: ``from X import name`` (and ``import X``) of such a path, and attribute access ``alias._name`` /
+    ``alias._module.name`` on a name bound by an import, at the top of a file or inside a function.
+    """
+    bad = []
+    for path in sorted(src.rglob("*.py")):
+        here = _module_name(path, src)
+        tree = ast.parse(path.read_text(), filename=str(path))
+        bound: dict[str, str] = {}  # local name -> the dancekit path it was imported as
+        uses: list[tuple[int, str]] = []
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name.split(".")[0] == "dancekit":
+                        uses.append((node.lineno, a.name))
+                        if a.asname:
+                            bound[a.asname] = a.name
+                        else:
+                            bound[a.name.split(".")[0]] = "dancekit"
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
+                    and node.module.split(".")[0] == "dancekit":
+                for a in node.names:
+                    uses.append((node.lineno, f"{node.module}.{a.name}"))
+                    bound[a.asname or a.name] = f"{node.module}.{a.name}"
+        for node in ast.walk(tree):  # attribute chains on imported names: fl._savgol, dancekit.motion._filters
+            if isinstance(node, ast.Attribute):
+                chain, base = [], node
+                while isinstance(base, ast.Attribute):
+                    chain.append(base.attr)
+                    base = base.value
+                if isinstance(base, ast.Name) and base.id in bound:
+                    uses.append((node.lineno, ".".join([bound[base.id], *reversed(chain)])))
+        for line, dotted in sorted(set(uses)):
+            owner = _owner(dotted)
+            if owner is not None and here != owner and not here.startswith(owner + "."):
+                bad.append(f"{path.relative_to(src)}:{line}: {here} uses {dotted}, private to {owner}")
+    return bad
+
+
+def test_no_module_uses_another_modules_private_names():
+    bad = private_access()
+    assert not bad, "\n".join(bad)
+
+
+def test_the_private_check_catches_planted_uses_and_allows_the_owners(tmp_path):
+    root = tmp_path / "dancekit"
+    (root / "motion").mkdir(parents=True)
+    (root / "render").mkdir()
+    (root / "pipelines").mkdir()
+    (root / "motion" / "footlock.py").write_text("def _savgol():\n    pass\n\n\ndef f():\n    return _savgol()\n")
+    (root / "motion" / "_filters.py").write_text("def g():\n    pass\n")
+    (root / "motion" / "cleanup.py").write_text("from dancekit.motion._filters import g\nfrom dancekit._io import a\n")
+    (root / "render" / "_scene.py").write_text("from dancekit.motion._filters import g\n")  # another package's
+    (root / "render" / "mp4.py").write_text("from dancekit.render._scene import s\n")  # its own package's: fine
+    (root / "pipelines" / "stages.py").write_text(
+        "from dancekit.motion import footlock as fl\nfrom dancekit.motion.footlock import _savgol\n\n\n"
+        "def h():\n    return fl._savgol, fl.f, fl.__name__\n")
+    bad = private_access(root)
+    assert len(bad) == 3, bad
+    assert sum("render/_scene.py:1:" in b and b.endswith("private to dancekit.motion") for b in bad) == 1, bad
+    assert sum("pipelines/stages.py" in b and "footlock._savgol" in b for b in bad) == 2, bad  # import, fl._savgol

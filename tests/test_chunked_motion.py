@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import dancekit.motion.footlock as footlock
+import dancekit.motion.filters as filters
+import dancekit.motion.jitter as jitter
 import dancekit.motion.motion as motion_mod
 from dancekit.motion import Motion, get_skeleton
 from dancekit.motion.formats.bvh import write_bvh
@@ -73,14 +74,14 @@ def test_bvh_in_pieces_is_the_same_file(dance, tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("window", [5, 7, 13, 21])
 def test_savgol_rows_equal_the_whole_filter(dance, window):
-    whole = footlock._savgol(dance.astype(np.float64), window, 3)
-    pieces = [footlock.savgol_rows(dance, window, 3, a, b) for a, b in footlock.chunks(T, SMALL)]
+    whole = filters.savgol(dance.astype(np.float64), window, 3)
+    pieces = [filters.savgol_rows(dance, window, 3, a, b) for a, b in filters.chunks(T, SMALL)]
     np.testing.assert_array_equal(np.concatenate(pieces), whole)
 
 
 def test_chunks_cover_the_range_once():
     for n, size in ((1, 97), (96, 97), (97, 97), (98, 97), (1300, 97), (90_000, 4096)):
-        cut = footlock.chunks(n, size)
+        cut = filters.chunks(n, size)
         assert cut[0][0] == 0 and cut[-1][1] == n
         assert all(b0 == a1 for (_, b0), (a1, _) in zip(cut[:-1], cut[1:]))
         assert all(size // 2 <= b - a <= size for a, b in cut) or len(cut) == 1
@@ -88,18 +89,18 @@ def test_chunks_cover_the_range_once():
 
 @pytest.mark.parametrize("window", [None, 7, 15])
 def test_jitter_ratio_in_pieces_equals_one_pass(dance, monkeypatch, window):
-    monkeypatch.setattr(footlock, "CHUNK", SMALL)
-    x = dance if window is None else footlock._savgol(dance.astype(np.float64), window, 3)
-    got = footlock._jitter_ratio(dance, SK, FPS, window=window)
+    monkeypatch.setattr(filters, "CHUNK", SMALL)
+    x = dance if window is None else filters.savgol(dance.astype(np.float64), window, 3)
+    got = jitter.jitter_ratio(dance, SK, FPS, window=window)
     assert got > 0.05
     assert got == pytest.approx(_old_jitter_ratio(x), rel=1e-12, abs=0)
 
 
 def test_smoothing_stage_in_pieces_equals_one_pass(dance, monkeypatch):
     result = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=dance), model="m", seed=0)
-    monkeypatch.setattr(footlock, "CHUNK", 10**9)
+    monkeypatch.setattr(filters, "CHUNK", 10**9)
     whole = smooth(result)
-    monkeypatch.setattr(footlock, "CHUNK", SMALL)
+    monkeypatch.setattr(filters, "CHUNK", SMALL)
     pieces = smooth(result)
     assert whole.notes == pieces.notes and whole.notes[-1].startswith("smoothed (")
     assert pieces.motion.positions.dtype == np.float32

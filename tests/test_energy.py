@@ -335,10 +335,10 @@ def test_a_bad_settle_entry_is_a_checkpoint_error(tmp_path, entry):
 
 
 def test_a_long_dance_is_lifted_piece_by_piece_with_the_numbers_of_one_pass(monkeypatch):
-    """Over :data:`dancekit.motion.footlock.CHUNK` frames the positions path works piece by piece (margins over
+    """Over :data:`dancekit.motion.filters.CHUNK` frames the positions path works piece by piece (margins over
     the filters' reach): the same dance as one pass, and the same energy as the metrics'."""
     from dancekit.motion import energy as en
-    from dancekit.motion import footlock
+    from dancekit.motion import filters
 
     swing = _swing(0.2, seconds=400.0)  # 10,000 frames: three pieces
     p = np.asarray(swing.positions)
@@ -347,7 +347,7 @@ def test_a_long_dance_is_lifted_piece_by_piece_with_the_numbers_of_one_pass(monk
         smoothed_energy(p.astype(np.float64), fps=FPS, skeleton=sk), rel=1e-9)
     floor = 1.4 * smoothed_energy(p.astype(np.float64), fps=FPS, skeleton=sk)
     pieces, gain = en.lift_positions(p, skeleton=sk, fps=FPS, floor=floor, max_gain=3.0)
-    monkeypatch.setattr(footlock, "CHUNK", 100_000)
+    monkeypatch.setattr(filters, "CHUNK", 100_000)
     whole, gain1 = en.lift_positions(p, skeleton=sk, fps=FPS, floor=floor, max_gain=3.0)
     assert gain == pytest.approx(gain1, rel=1e-6) and gain > 1.3
     np.testing.assert_allclose(pieces, whole, atol=1e-3)  # cm

@@ -1,5 +1,5 @@
 """The dance stages without SciPy (issue 13's cold start): the NumPy 1-D filters of
-:mod:`dancekit.motion._filters` against ``scipy.ndimage`` on random inputs for the modes and sizes the
+:mod:`dancekit.motion.filters` against ``scipy.ndimage`` on random inputs for the modes and sizes the
 stages use, the beat warp's banded solve against a dense one, and a fresh process running the stages'
 functions that imports neither ``scipy.ndimage`` nor ``scipy.sparse``."""
 
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from dancekit.motion import _filters as F
+from dancekit.motion import filters as F
 from dancekit.motion import timewarp
 
 LENGTHS = [1, 2, 3, 5, 64, 1537, 20_000]  # 20 000 > PIECE: the rank filters' pieces are joined
@@ -127,7 +127,8 @@ import numpy as np
 from dancekit.motion import get_skeleton
 from dancekit.motion.analysis import floor_curve, kinematic_beats
 from dancekit.motion.cleanup import ground_offset
-from dancekit.motion.footlock import _jitter_ratio, lock_feet
+from dancekit.motion.footlock import lock_feet
+from dancekit.motion.jitter import jitter_ratio as _jitter_ratio
 from dancekit.motion.timewarp import beat_warp
 sk = get_skeleton("tang2018")
 p = np.load(sys.argv[1])["none_seed3"].astype(np.float64)  # a real dance of the embedded model (8 s)

@@ -18,10 +18,9 @@ from dancekit.motion.footlock import (
     leg_chains,
     leg_rotations,
     lock_feet,
-    smooth_positions,
-    smoothing_window,
     two_bone_ik,
 )
+from dancekit.motion.jitter import smooth_positions, smoothing_window
 from dancekit.motion.kinematics import rig_forward_kinematics
 from dancekit.motion.rotations import axis_angle_to_matrix
 
@@ -213,7 +212,7 @@ def test_savgol_equals_scipy_interp_mode():
     """The NumPy Savitzky-Golay filter (no scipy.signal import in a dance process) is scipy's, edges included."""
     from scipy.signal import savgol_filter
 
-    from dancekit.motion.footlock import _savgol
+    from dancekit.motion.filters import savgol as _savgol
 
     rng = np.random.default_rng(3)
     for T, window, order in [(100, 7, 3), (40, 21, 3), (21, 21, 3), (9, 5, 2), (60, 5, 3)]:
@@ -337,7 +336,7 @@ def test_the_smoothing_stage_takes_a_named_genres_target_from_the_checkpoint(tmp
     import json
 
     from dancekit.errors import CheckpointError
-    from dancekit.motion.footlock import _jitter_ratio
+    from dancekit.motion.jitter import jitter_ratio as _jitter_ratio
     from dancekit.pipelines import stages
     from dancekit.pipelines.base import DanceResult
 

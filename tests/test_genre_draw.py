@@ -346,8 +346,8 @@ def test_a_drawn_dance_is_capped_and_the_most_likely_one_left_alone(parent, song
 
 
 def test_the_cutoff_brings_the_jitter_under_the_cap():
-    from dancekit.motion._filters import fir_lowpass, lowpass_kernel
-    from dancekit.motion.footlock import CAP_CUTOFFS_HZ, jitter_cutoff
+    from dancekit.motion.filters import fir_lowpass, lowpass_kernel
+    from dancekit.motion.jitter import CAP_CUTOFFS_HZ, jitter_cutoff
 
     skel = get_skeleton("tang2018")
     rng = np.random.default_rng(0)

@@ -12,7 +12,7 @@ import pytest
 import dancekit.pipelines.stages as stages
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion, get_skeleton
-from dancekit.motion.footlock import jitter_speed
+from dancekit.motion.jitter import jitter_speed
 from dancekit.pipelines.base import DanceResult
 from dancekit.pipelines.revolution import GenreDraw, genre_draw_from_meta
 

@@ -8,10 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import dancekit.motion.filters as filters
 import dancekit.motion.footlock as footlock
+import dancekit.motion.jitter as jitter
 from dancekit.errors import ParameterError
 from dancekit.motion import Motion, get_skeleton
-from dancekit.motion._filters import fir_lowpass, lowpass_kernel, lowpass_taps
+from dancekit.motion.filters import fir_lowpass, lowpass_kernel, lowpass_taps
 from dancekit.pipelines.base import DanceResult
 from dancekit.pipelines.stages import settle
 
@@ -89,25 +91,25 @@ def dance() -> np.ndarray:
 def test_rows_in_pieces_equal_the_whole_filter(dance, cutoff):
     h = lowpass_kernel(cutoff, fps=FPS)
     whole = fir_lowpass(dance, h)
-    pieces = [footlock.lowpass_rows(dance, h, a, b) for a, b in footlock.chunks(len(dance), 61)]
+    pieces = [filters.lowpass_rows(dance, h, a, b) for a, b in filters.chunks(len(dance), 61)]
     np.testing.assert_array_equal(np.concatenate(pieces), whole)
 
 
 def test_jitter_ratio_of_the_lowpass_in_pieces(dance, monkeypatch):
-    whole = footlock._jitter_ratio(fir_lowpass(dance, lowpass_kernel(3.0, fps=FPS)), SK, FPS)
-    monkeypatch.setattr(footlock, "CHUNK", 61)
-    got = footlock._jitter_ratio(dance, SK, FPS, cutoff=3.0)
+    whole = jitter.jitter_ratio(fir_lowpass(dance, lowpass_kernel(3.0, fps=FPS)), SK, FPS)
+    monkeypatch.setattr(filters, "CHUNK", 61)
+    got = jitter.jitter_ratio(dance, SK, FPS, cutoff=3.0)
     assert got == pytest.approx(whole, rel=1e-12)
-    assert got < 0.5 * footlock._jitter_ratio(dance, SK, FPS)  # the frame noise is gone
+    assert got < 0.5 * jitter.jitter_ratio(dance, SK, FPS)  # the frame noise is gone
 
 
 def test_lowpass_cutoff_reaches_the_target(dance):
-    ratios = {c: footlock._jitter_ratio(dance, SK, FPS, cutoff=c) for c in footlock.CUTOFFS_HZ}
-    assert all(ratios[a] > ratios[b] for a, b in zip(footlock.CUTOFFS_HZ[:-1], footlock.CUTOFFS_HZ[1:]))
+    ratios = {c: jitter.jitter_ratio(dance, SK, FPS, cutoff=c) for c in jitter.CUTOFFS_HZ}
+    assert all(ratios[a] > ratios[b] for a, b in zip(jitter.CUTOFFS_HZ[:-1], jitter.CUTOFFS_HZ[1:]))
     target = ratios[4.0] * (1 + 1e-9)  # the highest cut-off within the target is 4 Hz
-    assert footlock.lowpass_cutoff(dance, skeleton=SK, fps=FPS, target=target) == 4.0
-    assert footlock.lowpass_cutoff(dance, skeleton=SK, fps=FPS, target=0.0) == footlock.CUTOFFS_HZ[-1]
-    assert footlock.lowpass_cutoff(fir_lowpass(dance, lowpass_kernel(2.0, fps=FPS)), skeleton=SK, fps=FPS,
+    assert jitter.lowpass_cutoff(dance, skeleton=SK, fps=FPS, target=target) == 4.0
+    assert jitter.lowpass_cutoff(dance, skeleton=SK, fps=FPS, target=0.0) == jitter.CUTOFFS_HZ[-1]
+    assert jitter.lowpass_cutoff(fir_lowpass(dance, lowpass_kernel(2.0, fps=FPS)), skeleton=SK, fps=FPS,
                                    target=0.5) == 0.0  # smooth already: left alone
 
 
@@ -121,7 +123,7 @@ def test_settle_keeps_bones_and_filters_in_pieces(dance, monkeypatch):
             np.testing.assert_allclose(np.linalg.norm(out[:, j] - out[:, q], axis=-1),
                                        np.linalg.norm(p[:, j] - p[:, q], axis=-1), rtol=1e-5)
     assert np.abs(out - p).max() > 1.0  # it did filter (cm); the jitter it removes: the held-feet test below
-    monkeypatch.setattr(footlock, "CHUNK", 97)
+    monkeypatch.setattr(filters, "CHUNK", 97)
     np.testing.assert_array_equal(settle(res, cutoff=3.0).motion.positions, out.astype(np.float32))
     assert settle(res, cutoff=0).motion is res.motion
 
@@ -145,7 +147,7 @@ def _held_frames_checked(p: np.ndarray) -> int:
     locked, rep = footlock.lock_feet(p, skeleton=SK, fps=FPS, return_report=True)
     res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=locked.astype(np.float32)), model="m", seed=0)
     out = settle(res, cutoff=3.0).motion.positions.astype(np.float64)
-    assert footlock._jitter_ratio(out, SK, FPS) < 0.8 * footlock._jitter_ratio(locked, SK, FPS)
+    assert jitter.jitter_ratio(out, SK, FPS) < 0.8 * jitter.jitter_ratio(locked, SK, FPS)
     checked = 0
     for leg, (_hip, _knee, ankle, _below) in enumerate(footlock.leg_chains(SK)):
         for s, e in footlock._runs(rep.held[:, leg]):
@@ -164,7 +166,7 @@ def test_settle_filters_rotations_consistently(dance):
     np.testing.assert_allclose(r @ np.swapaxes(r, -1, -2), np.broadcast_to(np.eye(3), r.shape), atol=1e-5)
     fk = Motion(skeleton=SK, fps=FPS, rotations=out.rotations, root_translation=out.root_translation).to_positions()
     np.testing.assert_allclose(fk, out.positions, atol=1e-3)  # positions from the filtered rotations
-    assert footlock._jitter_ratio(out.positions, SK, FPS) < footlock._jitter_ratio(m.to_positions(), SK, FPS)
+    assert jitter.jitter_ratio(out.positions, SK, FPS) < jitter.jitter_ratio(m.to_positions(), SK, FPS)
 
 
 def _ancestors(j: int) -> set[int]:

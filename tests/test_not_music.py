@@ -38,7 +38,7 @@ def test_beat_strength_known_answers():
 
 
 def _strength(y: np.ndarray, sr: int) -> float:
-    env = rhythm._fine_onset(rhythm._fine_log_mel(rhythm._to_beat_sr(y, sr)))
+    env = rhythm.fine_onset(rhythm.fine_log_mel(rhythm.to_beat_sr(y, sr)))
     return beat_strength(onset_envelope=env, rate=rhythm.BEAT_SR / rhythm.BEAT_HOP)
 
 

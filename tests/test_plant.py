@@ -16,7 +16,8 @@ import torch
 
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion, get_skeleton
-from dancekit.motion.footlock import lock_feet, lock_feet_to_share, planted_share
+from dancekit.motion.floor import planted_share
+from dancekit.motion.footlock import lock_feet, lock_feet_to_share
 from dancekit.motion.kinematics import rig_forward_kinematics
 from dancekit.motion.rotations import axis_angle_to_matrix
 
@@ -50,6 +51,25 @@ def test_planted_share_of_a_figure_that_stands_then_slides():
     left = [SK.index(n) for n in ("left_ankle", "left_heel", "left_toe")]
     lifted[:, left, 1] += 5.0  # the left foot 5 cm up: only the right one is planted
     assert planted_share(lifted, skeleton=SK, fps=FPS) == pytest.approx(0.5)
+
+
+def test_floor_contact_reports_the_float_the_near_floor_share_and_the_planted_share():
+    """The standing figure lifted 3 cm in frames 10-19 of 40. The local floor (the lowest point within ±1 s)
+    stays at 0, since every frame's window holds a frame on the floor: the gap is 3 cm in 10 frames and 0 in 30,
+    so the float (median) is 0 and 30 of 40 frames are within 2 cm. Then frames 10-19 6 cm and 20-29 3 cm up:
+    gaps (0 x 20, 3 x 10, 6 x 10), median 1.5 cm, 20 of 40 within 1 cm. The planted share is the motion
+    module's (tested above)."""
+    from dancekit.metrics import floor_contact
+
+    p = _figure(np.zeros(40))
+    p[10:20, :, 1] += 3.0
+    got = floor_contact(p, skeleton=SK, fps=FPS)
+    assert got["float_cm"] == pytest.approx(0.0, abs=1e-9)
+    assert got["near_floor_share"] == pytest.approx(30 / 40)
+    assert got["planted_share"] == pytest.approx(planted_share(p, skeleton=SK, fps=FPS))
+    p[10:30, :, 1] += 3.0  # frames 10-19 6 cm up, 20-29 3 cm up: median gap of (0 x 20, 3 x 10, 6 x 10) = 1.5
+    got = floor_contact(p, skeleton=SK, fps=FPS, near_cm=1.0)
+    assert got["float_cm"] == pytest.approx(1.5, abs=1e-9) and got["near_floor_share"] == pytest.approx(0.5)
 
 
 def test_the_lock_is_held_to_the_target_share():

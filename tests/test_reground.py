@@ -145,7 +145,7 @@ def _touching_every(period: int, lift_cm: float, T: int = 240) -> np.ndarray:
 def test_floor_float_is_the_median_height_over_the_lowest_point_within_one_second():
     from scipy.ndimage import minimum_filter1d
 
-    from dancekit.motion.footlock import floor_float_cm, floor_gap_cm
+    from dancekit.motion.floor import floor_float_cm, floor_gap_cm
 
     # touching every 24 frames (< 1 s): every ±1 s window holds a touch, so the float is the lift itself
     assert floor_float_cm(_touching_every(24, 4.0), skeleton=SK, fps=FPS) == pytest.approx(4.0, abs=1e-6)
@@ -162,7 +162,7 @@ def test_floor_float_is_the_median_height_over_the_lowest_point_within_one_secon
 
 
 def test_reground_tries_shorter_windows_only_while_the_dance_floats_over_the_bound():
-    from dancekit.motion.footlock import floor_float_cm
+    from dancekit.motion.floor import floor_float_cm
 
     def result(p):
         return DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32)), model=None, seed=0)

@@ -170,13 +170,13 @@ def test_tempogram_mean_is_librosas_mean():
 def test_onset_envelope_in_chunks_is_librosas(hop):
     import librosa
 
-    from dancekit.features.rhythm import _BEAT_NFFT, _onset_chunked
+    from dancekit.features.rhythm import BEAT_NFFT, _onset_chunked
 
     S = (np.random.default_rng(6).standard_normal((128, 700)) * 10).astype(np.float32)
     for aggregate in (np.median, np.mean):
-        ref = librosa.onset.onset_strength(S=S, sr=BEAT_SR, hop_length=hop, n_fft=_BEAT_NFFT, aggregate=aggregate)
+        ref = librosa.onset.onset_strength(S=S, sr=BEAT_SR, hop_length=hop, n_fft=BEAT_NFFT, aggregate=aggregate)
         got = _onset_chunked(S, hop_length=hop, aggregate=aggregate, chunk=33)
         assert got.shape == ref.shape and np.array_equal(got, ref.astype(np.float32))
     strided = np.ascontiguousarray(S[:, ::2])
-    ref = librosa.onset.onset_strength(S=strided, sr=BEAT_SR, hop_length=hop, n_fft=_BEAT_NFFT, aggregate=np.mean)
+    ref = librosa.onset.onset_strength(S=strided, sr=BEAT_SR, hop_length=hop, n_fft=BEAT_NFFT, aggregate=np.mean)
     assert np.array_equal(_onset_chunked(S[:, ::2], hop_length=hop, aggregate=np.mean, chunk=50), ref)

@@ -116,3 +116,40 @@ def test_the_pairing_skips_a_chain_the_step_bound_cannot_follow():
     np.testing.assert_allclose(match_beats(**kw, max_rate_step=0.05, fps=FPS), [[0.5, 0.65], [1.0, 1.0]])
     with pytest.raises(ParameterError, match="fps"):
         match_beats(**kw, max_rate_step=0.02)
+
+
+
+def _stepping_dance(period: int, n_frames: int) -> np.ndarray:
+    """(T, 2, 3) a dance that stops dead every ``period`` frames from frame ``period`` on, and nowhere else: the
+    joints travel ``x = φ - sin(2πφ) / 2π`` with the phase φ = frame / period (speed ∝ 1 - cos 2πφ)."""
+    phase = np.arange(n_frames) / period
+    x = phase - np.sin(2 * np.pi * phase) / (2 * np.pi)
+    p = np.zeros((n_frames, 2, 3))
+    p[:, :, 0] = 20.0 * x[:, None]
+    p[:, 1, 1] = 10.0
+    return p
+
+
+def test_the_warp_puts_each_stop_of_the_dance_on_its_music_beat_frame():
+    """Known answer: a dance that stops every 13 frames (frames 13, 26, ..., 195) against music beats every 12
+    frames (frames 12, 24, ..., 192): the beats are 8 % faster than the steps, inside every rate bound, and stop
+    j is within 0.6 s of beat j, so the warp pairs most of them. The reported pairs must be given beat times and
+    built stops, and the warped dance must stop on the paired beats' frames themselves (its speed minima,
+    no smoothing). A beat moved by one frame anywhere in the warp lands the stops a frame off."""
+    from dancekit.motion.analysis import kinematic_beats
+    from dancekit.motion.timewarp import warp_frames
+
+    n = 201
+    stops = np.arange(13, n - 1, 13) / FPS  # 15 stops
+    beats = np.arange(12, n - 1, 12) / FPS  # 16 beats
+    p = _stepping_dance(13, n)
+    np.testing.assert_allclose(kinematic_beats(p, fps=FPS, smooth=0), stops, atol=1e-9)  # the stops, as built
+    source, pairs = beat_warp(p, music_beats=beats, fps=FPS, smooth=0)
+    # the pairs: given beat times with built stops (exactly), increasing in both, most of the 15 stops
+    assert len(pairs) >= 10 and np.all(np.diff(pairs, axis=0) > 0)
+    assert np.abs(pairs[:, :1] - beats[None, :]).min(axis=1).max() < 1e-9
+    assert np.abs(pairs[:, 1:] - stops[None, :]).min(axis=1).max() < 1e-9
+    # the warped dance stops on the paired beats' frames
+    landed = np.rint(kinematic_beats(warp_frames(p, source_frames=source), fps=FPS, smooth=0) * FPS).astype(int)
+    want = np.rint(pairs[:, 0] * FPS).astype(int)
+    assert set(want) <= set(landed), (sorted(set(want) - set(landed)), landed)

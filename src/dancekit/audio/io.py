@@ -233,7 +233,7 @@ def _check_truncated(path: Path, fmt: str) -> None:
 
 
 @contextlib.contextmanager
-def _quiet_c_stderr() -> Iterator[None]:
+def quiet_c_stderr() -> Iterator[None]:
     """Silence what C libraries write to file descriptor 2 (libsndfile's mpg123 prints "Note: Illegal
     Audio-MPEG-Header ..." for a corrupt mp3 before we raise our own one-line error)."""
     try:
@@ -364,7 +364,7 @@ def _validate_range(start: float | None, end: float | None) -> None:
 def _open_soundfile(path: Path) -> sf.SoundFile | None:
     """``path`` opened by libsndfile (its C library's notes kept off stderr), or None for a format it cannot
     read (decoded by ffmpeg instead)."""
-    with _quiet_c_stderr():
+    with quiet_c_stderr():
         try:
             return sf.SoundFile(path)
         except (sf.LibsndfileError, RuntimeError):
@@ -435,7 +435,7 @@ def load(
     check_audio_path(path)
 
     f = _open_soundfile(path)
-    with _quiet_c_stderr():
+    with quiet_c_stderr():
         if f is not None:
             with f:
                 _check_truncated(path, f.format)
@@ -501,7 +501,7 @@ def stream(
         yield [resample(y, orig_sr=native, target_sr=r) for r in rates]
         return
     with f:
-        with _quiet_c_stderr():
+        with quiet_c_stderr():
             _check_truncated(path, f.format)
         native = f.samplerate
         want = _seek_range(f, path, start, end)
@@ -510,7 +510,7 @@ def stream(
         got, flushed = 0, False
         while got < want:
             try:
-                with _quiet_c_stderr():
+                with quiet_c_stderr():
                     raw = f.read(min(_BLOCK, want - got), dtype="float32", always_2d=True)
             except sf.LibsndfileError as exc:
                 raise AudioError(f"cannot decode audio file {str(path)!r}: corrupt data ({exc})") from None

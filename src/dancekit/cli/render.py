@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
 
     if audio is not None and end is None:
         # refused rather than cut (ffmpeg would end the video with the song) or padded with silence
-        from dancekit.render._ffmpeg import audio_duration
+        from dancekit.render import audio_duration
 
         left = audio_duration(audio) - (start or 0.0)
         if 0 < left and left + 0.5 / motion.fps < motion.duration:

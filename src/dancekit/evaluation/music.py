@@ -436,17 +436,17 @@ def evaluate_music(data_root: str | os.PathLike, *, music: Mapping[str, MusicPie
         notes.append("no metronome baselines: the real music's tempo could not be measured")
     settings_out = asdict(settings)
     settings_out["clip_lengths"] = [clip_label(c) for c in settings.clip_lengths]
-    from dancekit.evaluation.score import _clean
+    from dancekit.evaluation.score import json_safe
 
     return {
         "kind": "music",
-        "columns": _clean(pooled),
+        "columns": json_safe(pooled),
         "labels": {k: labels[k] for k in pooled},
-        "per_dance": _clean(per_dance),
+        "per_dance": json_safe(per_dance),
         "settings": settings_out,
         "counts": {"dances": len(dances), "seconds": sum(d.duration for d in dances), "split": split},
         "sources": {k: {n: p.source for n, p in v.items() if p.source} for k, v in columns.items()},
-        "targets": _clean(targets),
+        "targets": json_safe(targets),
         "notes": notes,
     }
 

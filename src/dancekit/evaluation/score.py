@@ -296,22 +296,22 @@ def evaluate_motions(
                      "style_window_seconds": (classifier.window / classifier.fps) if classifier is not None else None},
         "counts": {"generated_files": len(flat_pred), "songs": len(names), "samples_per_song": n_samples,
                    "reference_dances": len(ref_names), "fid_reference_dances": len(fid_ref)},
-        "metrics": _clean(metrics),
-        "real": _clean(real),
-        "per_dance": {k: _clean(v) for k, v in per_dance.items()},
-        "fid_curve": _clean(fid_curve),
-        "fid_breakdown": _clean(breakdown),
+        "metrics": json_safe(metrics),
+        "real": json_safe(real),
+        "per_dance": {k: json_safe(v) for k, v in per_dance.items()},
+        "fid_curve": json_safe(fid_curve),
+        "fid_breakdown": json_safe(breakdown),
         "classifier": clf_info,
         "notes": notes,
     }
 
 
-def _clean(x: Any) -> Any:
+def json_safe(x: Any) -> Any:
     """Floats with NaN / inf replaced by None (valid JSON)."""
     if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
+        return {k: json_safe(v) for k, v in x.items()}
     if isinstance(x, list | tuple):
-        return [_clean(v) for v in x]
+        return [json_safe(v) for v in x]
     if isinstance(x, float | np.floating):
         return float(x) if math.isfinite(float(x)) else None
     if isinstance(x, np.integer):

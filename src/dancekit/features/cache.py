@@ -15,7 +15,7 @@ from dancekit._io import file_sha256
 from dancekit.audio.io import check_audio_path
 from dancekit.errors import DancekitError, ParameterError
 from dancekit.features.featureset import FeatureSet
-from dancekit.features.presets import BACKENDS, PRESETS, _check_choice, _extract_path, feature_sr
+from dancekit.features.presets import BACKENDS, PRESETS, check_choice, extraction_path, feature_sr
 
 __all__ = ["CACHE_MAX_BYTES", "FEATURES_VERSION", "cache_key", "cache_max_bytes", "default_cache_dir",
            "extract_file", "prune_cache"]
@@ -185,8 +185,8 @@ def extract_file(
     AudioError, ParameterError
         As for :func:`dancekit.audio.load` and :func:`~dancekit.features.extract`.
     """
-    _check_choice("preset", preset, PRESETS)
-    _check_choice("backend", backend, BACKENDS)
+    check_choice("preset", preset, PRESETS)
+    check_choice("backend", backend, BACKENDS)
     feature_sr(fps=fps, hop_length=hop_length)
     path = Path(path)
     entry = None
@@ -222,7 +222,7 @@ def extract_file(
             warnings.warn(f"feature cache disabled: cannot create {str(folder)!r} ({exc})", stacklevel=2)
             entry = None
 
-    fs, env_fine = _extract_path(path, fps=fps, preset=preset, hop_length=hop_length, backend=backend, start=start,
+    fs, env_fine = extraction_path(path, fps=fps, preset=preset, hop_length=hop_length, backend=backend, start=start,
                                  end=end)
     if entry is not None:
         try:
@@ -233,9 +233,9 @@ def extract_file(
         if env_fine is not None:  # the song's beats were tracked just now: the beat-sync stage reads them
             from dancekit.features import pulse
 
-            beats_entry = pulse._beats_entry(path, start=start, end=end, cache_dir=entry.parent, sha256=sha)
+            beats_entry = pulse.beats_cache_entry(path, start=start, end=end, cache_dir=entry.parent, sha256=sha)
             if not beats_entry.is_file():
-                pulse._save_beats(beats_entry, pulse._beats_from_fine(env_fine, fs.tempo, fs.beat_times))
+                pulse.save_beats(beats_entry, pulse.beats_from_fine(env_fine, fs.tempo, fs.beat_times))
     return fs
 
 

@@ -82,7 +82,7 @@ def feature_sr(*, fps: float, hop_length: int = 512) -> int:
     return sr
 
 
-def _check_choice(name: str, value: str, choices) -> None:
+def check_choice(name: str, value: str, choices) -> None:
     if value not in choices:
         raise ParameterError(f"unknown {name} {value!r}; choose one of {sorted(choices)}")
 
@@ -155,8 +155,8 @@ def _extract(
     """:func:`extract`, and the fine-grid onset envelope the beats were tracked on when that is the full mix's
     (the ``librosa`` backend, presets other than ``dual``; else None): with the features' tempo and beats it
     is the song's :class:`~dancekit.features.pulse.SongBeats`, which :func:`extract_file` caches too."""
-    _check_choice("preset", preset, PRESETS)
-    _check_choice("backend", backend, BACKENDS)
+    check_choice("preset", preset, PRESETS)
+    check_choice("backend", backend, BACKENDS)
     fsr = feature_sr(fps=fps, hop_length=hop_length)
     y = np.asarray(y)
     validate_audio(y, sr=sr)
@@ -199,14 +199,14 @@ def _extract(
         if preset == "music2dance":
             downbeat_times = down
     else:
-        S_fine = rhythm._fine_log_mel(beat_source)
-        env_fine = rhythm._fine_onset(S_fine)
-        tempo, beat_times = rhythm._beat_track_fine(S_fine, env_fine)
+        S_fine = rhythm.fine_log_mel(beat_source)
+        env_fine = rhythm.fine_onset(S_fine)
+        tempo, beat_times = rhythm.beat_track_fine(S_fine, env_fine)
         if preset == "music2dance":
-            downbeat_times = rhythm._downbeats_fine(S_fine, env_fine, beat_times)
+            downbeat_times = rhythm.downbeats_fine(S_fine, env_fine, beat_times)
         del S_fine
     if backend == "madmom" or preset == "dual":  # the strength is measured on the full mix's envelope
-        env_fine = rhythm._fine_onset(rhythm._fine_log_mel(y_fine))
+        env_fine = rhythm.fine_onset(rhythm.fine_log_mel(y_fine))
     strength = rhythm.beat_strength(onset_envelope=env_fine, rate=fine_rate)
 
     onehot = rhythm.beat_onehot(beat_times=beat_times, fps=fps, n_frames=T)
@@ -277,14 +277,14 @@ class _Spool:
         self.fh.close()
 
 
-def _expected_samples(path, start: float | None, end: float | None, rate: int) -> int:
+def expected_sample_count(path, start: float | None, end: float | None, rate: int) -> int:
     """The decoded length at ``rate`` that libsndfile's header promises (0 when unknown)."""
     import soundfile as sf
 
-    from dancekit.audio.io import _quiet_c_stderr
+    from dancekit.audio.io import quiet_c_stderr
 
     try:
-        with _quiet_c_stderr():  # libsndfile's mpg123 prints notes on a damaged mp3 to fd 2
+        with quiet_c_stderr():  # libsndfile's mpg123 prints notes on a damaged mp3 to fd 2
             info = sf.info(str(path))
     except Exception:  # not a libsndfile format: ffmpeg decodes it in one block
         return 0
@@ -318,12 +318,12 @@ def extract_path(
     start, end : excerpt in seconds
     chunk : frames per chromagram / tempogram chunk (default :data:`dancekit.features.spectral.CHUNK_FRAMES`)
     """
-    return _extract_path(path, fps=fps, preset=preset, hop_length=hop_length, backend=backend, start=start,
+    return extraction_path(path, fps=fps, preset=preset, hop_length=hop_length, backend=backend, start=start,
                          end=end, chunk=chunk)[0]
 
 
 @_quiet_short_input
-def _extract_path(
+def extraction_path(
     path, *, fps: float, preset: str, hop_length: int = 512, backend: str = "librosa",
     start: float | None = None, end: float | None = None, chunk: int | None = None,
 ) -> tuple[FeatureSet, np.ndarray | None]:
@@ -331,19 +331,19 @@ def _extract_path(
     (for :func:`dancekit.features.extract_file`'s cached song beats)."""
     from dancekit.audio.io import load, stream
 
-    _check_choice("preset", preset, PRESETS)
-    _check_choice("backend", backend, BACKENDS)
+    check_choice("preset", preset, PRESETS)
+    check_choice("backend", backend, BACKENDS)
     fsr = feature_sr(fps=fps, hop_length=hop_length)
     if backend != "librosa" or preset == "dual":
         y, sr = load(path, start=start, end=end)
         return _extract(y, sr=sr, fps=fps, preset=preset, hop_length=hop_length, backend=backend)
     chunk = spectral.CHUNK_FRAMES if chunk is None else int(chunk)
-    expected = _expected_samples(path, start, end, fsr)
+    expected = expected_sample_count(path, start, end, fsr)
     y_feat = _Spool()
-    n_fft = spectral._n_fft(None, hop_length)
+    n_fft = spectral.default_n_fft(None, hop_length)
     mel = spectral.MelPowerStream(sr=fsr, n_fft=n_fft, hop_length=hop_length, expected_samples=expected)
-    fine = spectral.MelPowerStream(sr=rhythm.BEAT_SR, n_fft=rhythm._BEAT_NFFT, hop_length=rhythm.BEAT_HOP,
-                                   expected_samples=_expected_samples(path, start, end, rhythm.BEAT_SR))
+    fine = spectral.MelPowerStream(sr=rhythm.BEAT_SR, n_fft=rhythm.BEAT_NFFT, hop_length=rhythm.BEAT_HOP,
+                                   expected_samples=expected_sample_count(path, start, end, rhythm.BEAT_SR))
     for block_feat, block_fine in stream(path, rates=[fsr, rhythm.BEAT_SR], start=start, end=end):
         y_feat.add(block_feat)
         mel.feed(block_feat)
@@ -351,9 +351,9 @@ def _extract_path(
     # the beat grid first: its spectrogram (160 MB per hour) is freed before the feature matrix is filled
     S_fine = spectral.power_to_db_inplace(fine.finish())
     del fine
-    env_fine = rhythm._fine_onset_chunked(S_fine)
-    tempo, beat_times = rhythm._beat_track_fine(S_fine, env_fine)
-    downbeat_times = rhythm._downbeats_fine(S_fine, env_fine, beat_times) if preset == "music2dance" else None
+    env_fine = rhythm.fine_onset_chunked(S_fine)
+    tempo, beat_times = rhythm.beat_track_fine(S_fine, env_fine)
+    downbeat_times = rhythm.downbeats_fine(S_fine, env_fine, beat_times) if preset == "music2dance" else None
     del S_fine
     strength = rhythm.beat_strength(onset_envelope=env_fine, rate=rhythm.BEAT_SR / rhythm.BEAT_HOP)
     try:
@@ -366,7 +366,7 @@ def _extract_path(
         features = np.zeros((T, PRESET_DIMS[preset]), np.float32)
 
         # log_melspectrogram(y=y, ...) from the streamed mel power (the same chunks: the same numbers)
-        S = spectral._fit(spectral.power_to_db_inplace(mel.finish()), T)  # (128, T) dB
+        S = spectral.fit_frames(spectral.power_to_db_inplace(mel.finish()), T)  # (128, T) dB
         del mel
         if preset == "revolution":
             m = spectral.mfcc(S=S, sr=fsr, hop_length=hop_length)

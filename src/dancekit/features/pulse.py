@@ -22,11 +22,11 @@ from dancekit.errors import DancekitError
 from dancekit.features.rhythm import (
     BEAT_HOP,
     BEAT_SR,
-    _beat_track_fine,
-    _fine_log_mel,
-    _fine_onset,
-    _fine_onset_chunked,
-    _to_beat_sr,
+    beat_track_fine,
+    fine_log_mel,
+    fine_onset,
+    fine_onset_chunked,
+    to_beat_sr,
 )
 
 __all__ = ["MIN_BEATS", "MIN_PULSE_CLARITY", "SongBeats", "pulse_clarity", "song_beats", "song_beats_file"]
@@ -66,13 +66,13 @@ def pulse_clarity(*, envelope: np.ndarray, tempo: float, frame_rate: float = BEA
 def song_beats(*, y: np.ndarray, sr: int, min_clarity: float = MIN_PULSE_CLARITY,
                min_beats: int = MIN_BEATS) -> SongBeats:
     """Beats of the audio ``y`` ``(n,)`` at ``sr`` Hz and whether it has a beat (see the module docstring)."""
-    S_db = _fine_log_mel(_to_beat_sr(y, sr))
-    env = _fine_onset(S_db)
-    tempo, times = _beat_track_fine(S_db, env)
-    return _beats_from_fine(env, tempo, times, min_clarity=min_clarity, min_beats=min_beats)
+    S_db = fine_log_mel(to_beat_sr(y, sr))
+    env = fine_onset(S_db)
+    tempo, times = beat_track_fine(S_db, env)
+    return beats_from_fine(env, tempo, times, min_clarity=min_clarity, min_beats=min_beats)
 
 
-def _beats_entry(path, *, start: float | None, end: float | None, cache_dir, sha256: str | None = None):
+def beats_cache_entry(path, *, start: float | None, end: float | None, cache_dir, sha256: str | None = None):
     """The cache file of a song's (excerpt's) :class:`SongBeats`, beside the music features."""
     from pathlib import Path
 
@@ -85,7 +85,7 @@ def _beats_entry(path, *, start: float | None, end: float | None, cache_dir, sha
     return folder / f"{key}.beats.npz"
 
 
-def _save_beats(entry, beats: SongBeats) -> None:
+def save_beats(entry, beats: SongBeats) -> None:
     from dancekit._io import atomic_path
 
     try:
@@ -97,7 +97,7 @@ def _save_beats(entry, beats: SongBeats) -> None:
         pass  # caching is an optimisation only
 
 
-def _beats_from_fine(env: np.ndarray, tempo: float, times: np.ndarray, *, min_clarity: float = MIN_PULSE_CLARITY,
+def beats_from_fine(env: np.ndarray, tempo: float, times: np.ndarray, *, min_clarity: float = MIN_PULSE_CLARITY,
                      min_beats: int = MIN_BEATS) -> SongBeats:
     clarity = pulse_clarity(envelope=env, tempo=tempo)
     return SongBeats(tempo=float(tempo), times=np.asarray(times, np.float64), clarity=float(clarity),
@@ -118,7 +118,7 @@ def song_beats_file(path, *, start: float | None = None, end: float | None = Non
     entry = None
     if use_cache:
         check_audio_path(Path(path))
-        entry = _beats_entry(path, start=start, end=end, cache_dir=cache_dir)
+        entry = beats_cache_entry(path, start=start, end=end, cache_dir=cache_dir)
         if entry.is_file():
             try:
                 with np.load(entry) as z:
@@ -128,7 +128,7 @@ def song_beats_file(path, *, start: float | None = None, end: float | None = Non
                 pass  # an unreadable entry is recomputed
     beats = _song_beats_streamed(path, start=start, end=end)
     if entry is not None:
-        _save_beats(entry, beats)
+        save_beats(entry, beats)
     return beats
 
 
@@ -138,16 +138,16 @@ def _song_beats_streamed(path, *, start: float | None, end: float | None, min_cl
     resampled in blocks straight into the fine mel spectrogram (:class:`~dancekit.features.spectral.MelPowerStream`,
     the same numbers): the song itself is never held, at any rate."""
     from dancekit.audio.io import stream
-    from dancekit.features.presets import _expected_samples
-    from dancekit.features.rhythm import _BEAT_NFFT
+    from dancekit.features.presets import expected_sample_count
+    from dancekit.features.rhythm import BEAT_NFFT
     from dancekit.features.spectral import MelPowerStream, power_to_db_inplace
 
-    mel = MelPowerStream(sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP,
-                         expected_samples=_expected_samples(path, start, end, BEAT_SR))
+    mel = MelPowerStream(sr=BEAT_SR, n_fft=BEAT_NFFT, hop_length=BEAT_HOP,
+                         expected_samples=expected_sample_count(path, start, end, BEAT_SR))
     for (block,) in stream(path, rates=[BEAT_SR], start=start, end=end):
         mel.feed(block)
     S_db = power_to_db_inplace(mel.finish())
-    env = _fine_onset_chunked(S_db)
-    tempo, times = _beat_track_fine(S_db, env)
+    env = fine_onset_chunked(S_db)
+    tempo, times = beat_track_fine(S_db, env)
     del S_db
-    return _beats_from_fine(env, tempo, times, min_clarity=min_clarity, min_beats=min_beats)
+    return beats_from_fine(env, tempo, times, min_clarity=min_clarity, min_beats=min_beats)

@@ -30,7 +30,7 @@ __all__ = ["BEAT_HOP", "BEAT_SR", "MUSIC_BEAT_STRENGTH", "beat_onehot", "beat_st
 BEAT_SR = 22050
 #: Hop (samples at :data:`BEAT_SR`) of the onset envelope used for beat tracking.
 BEAT_HOP = 256
-_BEAT_NFFT = 2048
+BEAT_NFFT = 2048
 _EDGE_PAD_S = 2.0
 
 #: Beat strength (:func:`beat_strength`) below which audio "does not look like music": chosen between the
@@ -40,20 +40,20 @@ _EDGE_PAD_S = 2.0
 MUSIC_BEAT_STRENGTH = 0.19
 
 
-def _to_beat_sr(y: np.ndarray, sr: int) -> np.ndarray:
+def to_beat_sr(y: np.ndarray, sr: int) -> np.ndarray:
     return resample(np.asarray(y, dtype=np.float32), orig_sr=int(sr), target_sr=BEAT_SR)
 
 
-def _fine_log_mel(y_fine: np.ndarray, n_mels: int = 128) -> np.ndarray:
+def fine_log_mel(y_fine: np.ndarray, n_mels: int = 128) -> np.ndarray:
     from dancekit.features.spectral import mel_power
 
     # a few thousand frames at a time: no full-song complex STFT in memory
-    M = mel_power(y=y_fine, sr=BEAT_SR, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, n_mels=n_mels)
+    M = mel_power(y=y_fine, sr=BEAT_SR, n_fft=BEAT_NFFT, hop_length=BEAT_HOP, n_mels=n_mels)
     return _dsp.power_to_db(M).astype(np.float32)
 
 
 def _onset_chunked(S_db: np.ndarray, *, hop_length: int, aggregate, chunk: int = 8192) -> np.ndarray:
-    """``_dsp.onset_strength(S_db, n_fft=_BEAT_NFFT, hop_length=hop_length, aggregate=aggregate)`` (librosa's
+    """``_dsp.onset_strength(S_db, n_fft=BEAT_NFFT, hop_length=hop_length, aggregate=aggregate)`` (librosa's
     centred envelope, lag 1) computed ``chunk`` frames at a time: each value is the aggregated positive
     difference of two neighbouring frames, so chunks overlapping by one frame (``center=False``) give the
     same values without the two full-size difference arrays (2 x 160 MB for an hour at the beat grid).
@@ -62,22 +62,22 @@ def _onset_chunked(S_db: np.ndarray, *, hop_length: int, aggregate, chunk: int =
     raw = np.zeros(T, np.float32)  # raw[j]: frame j against frame j - 1
     for a in range(1, T, int(chunk)):
         b = min(T, a + int(chunk))
-        o = _dsp.onset_strength(S_db[:, a - 1: b], n_fft=_BEAT_NFFT, hop_length=hop_length, aggregate=aggregate,
+        o = _dsp.onset_strength(S_db[:, a - 1: b], n_fft=BEAT_NFFT, hop_length=hop_length, aggregate=aggregate,
                                 center=False)
         raw[a:b] = o[1:]
-    pad = 1 + _BEAT_NFFT // (2 * hop_length)  # the centring shift
+    pad = 1 + BEAT_NFFT // (2 * hop_length)  # the centring shift
     env = np.zeros(T, np.float32)
     env[pad:] = raw[1: T - pad + 1]
     return env
 
 
-def _fine_onset_chunked(S_db: np.ndarray, aggregate=np.median) -> np.ndarray:
-    """:func:`_fine_onset` in chunks (:func:`_onset_chunked`): the same envelope."""
+def fine_onset_chunked(S_db: np.ndarray, aggregate=np.median) -> np.ndarray:
+    """:func:`fine_onset` in chunks (:func:`_onset_chunked`): the same envelope."""
     return _onset_chunked(S_db, hop_length=BEAT_HOP, aggregate=aggregate)
 
 
-def _fine_onset(S_db: np.ndarray, aggregate=np.median) -> np.ndarray:
-    return _dsp.onset_strength(S_db, n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, aggregate=aggregate).astype(np.float32)
+def fine_onset(S_db: np.ndarray, aggregate=np.median) -> np.ndarray:
+    return _dsp.onset_strength(S_db, n_fft=BEAT_NFFT, hop_length=BEAT_HOP, aggregate=aggregate).astype(np.float32)
 
 
 def beat_track(
@@ -105,8 +105,8 @@ def beat_track(
     beat_times : np.ndarray, float64, shape (n_beats,)
         Beat times in seconds from the start of ``y``, increasing.
     """
-    S_db = _fine_log_mel(_to_beat_sr(y, sr))
-    return _beat_track_fine(S_db, _fine_onset(S_db), start_bpm=start_bpm, tightness=tightness)
+    S_db = fine_log_mel(to_beat_sr(y, sr))
+    return beat_track_fine(S_db, fine_onset(S_db), start_bpm=start_bpm, tightness=tightness)
 
 
 def _estimate_tempo(S_db: np.ndarray, env: np.ndarray, *, start_bpm: float) -> float:
@@ -138,7 +138,7 @@ def _estimate_tempo(S_db: np.ndarray, env: np.ndarray, *, start_bpm: float) -> f
     return float(bpm[np.argmax(ac[1:] * prior)])
 
 
-def _beat_track_fine(
+def beat_track_fine(
     S_db: np.ndarray, env: np.ndarray, *, start_bpm: float = 120.0, tightness: float = 100.0
 ) -> tuple[float, np.ndarray]:
     """Beat tracking on the fine grid (log-mel spectrogram and onset envelope at hop 256).
@@ -282,7 +282,7 @@ def _beat_accents(S_db: np.ndarray, env: np.ndarray, beat_frames: np.ndarray) ->
     T = S_db.shape[1]
     freqs = _dsp.mel_frequencies(S_db.shape[0], fmax=BEAT_SR / 2)
     low = freqs < 200.0
-    env_low = _dsp.onset_strength(S_db[low], n_fft=_BEAT_NFFT, hop_length=BEAT_HOP, aggregate=np.mean)
+    env_low = _dsp.onset_strength(S_db[low], n_fft=BEAT_NFFT, hop_length=BEAT_HOP, aggregate=np.mean)
     # window around each beat: 2 frames before to 4 after (about -23 ms .. +46 ms)
     win = np.arange(-2, 5)
     idx = np.clip(beat_frames[:, None] + win[None, :], 0, T - 1)
@@ -334,12 +334,12 @@ def downbeats(
         Downbeat times in seconds, a subset of ``beat_times``. With fewer
         than 4 beats only the first beat is returned; with none, none.
     """
-    y_fine = _to_beat_sr(y, sr)
-    S_db = _fine_log_mel(y_fine)
-    return _downbeats_fine(S_db, _fine_onset(S_db), np.asarray(beat_times, dtype=np.float64), meters=meters)
+    y_fine = to_beat_sr(y, sr)
+    S_db = fine_log_mel(y_fine)
+    return downbeats_fine(S_db, fine_onset(S_db), np.asarray(beat_times, dtype=np.float64), meters=meters)
 
 
-def _downbeats_fine(
+def downbeats_fine(
     S_db: np.ndarray, env: np.ndarray, beat_times: np.ndarray, *, meters: Sequence[int] = (2, 3, 4)
 ) -> np.ndarray:
     if beat_times.size == 0:

@@ -40,11 +40,11 @@ def n_frames(*, n_samples: int, hop_length: int = 512) -> int:
     return 1 + int(n_samples) // int(hop_length)
 
 
-def _n_fft(n_fft: int | None, hop_length: int) -> int:
+def default_n_fft(n_fft: int | None, hop_length: int) -> int:
     return 4 * int(hop_length) if n_fft is None else int(n_fft)
 
 
-def _fit(x: np.ndarray, size: int) -> np.ndarray:
+def fit_frames(x: np.ndarray, size: int) -> np.ndarray:
     """Pad (edge) or trim the last axis to ``size`` frames (guards off-by-one framing)."""
     if x.shape[-1] == size:
         return x
@@ -91,10 +91,10 @@ def log_melspectrogram(
     -------
     np.ndarray, float32, shape (n_mels, 1 + len(y) // hop_length)
     """
-    n_fft = _n_fft(n_fft, hop_length)
+    n_fft = default_n_fft(n_fft, hop_length)
     M = mel_power(y=y, sr=sr, n_fft=n_fft, hop_length=hop_length, n_mels=n_mels)
     S = _dsp.power_to_db(M).astype(np.float32)
-    return _fit(S, n_frames(n_samples=len(y), hop_length=hop_length))
+    return fit_frames(S, n_frames(n_samples=len(y), hop_length=hop_length))
 
 
 def mfcc(
@@ -170,7 +170,7 @@ def onset_strength(
     -------
     np.ndarray, float32, shape (T,), >= 0 (dB per frame)
     """
-    n_fft = _n_fft(n_fft, hop_length)
+    n_fft = default_n_fft(n_fft, hop_length)
     if S is None:
         if y is None:
             raise ParameterError("onset_strength needs y or S")
@@ -194,7 +194,7 @@ def tempogram(
     """
     env = np.asarray(onset_envelope, dtype=np.float32)
     tg = _dsp.tempogram(env, win_length=win_length)
-    return np.nan_to_num(_fit(tg, env.shape[-1]), nan=0.0).astype(np.float32)
+    return np.nan_to_num(fit_frames(tg, env.shape[-1]), nan=0.0).astype(np.float32)
 
 
 def _cqt_octaves(sr: int) -> int:
@@ -230,7 +230,7 @@ def chroma_cqt(
     C = _dsp.cqt_magnitude(y, sr=sr, hop_length=hop_length, fmin=CQT_FMIN, n_bins=n_oct * bins_per_octave,
                            bins_per_octave=bins_per_octave)
     chroma = _dsp.chroma_from_cqt(C, bins_per_octave=bins_per_octave, n_chroma=n_chroma)
-    return np.nan_to_num(_fit(chroma, T), nan=0.0).astype(np.float32)
+    return np.nan_to_num(fit_frames(chroma, T), nan=0.0).astype(np.float32)
 
 
 def hpss(
@@ -360,7 +360,7 @@ def chroma_cqt_chunked(*, y, sr: int, hop_length: int = 512, n_chroma: int = 12,
         seg = read(a * hop_length, min(n, (f1 + margin) * hop_length))
         C = _dsp.cqt_magnitude(seg, sr=sr, hop_length=hop_length, fmin=CQT_FMIN, n_bins=n_oct * bins_per_octave,
                                bins_per_octave=bins_per_octave)
-        C = _fit(C, n_frames(n_samples=len(seg), hop_length=hop_length))[:, f0 - a: f1 - a]
+        C = fit_frames(C, n_frames(n_samples=len(seg), hop_length=hop_length))[:, f0 - a: f1 - a]
         chroma = _dsp.chroma_from_cqt(C, bins_per_octave=bins_per_octave, n_chroma=n_chroma)
         out[f0:f1] = np.nan_to_num(chroma, nan=0.0).T
     return out

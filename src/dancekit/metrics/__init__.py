@@ -15,6 +15,8 @@ module                 metrics
 :mod:`.stability`      FID over windows, freeze score, stillness share, smoothed energy, jitter
 :mod:`.physics`        foot skating, PFC, bone-length variation, ground penetration,
                        torso lean
+:mod:`.floor`          the floor report: how far the figure floats over the local floor, the
+                       share of frames near it, the planted-foot share
 :mod:`.music`          dance-to-music: notes accuracy (key-normalised), chroma L1, beat L1
 :mod:`.music_beats`    composed music against a reference: beat coverage / hit (BCS, BHS; the
                        D2M-GAN/CDCD and LORIS protocols), beat F1 (mir_eval), tempo, click baselines
@@ -44,6 +46,7 @@ from dancekit.metrics.fid import (
     kinetic_features,
     normalize_features,
 )
+from dancekit.metrics.floor import floor_contact
 from dancekit.metrics.music import beat_l1, chroma_l1, estimate_key, notes_accuracy, transpose_to_c
 from dancekit.metrics.music_beats import (
     beat_f1,
@@ -111,6 +114,7 @@ __all__ = [
     "feature_names",
     "fid_breakdown",
     "fid_diversity",
+    "floor_contact",
     "foot_skating",
     "freeze_score",
     "frechet_distance",

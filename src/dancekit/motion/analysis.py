@@ -139,7 +139,7 @@ def floor_curve(
 
     ``feet``: joint names or roles (default ``skeleton.feet``; every joint when the skeleton names none).
     """
-    from dancekit.motion._filters import percentile_filter1d, uniform_filter1d
+    from dancekit.motion.filters import percentile_filter1d, uniform_filter1d
 
     names = list(feet) if feet is not None else list(skeleton.feet)
     idx = [skeleton.index(f) for f in names] or list(range(skeleton.num_joints))
@@ -201,7 +201,7 @@ def mean_joint_speed(
     AIST++), speed averaged over joints; ``smooth`` is the Gaussian's standard deviation in seconds
     (None or 0: no smoothing). ``skeleton`` (optional) only checks the joint count.
     """
-    from dancekit.motion._filters import gaussian_filter1d
+    from dancekit.motion.filters import gaussian_filter1d
 
     fps = check_fps(fps)
     p = check_positions(positions, skeleton, min_frames=3)
@@ -234,3 +234,27 @@ def kinematic_beats(
     # scipy.stats, a second of a fresh process's start-up)
     idx = np.flatnonzero((speed[1:-1] < speed[:-2]) & (speed[1:-1] < speed[2:])) + 1
     return idx.astype(np.float64) / float(fps)
+
+
+def leg_chains(skeleton: Skeleton) -> list[tuple[int, int, int, list[int]]]:
+    """Per leg ``(hip, knee, ankle, [foot joints below the ankle, parents first])`` joint indices.
+
+    Legs are found by role names (``left_hip`` / ``left_knee`` / ``left_ankle``, the same on the right);
+    the foot joints are the ankle's descendants. A skeleton without them has no legs (empty list).
+    """
+    out = []
+    for side in ("left", "right"):
+        names = [f"{side}_{j}" for j in ("hip", "knee", "ankle")]
+        if not all(skeleton.has(n) for n in names):
+            continue
+        hip, knee, ankle = (skeleton.index(n) for n in names)
+        parents = list(skeleton.parents)
+        if parents[knee] != hip or parents[ankle] != knee:
+            continue
+        below, frontier = [], [ankle]
+        while frontier:
+            kids = [j for j, q in enumerate(parents) if q in frontier]
+            below += kids
+            frontier = kids
+        out.append((hip, knee, ankle, below))
+    return out

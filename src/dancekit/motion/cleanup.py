@@ -42,7 +42,7 @@ def ground_offset(
 ) -> np.ndarray:
     """The height ``(T,)`` (skeleton units, along the up direction) to take off every frame so that the
     lowest joint rests on the floor (height 0): see :func:`ground_contact`."""
-    from dancekit.motion._filters import gaussian_filter1d, minimum_filter1d
+    from dancekit.motion.filters import gaussian_filter1d, minimum_filter1d
 
     fps = check_fps(fps)
     p = np.asarray(positions, dtype=np.float64)

@@ -8,7 +8,7 @@ where it *is*, without re-adding the flicker:
   matrices, projected back onto rotations, for a motion with rotations; of the body-relative joint
   positions otherwise);
 * the **deviation** from it (a rotation vector, the log of ``mean.T @ rotation``; or a position offset),
-  split by a zero-phase windowed-sinc low-pass at ``band_hz`` (:func:`dancekit.motion._filters.fir_lowpass`)
+  split by a zero-phase windowed-sinc low-pass at ``band_hz`` (:func:`dancekit.motion.filters.fir_lowpass`)
   into a low band and the rest;
 * the low band scaled by a gain ``g >= 1``, the rest (the flicker band) left as it is or, with ``damp``
   in (0, 1], scaled by ``g ** -damp``: ``deviation + (g - 1) lowpass(deviation) + (g ** -damp - 1) (deviation -
@@ -56,7 +56,7 @@ def smoothed_energy(positions: np.ndarray, *, skeleton: Skeleton, fps: float) ->
     positions (edge frames repeated; speeds by central differences): the number
     :func:`dancekit.metrics.smoothed_energy` gives, computed here without importing the metrics, piece by
     piece (:func:`dancekit.motion.footlock.chunks`, a 3-frame margin: the same sums)."""
-    from dancekit.motion.footlock import chunks
+    from dancekit.motion.filters import chunks
 
     p = np.asarray(positions)
     if len(p) < 2:
@@ -69,7 +69,7 @@ def _chunked_energy(rows: Callable[[int, int], np.ndarray], n: int, *, skeleton:
                     chunks) -> float:
     """:func:`smoothed_energy` of the dance whose frames ``[a, b)`` ``rows(a, b)`` gives (float64 (b - a, J, 3)),
     ``n`` frames, piece by piece."""
-    from dancekit.motion._filters import uniform_filter1d
+    from dancekit.motion.filters import uniform_filter1d
 
     total, m = 0.0, ENERGY_FRAMES // 2 + 1
     for a, b in chunks(n):
@@ -136,7 +136,7 @@ def _check(mean_s: float, band_hz: float, fps: float) -> None:
 
 def _split(x: np.ndarray, *, fps: float, mean_s: float, band_hz: float) -> np.ndarray:
     """The low band (``band_hz`` low-pass, zero phase) of ``x`` (T, ...) along time; float64."""
-    from dancekit.motion._filters import fir_lowpass, lowpass_kernel
+    from dancekit.motion.filters import fir_lowpass, lowpass_kernel
 
     h = lowpass_kernel(band_hz, fps=fps)
     if len(x) < len(h):  # too short for the FIR: the whole deviation is the low band
@@ -180,8 +180,7 @@ def lift_positions(positions: np.ndarray, *, skeleton: Skeleton, fps: float, flo
     with margins over the filters' reach: the same numbers as one pass), so an hour-long dance needs two float32
     copies of itself (the low band and the result), not float64 ones. Returns ``(positions float32 (T, J, 3),
     gain)``; gain 1: ``(positions, 1.0)``, the input itself."""
-    from dancekit.motion._filters import lowpass_kernel, uniform_filter1d
-    from dancekit.motion.footlock import chunks, lowpass_rows
+    from dancekit.motion.filters import chunks, lowpass_kernel, lowpass_rows, uniform_filter1d
 
     _check(mean_s, band_hz, fps)
     p = np.asarray(positions)
@@ -227,7 +226,7 @@ def lift_positions(positions: np.ndarray, *, skeleton: Skeleton, fps: float, flo
 def leg_joints(skeleton: Skeleton) -> list[int]:
     """The joints of the skeleton's legs (hip, knee, ankle and the foot joints below;
     :func:`dancekit.motion.footlock.leg_chains`)."""
-    from dancekit.motion.footlock import leg_chains
+    from dancekit.motion.analysis import leg_chains
 
     return sorted({j for hip, knee, ankle, below in leg_chains(skeleton) for j in (hip, knee, ankle, *below)})
 
@@ -260,7 +259,7 @@ def lift_rotations(rotations: np.ndarray, *, fk: Callable[[np.ndarray], np.ndarr
     ``M exp(w + (g - 1) lowpass(w))``. ``fk(rotations) -> positions (T, J, 3)`` (the caller's forward kinematics
     with the root translation kept) measures the energy for the gain search (:func:`energy_gain`). Returns
     ``(rotations float64, gain)``; gain 1 returns the input unchanged (as float64)."""
-    from dancekit.motion._filters import uniform_filter1d
+    from dancekit.motion.filters import uniform_filter1d
 
     _check(mean_s, band_hz, fps)
     r = np.asarray(rotations, np.float64)

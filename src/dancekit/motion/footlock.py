@@ -1,4 +1,4 @@
-"""Contact-aware foot locking: planted feet that do not skate, and a smoothing filter against jitter.
+"""Contact-aware foot locking: planted feet that do not skate, the legs solved by two-bone IK.
 
 NumPy in, NumPy out (keyword-only arguments). Arrays are world joint positions ``(T, J, 3)`` in the
 skeleton's units at ``fps`` frames per second; thresholds are in metres and m/s (converted through
@@ -16,15 +16,16 @@ function                       what
                                solved by :func:`two_bone_ik`, offsets carried smoothly across the
                                swing between contacts (positions blended: the foot's velocity
                                is continuous at every edge of a hold)
-:func:`planted_share`          the share of foot-frames whose lowest joint is on the local floor and
-                               still (the planted-foot share of docs/BENCHMARKS.md)
 :func:`lock_feet_to_share`     :func:`lock_feet` with its contact speeds scaled down until the locked
-                               dance plants its feet no longer than a target share (a genre's real one)
+                               dance plants its feet no longer than a target share (a genre's real one,
+                               :func:`dancekit.motion.floor.planted_share`)
 :func:`leg_rotations`          the local rotations of a rotation-based motion updated for new leg
                                positions (twist kept)
-:func:`smooth_positions`       a Savitzky-Golay filter on the joint positions, its window chosen per
-                               dance from how jittery the dance is
 =============================  ====================================================================
+
+The legs are :func:`dancekit.motion.analysis.leg_chains` (also importable from here); the floor measures are in
+:mod:`dancekit.motion.floor`, the smoothing filters in :mod:`dancekit.motion.filters` and the jitter measures
+in :mod:`dancekit.motion.jitter`.
 """
 
 from __future__ import annotations
@@ -35,12 +36,12 @@ import numpy as np
 
 from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
-from dancekit.motion.analysis import heights, horizontal_axes, up_sign
+from dancekit.motion.analysis import heights, horizontal_axes, leg_chains, up_sign
+from dancekit.motion.floor import local_floor, planted_share
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["CAP_CUTOFFS_HZ", "PLANT_SCALES", "FootLockReport", "foot_contacts", "jitter_cutoff", "jitter_speed",
-           "floor_float_cm", "floor_gap_cm", "leg_chains", "leg_rotations", "lock_feet", "lock_feet_to_share",
-           "lowpass_cutoff", "lowpass_rows", "planted_share", "smooth_positions", "smoothing_window", "two_bone_ik"]
+__all__ = ["PLANT_SCALES", "FootLockReport", "foot_contacts", "leg_chains", "leg_rotations", "lock_feet",
+           "lock_feet_to_share", "two_bone_ik"]
 
 #: Contact thresholds (metres above the local floor, m/s), chosen on the validation songs
 #: (``benchmarks/tune_feet.py``): a foot enters a contact below ``ON`` and leaves it above ``OFF``.
@@ -59,10 +60,6 @@ MIN_HOLD_S = 0.12
 MAX_DRIFT_M = 0.2
 #: The most the whole body is lowered (m) so that a held foot stays within ``reach_share`` of the leg's reach.
 MAX_DROP_M = 0.12
-#: :func:`planted_share`'s thresholds: the foot's lowest joint at most this high over the local floor (m) ...
-PLANTED_HEIGHT_M = 0.03
-#: ... and slower than this (m/s, the joint's speed in 3-D).
-PLANTED_SPEED = 0.15
 #: The factors :func:`lock_feet_to_share` tries on the lock's contact speeds, the lock as set first.
 PLANT_SCALES = (1.0, 0.8, 0.6, 0.45, 0.3)
 
@@ -72,38 +69,6 @@ def _check(positions: np.ndarray, name: str) -> np.ndarray:
     if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
         raise ParameterError(f"{name} needs (T, J, 3) positions, got shape {np.shape(positions)}")
     return p
-
-
-def leg_chains(skeleton: Skeleton) -> list[tuple[int, int, int, list[int]]]:
-    """Per leg ``(hip, knee, ankle, [foot joints below the ankle, parents first])`` joint indices.
-
-    Legs are found by role names (``left_hip`` / ``left_knee`` / ``left_ankle``, the same on the right);
-    the foot joints are the ankle's descendants. A skeleton without them has no legs (empty list).
-    """
-    out = []
-    for side in ("left", "right"):
-        names = [f"{side}_{j}" for j in ("hip", "knee", "ankle")]
-        if not all(skeleton.has(n) for n in names):
-            continue
-        hip, knee, ankle = (skeleton.index(n) for n in names)
-        parents = list(skeleton.parents)
-        if parents[knee] != hip or parents[ankle] != knee:
-            continue
-        below, frontier = [], [ankle]
-        while frontier:
-            kids = [j for j, q in enumerate(parents) if q in frontier]
-            below += kids
-            frontier = kids
-        out.append((hip, knee, ankle, below))
-    return out
-
-
-def _local_floor(p: np.ndarray, skeleton: Skeleton, fps: float, window_s: float) -> np.ndarray:
-    """(T,) the lowest point of the lowest joint within ±window_s/2, metres along the up axis."""
-    from dancekit.motion._filters import minimum_filter1d
-
-    low = heights(p, skeleton).min(axis=1) * skeleton.unit_scale
-    return minimum_filter1d(low, 2 * int(round(window_s * fps / 2)) + 1)
 
 
 def _hysteresis(on: np.ndarray, stay: np.ndarray, min_len: int) -> np.ndarray:
@@ -151,7 +116,7 @@ def foot_contacts(
         return np.zeros((len(p), 0), dtype=bool)
     if not (height_on <= height_off and speed_on <= speed_off):
         raise ParameterError("foot contacts need height_on <= height_off and speed_on <= speed_off")
-    floor = _local_floor(p, skeleton, fps, floor_window_s)
+    floor = local_floor(p, skeleton, fps, floor_window_s)
     a, b = horizontal_axes(skeleton)
     min_len = max(1, int(round(min_contact_s * fps)))
     cols = []
@@ -164,62 +129,6 @@ def foot_contacts(
         cols.append(_hysteresis((h <= height_on) & (speed <= speed_on), (h <= height_off) & (speed <= speed_off),
                                 min_len))
     return np.stack(cols, axis=1)
-
-
-def floor_gap_cm(positions: np.ndarray, *, skeleton: Skeleton, fps: float) -> np.ndarray:
-    """(T,) cm: per frame, the lowest joint's height above the *local floor* (the lowest point of the lowest
-    joint within ±1 s; tang2018's captured floor is not level). docs/BENCHMARKS.md's floor metrics (issue 15)
-    are its median (:func:`floor_float_cm`) and its share of frames within 2 cm.
-
-    Parameters
-    ----------
-    positions : (T, J, 3) world positions in skeleton units at ``fps``
-    skeleton, fps : the skeleton (up axis, units) and the frame rate
-    """
-    fps = check_fps(fps)
-    p = _check(positions, "floor_gap_cm")
-    low = heights(p, skeleton).min(axis=1) * skeleton.unit_scale  # (T,) metres
-    return (low - _local_floor(p, skeleton, fps, 2.0)) * 100.0
-
-
-def floor_float_cm(positions: np.ndarray, *, skeleton: Skeleton, fps: float) -> float:
-    """How far the figure floats: the median of :func:`floor_gap_cm` over frames, cm (real tang2018 dances
-    0.8-1.3 cm, the issue's bound 2 cm)."""
-    return float(np.median(floor_gap_cm(positions, skeleton=skeleton, fps=fps)))
-
-
-def planted_share(positions: np.ndarray, *, skeleton: Skeleton, fps: float,
-                  height_m: float = PLANTED_HEIGHT_M, speed: float = PLANTED_SPEED) -> float:
-    """The share of foot-frames in which the foot is planted (0-1; NaN for a skeleton without legs).
-
-    Per leg of :func:`leg_chains` and frame, the foot's lowest joint (ankle, heel or toe) counts as planted
-    when it is at most ``height_m`` metres above the *local floor* (the lowest joint of the whole body within
-    ±1 s) and that joint moves slower than ``speed`` m/s (central differences, in 3-D). This is the
-    planted-foot share docs/BENCHMARKS.md reports (issue 15): real tang2018 dances read 0.09-0.50 per dance,
-    0.28 on average for the training waltzes.
-
-    Parameters
-    ----------
-    positions : (T, J, 3) world positions in skeleton units at ``fps``
-    skeleton, fps : the skeleton (up axis, units, legs) and the frame rate
-    height_m, speed : the thresholds (m, m/s)
-    """
-    fps = check_fps(fps)
-    p = _check(positions, "planted_share")
-    legs = leg_chains(skeleton)
-    if not legs:
-        return float("nan")
-    h = heights(p, skeleton) * skeleton.unit_scale  # (T, J) metres
-    local = _local_floor(p, skeleton, fps, 2.0)  # the lowest joint within ±1 s
-    t = np.arange(len(p))
-    cols = []
-    for _hip, _knee, ankle, below in legs:
-        foot = np.array([ankle, *below])
-        v = np.linalg.norm(np.gradient(p[:, foot], axis=0), axis=-1) * fps * skeleton.unit_scale if len(p) > 1 \
-            else np.zeros((len(p), len(foot)))
-        low = h[:, foot].argmin(axis=1)
-        cols.append((h[t, foot[low]] - local <= height_m) & (v[t, low] < speed))
-    return float(np.mean(np.stack(cols, axis=1)))
 
 
 def lock_feet_to_share(positions: np.ndarray, *, skeleton: Skeleton, fps: float, target: float,
@@ -488,7 +397,7 @@ def lock_feet(
     a, b = horizontal_axes(skeleton)
     blend = max(1, int(round(blend_s * fps)))
     gap = max(2, blend)
-    floor = _local_floor(p, skeleton, fps, 2.0) / skeleton.unit_scale  # (T,) skeleton units
+    floor = local_floor(p, skeleton, fps, 2.0) / skeleton.unit_scale  # (T,) skeleton units
     min_len = max(1, int(round(min_hold_s * fps)))
     err = np.zeros((len(p), len(legs)))
     parents = list(skeleton.parents)
@@ -518,7 +427,7 @@ def lock_feet(
             need = -dv - np.sqrt(np.maximum(reach**2 - dh2, 0.0))
             drop = np.maximum(drop, np.where(held, np.clip(need, 0.0, max_drop_m / skeleton.unit_scale), 0.0))
     if drop.any():  # lowered smoothly: at least as far as needed around every frame, no sudden sink
-        from dancekit.motion._filters import gaussian_filter1d, maximum_filter1d
+        from dancekit.motion.filters import gaussian_filter1d, maximum_filter1d
 
         drop = gaussian_filter1d(maximum_filter1d(drop, 2 * blend + 1), blend / 2)
         p -= drop[:, None, None] * up  # p is this function's own float64 copy: lowered in place
@@ -534,7 +443,7 @@ def lock_feet(
         if drop.any():  # a lowered body must not push a free foot through the floor
             sink = np.maximum(floor - heights(want, skeleton).min(axis=1), 0.0) * (drop > 0)
             if sink_sigma_s > 0 and c1_blend and sink.any():  # a softer landing, never lower than the floor
-                from dancekit.motion._filters import gaussian_filter1d
+                from dancekit.motion.filters import gaussian_filter1d
 
                 sink = np.maximum(sink, gaussian_filter1d(sink, sink_sigma_s * fps))
             want = want + sink[:, None, None] * up
@@ -556,7 +465,7 @@ def lock_feet(
             act = np.clip(np.maximum(weight, moved), 0.0, 1.0)
             side = p[:, knee] - p[:, hip]
             if pole_sigma > 0:
-                from dancekit.motion._filters import gaussian_filter1d
+                from dancekit.motion.filters import gaussian_filter1d
 
                 side = gaussian_filter1d(side, pole_sigma * fps, axis=0)
             pole = (side + 0.25 * thigh * act[:, None] * toe)[t]
@@ -618,10 +527,10 @@ def leg_rotations(rotations: np.ndarray, old_positions: np.ndarray, new_position
     if not order:
         return rot
     # world rotations of every rig joint (parents first)
-    from dancekit.motion.skeleton import _topological_order
+    from dancekit.motion.skeleton import parents_first_order
 
     G = np.empty_like(rot)
-    for j in _topological_order(parents):
+    for j in parents_first_order(parents):
         G[:, j] = rot[:, j] if parents[j] < 0 else G[:, parents[j]] @ rot[:, j]
     G_new = G.copy()
     old = np.asarray(old_positions, np.float64)
@@ -638,254 +547,3 @@ def leg_rotations(rotations: np.ndarray, old_positions: np.ndarray, new_position
         q = parents[j]
         rot[:, j] = np.swapaxes(G_new[:, q], -1, -2) @ G_new[:, j]
     return rot
-
-
-def smoothing_window(positions: np.ndarray, *, skeleton: Skeleton, fps: float, target: float,
-                     windows: tuple[int, ...] = (5, 7, 9, 11, 13, 15, 17, 21), order: int = 3) -> int:
-    """The shortest Savitzky-Golay window (frames, odd) of ``windows`` whose output has a jitter ratio
-    (speed removed by a 5-frame average over the smoothed speed, :func:`dancekit.metrics`' jitter over
-    energy) at most ``target``; 1 (no filter) when the dance already is; the longest when none is.
-    The filtered dances are measured :data:`CHUNK` frames at a time (no whole-song copies)."""
-    p = np.asarray(positions)
-    if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
-        raise ParameterError(f"smoothing_window needs (T, J, 3) positions, got shape {np.shape(positions)}")
-    if _jitter_ratio(p, skeleton, fps) <= target:
-        return 1
-    for w in windows:
-        if w > len(p):
-            break
-        if _jitter_ratio(p, skeleton, fps, window=w, order=order) <= target:
-            return w
-    return max((w for w in windows if w <= len(p)), default=1)
-
-
-#: Frames per piece in the chunked smoothing helpers (:func:`chunks`, :func:`savgol_rows`,
-#: :func:`_jitter_ratio`): the filters are local, so a long song is done piece by piece with a margin.
-CHUNK = 4096
-
-#: The cut-offs (Hz, highest first) :func:`lowpass_cutoff` tries: the 5-frame average of the jitter measure
-#: removes half of a 3-Hz motion and all of 5 and 10 Hz at 25 fps; dance motion is mostly below 2 Hz.
-CUTOFFS_HZ = (8.0, 6.0, 5.0, 4.5, 4.0, 3.5, 3.0, 2.5)
-
-
-def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
-    """``[0, n)`` cut into ``ceil(n / size)`` pieces of nearly equal length (each at least ``size / 2``
-    frames when there are several; ``size`` default :data:`CHUNK`)."""
-    size = CHUNK if size is None else int(size)
-    k = max(1, -(-n // size))
-    edges = np.linspace(0, n, k + 1).round().astype(int)
-    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
-
-
-def savgol_rows(p: np.ndarray, window: int, order: int, a: int, b: int) -> np.ndarray:
-    """Frames ``[a, b)`` of ``_savgol(p, window, order)``, from frames ``[a - window // 2, b + window // 2)``
-    of ``p`` only: the same numbers (each output frame is the same weighted sum of the same input frames;
-    only the song's own first and last ``window // 2`` frames take the edge polynomials). float64."""
-    T, half = len(p), window // 2
-    if window <= order or window > T:
-        return np.array(p[a:b], dtype=np.float64)
-    lo, hi = max(a - half, 0), min(b + half, T)
-    if hi - lo < window:  # a piece shorter than the window near both ends: widen it (rare: T < 2 * CHUNK)
-        lo, hi = max(0, min(lo, T - window)), min(T, max(hi, window))
-    q = _savgol(p[lo:hi], window, order) if (lo, hi) != (0, T) else _savgol(p, window, order)
-    # inside the piece, rows away from the piece's own ends are exact; the piece's ends are exact only
-    # where they are the song's ends
-    return q[a - lo: b - lo]
-
-
-def _savgol(p: np.ndarray, window: int, order: int) -> np.ndarray:
-    """Savitzky-Golay smoothing along axis 0: ``scipy.signal.savgol_filter(p, window, order, axis=0,
-    mode="interp")`` in NumPy (``scipy.signal`` imports ``scipy.stats``, a second of a ``dancekit dance``
-    process): each frame the value at its centre of the degree-``order`` least-squares polynomial through
-    the ``window`` frames around it; the first and last ``window // 2`` frames take the polynomial fitted to
-    the first / last window. Equal to scipy's to float rounding (``tests/test_footlock.py``). float64 out."""
-    p = np.asarray(p)
-    if window <= order or window > len(p):
-        return p.copy()
-    x = np.asarray(p, dtype=np.float64)
-    T, half = len(x), window // 2
-    t = np.arange(window, dtype=np.float64)
-    V = (t[:, None] - half) ** np.arange(order + 1)[None, :]  # (window, order + 1), centred on the middle frame
-    fit = V @ np.linalg.pinv(V)  # (window, window): the fitted values of a window from its samples
-    out = np.zeros_like(x)
-    for k, c in enumerate(fit[half]):
-        out[half:T - half] += c * x[k:T - 2 * half + k]
-    out[:half] = np.tensordot(fit[:half], x[:window], axes=1)
-    out[T - half:] = np.tensordot(fit[window - half:], x[T - window:], axes=1)
-    return out
-
-
-def lowpass_rows(p: np.ndarray, kernel: np.ndarray, a: int, b: int) -> np.ndarray:
-    """Frames ``[a, b)`` of :func:`dancekit.motion._filters.fir_lowpass` ``(p, kernel)`` (a zero-phase FIR along
-    axis 0), from frames ``[a - N // 2, b + N // 2)`` of ``p`` only (beyond the song's ends the same odd
-    reflection about the end frame): the same numbers, bit for bit, so a long song is filtered piece by piece
-    (:func:`chunks`). A dance shorter than the kernel comes back unfiltered. float64."""
-    h = np.asarray(kernel, np.float64)
-    T, half = len(p), len(h) // 2
-    if T < len(h) or T <= half:
-        return np.array(p[a:b], dtype=np.float64)
-    idx = np.arange(a - half, b + half)
-    lo, hi = max(a - half, 0), min(b + half, T)
-    x = np.asarray(p[lo:hi], np.float64)
-    parts = []
-    if idx[0] < 0:  # before the first frame: 2 p[0] - p[-i]
-        parts.append(2 * np.asarray(p[:1], np.float64) - np.asarray(p[-idx[idx < 0]], np.float64))
-    parts.append(x)
-    if idx[-1] >= T:  # after the last frame: 2 p[T-1] - p[2 (T-1) - i]
-        parts.append(2 * np.asarray(p[T - 1:], np.float64)
-                     - np.asarray(p[2 * (T - 1) - idx[idx >= T]], np.float64))
-    ext = np.concatenate(parts) if len(parts) > 1 else x
-    n = b - a
-    out = h[0] * ext[:n]
-    for k in range(1, len(h)):
-        out += h[k] * ext[k:k + n]
-    return out
-
-
-def lowpass_cutoff(positions: np.ndarray, *, skeleton: Skeleton, fps: float, target: float,
-                   cutoffs: tuple[float, ...] = CUTOFFS_HZ) -> float:
-    """The highest low-pass cut-off (Hz) of ``cutoffs`` (highest first) whose output (:func:`lowpass_rows`,
-    a Hamming-windowed sinc of :func:`~dancekit.motion._filters.lowpass_taps` taps) has a jitter ratio
-    (speed removed by a 5-frame average over the smoothed speed, :func:`dancekit.metrics`' jitter over
-    energy) at most ``target``; 0 (no filter) when the dance already is; the lowest when none is. Measured
-    :data:`CHUNK` frames at a time."""
-    p = np.asarray(positions)
-    if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
-        raise ParameterError(f"lowpass_cutoff needs (T, J, 3) positions, got shape {np.shape(positions)}")
-    if _jitter_ratio(p, skeleton, fps) <= target:
-        return 0.0
-    for c in cutoffs:
-        if _jitter_ratio(p, skeleton, fps, cutoff=c) <= target:
-            return float(c)
-    return float(cutoffs[-1])
-
-
-#: The cut-offs (Hz, highest first) :func:`jitter_cutoff` tries to bring a dance's tremor under a cap: lower
-#: than :data:`CUTOFFS_HZ`, since the dances it is for (a genre model drawn by the seed, issue 15) already
-#: passed the 3-Hz settle; at 1 Hz a waltz's one-step-per-beat sway (about 1.5 steps per second) is still half there.
-CAP_CUTOFFS_HZ = (4.0, 3.0, 2.5, 2.0, 1.75, 1.5, 1.25, 1.0)
-
-
-def jitter_cutoff(positions: np.ndarray, *, skeleton: Skeleton, fps: float, max_jitter: float,
-                  cutoffs: tuple[float, ...] = CAP_CUTOFFS_HZ) -> float:
-    """The highest low-pass cut-off (Hz) of ``cutoffs`` (highest first) whose output (:func:`lowpass_rows`) has
-    a jitter of at most ``max_jitter`` m/s (the body-relative speed a 5-frame average removes, the
-    :mod:`dancekit.metrics.stability` jitter, with ``skeleton.unit_scale`` to metres); 0 (no filter) when the
-    dance already has; the lowest when none has. Only cut-offs whose kernel (:func:`lowpass_taps`) fits in
-    the dance are tried (a dance shorter than every kernel: 0). Measured :data:`CHUNK` frames at a time."""
-    from dancekit.motion._filters import lowpass_taps
-
-    p = np.asarray(positions)
-    if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
-        raise ParameterError(f"jitter_cutoff needs (T, J, 3) positions, got shape {np.shape(positions)}")
-    if not (np.isfinite(max_jitter) and max_jitter > 0):
-        raise ParameterError(f"max_jitter must be a positive number of m/s, got {max_jitter!r}")
-    cutoffs = tuple(c for c in cutoffs if lowpass_taps(c, fps=fps) <= len(p))
-    if not cutoffs or _jitter_speed(p, skeleton, fps) <= max_jitter:
-        return 0.0
-    for c in cutoffs:
-        if _jitter_speed(p, skeleton, fps, cutoff=c) <= max_jitter:
-            return float(c)
-    return float(cutoffs[-1])
-
-
-def jitter_speed(positions: np.ndarray, *, skeleton: Skeleton, fps: float) -> float:
-    """The jitter (m/s) of a dance ``(T, J, 3)`` (skeleton units) at ``fps``: the speed a 5-frame moving
-    average removes, the number :func:`dancekit.metrics.stability.jitter` gives as ``"speed_residual"``
-    (the per-song jitter guard's measure), computed without importing the metrics."""
-    return _jitter_speed(np.asarray(positions), skeleton, fps)
-
-
-def _jitter_speed(p: np.ndarray, skeleton: Skeleton, fps: float, *, cutoff: float | None = None) -> float:
-    """The jitter of ``p`` (T, J, 3) (or of its low-pass at ``cutoff`` Hz) in m/s, as
-    :func:`dancekit.metrics.stability.jitter` measures it (computed here without importing metrics): the mean
-    body-relative joint speed (central differences, one-sided at the ends) minus that of the 5-frame moving
-    average (edge frames repeated). Over pieces of :data:`CHUNK` frames with a 3-frame margin."""
-    from dancekit.motion._filters import lowpass_kernel
-
-    T = len(p)
-    if T < 2:
-        return 0.0
-    r = skeleton.root
-    h = lowpass_kernel(cutoff, fps=fps) if cutoff else None
-    total = 0.0
-    for a, b in chunks(T):  # the speeds at frames [a, b)
-        lo, hi = max(a - 3, 0), min(b + 3, T)
-        x = lowpass_rows(p, h, lo, hi) if h is not None else np.asarray(p[lo:hi], np.float64)
-        rel = x - x[:, r: r + 1]
-        raw = np.linalg.norm(np.gradient(rel, axis=0), axis=-1)[a - lo: b - lo]
-        padded = np.concatenate([rel[:1]] * 2 * (lo == 0) + [rel] + [rel[-1:]] * 2 * (hi == T))
-        c = np.cumsum(np.concatenate([np.zeros((1, *rel.shape[1:])), padded]), axis=0)
-        avg = (c[5:] - c[:-5]) / 5  # the 5-frame average of rows lo + 2 - 2·[lo == 0] ...
-        first = lo + 2 - 2 * (lo == 0)  # the frame avg[0] is centred on
-        sm = np.linalg.norm(np.gradient(avg, axis=0), axis=-1)
-        # the average's gradient at a piece's inner edge would be one-sided: a ≥ first + 1 there (margin 3)
-        total += float(raw.sum() - sm[a - first: b - first].sum())
-    return total / (T * p.shape[1]) * fps * skeleton.unit_scale
-
-
-def _jitter_ratio(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int | None = None,
-                  order: int = 3, cutoff: float | None = None) -> float:
-    """Mean body-relative speed removed by a 5-frame moving average, over the smoothed speed (the jitter
-    over the energy of :mod:`dancekit.metrics.stability`, computed here without importing metrics), of the
-    dance ``p`` (T, J, 3), or of ``_savgol(p, window, order)`` when ``window`` is given, or of its
-    low-pass at ``cutoff`` Hz (:func:`lowpass_rows`) when ``cutoff`` is. Summed over pieces
-    of :data:`CHUNK` frames with a margin (the moving average and the filter are local), so a long song
-    needs no whole-song float64 copies; the same ratio as one pass up to float rounding of the sums."""
-    raw, smooth, _ = _jitter_sums(p, skeleton, fps, window=window, order=order, cutoff=cutoff)
-    return float((raw - smooth) / smooth) if smooth > 0 else 0.0
-
-
-def _jitter_sums(p: np.ndarray, skeleton: Skeleton, fps: float, *, window: int | None = None,
-                 order: int = 3, cutoff: float | None = None) -> tuple[float, float, int]:
-    """``(raw, smooth, n)``: the summed body-relative joint steps between frames (skeleton units per frame) of the
-    dance ``p`` (T, J, 3) (or of ``_savgol(p, window, order)`` / its low-pass at ``cutoff`` Hz), the same sum
-    for its 5-frame moving average, and the number of steps summed; computed here without importing metrics,
-    over pieces of :data:`CHUNK` frames with a margin (the moving average and the filter are local), so a
-    long song needs no whole-song float64 copies."""
-    from dancekit.motion._filters import lowpass_kernel, uniform_filter1d
-
-    T = len(p)
-    if T < 3:
-        return 0.0, 0.0, 0
-    r = skeleton.root
-    h = lowpass_kernel(cutoff, fps=fps) if cutoff else None
-    raw = smooth = 0.0
-    for a, b in chunks(T - 1):  # the speeds between frames i and i + 1 for i in [a, b)
-        lo, hi = max(a - 2, 0), min(b + 3, T)  # the frames the 5-frame average of frames a..b needs
-        if h is not None:
-            x = lowpass_rows(p, h, lo, hi)
-        elif window is not None:
-            x = savgol_rows(p, window, order, lo, hi)
-        else:
-            x = np.asarray(p[lo:hi], np.float64)
-        rel = x - x[:, r: r + 1]
-        raw += float(np.linalg.norm(np.diff(rel[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
-        sm = uniform_filter1d(rel, 5, axis=0)  # at lo > 0 / hi < T: 2 real frames of margin
-        smooth += float(np.linalg.norm(np.diff(sm[a - lo: b + 1 - lo], axis=0), axis=-1).sum())
-    return raw, smooth, (T - 1) * p.shape[1]
-
-
-def smooth_positions(positions: np.ndarray, *, skeleton: Skeleton, fps: float, target: float | None = None,
-                     window: int | None = None, order: int = 3) -> tuple[np.ndarray, int]:
-    """A Savitzky-Golay filter (polynomial ``order``) over time on every joint coordinate: ``(positions,
-    window)``, the filtered ``(T, J, 3)`` float64 array and the window used (1: unfiltered).
-
-    Give ``window`` (odd frames) or ``target``, a jitter ratio (see :func:`smoothing_window`): then the
-    window is the shortest that brings the dance to it, so a smooth dance is left alone and only a
-    jittery one is filtered. The filter keeps polynomials of degree ``order`` exactly (so a steady step or
-    a turn keeps its speed and the root's travel is kept), and removes frame-to-frame noise.
-    """
-    fps = check_fps(fps)
-    p = _check(positions, "smooth_positions")
-    if window is None:
-        if target is None:
-            raise ParameterError("smooth_positions needs a window or a target jitter ratio")
-        window = smoothing_window(p, skeleton=skeleton, fps=fps, target=target, order=order)
-    window = int(window)
-    if window <= 1:
-        return p, 1
-    if window % 2 == 0:
-        raise ParameterError(f"the smoothing window must be odd, got {window}")
-    return _savgol(p, window, order), window
-

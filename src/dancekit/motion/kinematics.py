@@ -40,7 +40,7 @@ import numpy as np
 import torch
 
 from dancekit.errors import ParameterError
-from dancekit.motion.skeleton import Skeleton, _topological_order
+from dancekit.motion.skeleton import Skeleton, parents_first_order
 
 __all__ = [
     "forward_kinematics",
@@ -66,7 +66,7 @@ def _as_tensor(x, name: str, dtype=None) -> torch.Tensor:
 
 def _order(parents: Sequence[int]) -> list[int]:
     parents = tuple(int(p) for p in parents)
-    order = _topological_order(parents)
+    order = parents_first_order(parents)
     if len(order) != len(parents) or sum(p == -1 for p in parents) != 1:
         raise ParameterError("parents must describe a tree with one root (-1)")
     return order

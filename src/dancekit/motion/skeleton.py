@@ -151,7 +151,7 @@ class Skeleton:
         for j, p in enumerate(parents):
             if p != -1 and not 0 <= p < J:
                 raise ParameterError(f"skeleton {self.name!r}: joint {names[j]!r} has bad parent {p}")
-        order = _topological_order(parents)
+        order = parents_first_order(parents)
         if len(order) != J:
             raise ParameterError(f"skeleton {self.name!r}: parents contain a cycle")
         offsets = np.array(self.offsets, dtype=np.float64)
@@ -431,7 +431,7 @@ def keep_bone_lengths(q: np.ndarray, x: np.ndarray, skeleton: Skeleton) -> np.nd
     return o
 
 
-def _topological_order(parents: tuple[int, ...]) -> list[int]:
+def parents_first_order(parents: tuple[int, ...]) -> list[int]:
     children: dict[int, list[int]] = {}
     for j, p in enumerate(parents):
         children.setdefault(p, []).append(j)

@@ -162,7 +162,7 @@ def reground(result: DanceResult, *, window_s: float, max_float_cm: float | None
     strong low-pass lifted are touched. A motion with rotations keeps them (its root translation moved); 2D
     dances are returned unchanged."""
     from dancekit.motion.cleanup import ground_contact
-    from dancekit.motion.footlock import floor_float_cm
+    from dancekit.motion.floor import floor_float_cm
 
     motion = result.motion
     if not _is_3d(motion):
@@ -214,16 +214,10 @@ def smooth(result: DanceResult, *, target: float | None = None, kind: str | None
     with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them;
     a positions-only motion takes its bone directions from the filtered dance and keeps each frame's bone
     lengths; so bone lengths stay exact either way."""
-    from dancekit.motion._filters import fir_lowpass, lowpass_kernel
-    from dancekit.motion.footlock import (
-        _jitter_ratio,
-        _savgol,
-        chunks,
-        lowpass_cutoff,
-        lowpass_rows,
-        savgol_rows,
-        smoothing_window,
-    )
+    from dancekit.motion.filters import chunks, fir_lowpass, lowpass_kernel, lowpass_rows, savgol_rows
+    from dancekit.motion.filters import savgol as _savgol
+    from dancekit.motion.jitter import jitter_ratio as _jitter_ratio
+    from dancekit.motion.jitter import lowpass_cutoff, smoothing_window
 
     motion = result.motion
     if not _is_3d(motion):
@@ -375,7 +369,7 @@ def foot_lock(result: DanceResult) -> DanceResult:
 
 def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = True,
            ratio_target: float | None = None, max_jitter: float | None = None) -> DanceResult:
-    """The result with a light zero-phase low-pass (:func:`dancekit.motion._filters.lowpass_kernel` at
+    """The result with a light zero-phase low-pass (:func:`dancekit.motion.filters.lowpass_kernel` at
     ``cutoff`` Hz, default :data:`SETTLE_HZ`; ``0``: off) on every joint's position, run after the foot lock:
     the lock's stop-and-go (a foot handed over between holds, the knee solved frame by frame) is softened,
     while a held foot stays where it is (a constant passes a unit-gain low-pass unchanged: only the
@@ -391,18 +385,17 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     (:func:`dancekit.motion.footlock.jitter_cutoff`; a genre model drawn by the seed, issue 15); a dance
     already under it is left alone, a filtered one gets a note. :func:`finish` runs this one *before* the foot
     lock (a cut-off down to 1 Hz after it would lift the planted feet)."""
-    from dancekit.motion._filters import lowpass_kernel
-    from dancekit.motion.footlock import chunks, lowpass_rows
+    from dancekit.motion.filters import chunks, lowpass_kernel, lowpass_rows
 
     motion = result.motion
     note = None
     if ratio_target is not None and cutoff is None and _is_3d(motion):  # per dance: only a jittery one
-        from dancekit.motion.footlock import lowpass_cutoff
+        from dancekit.motion.jitter import lowpass_cutoff
 
         cutoff = lowpass_cutoff(motion.to_positions(), skeleton=motion.skeleton, fps=motion.fps,
                                 target=float(ratio_target))
     if max_jitter is not None and cutoff is None and _is_3d(motion):  # per dance: only a jittery one
-        from dancekit.motion.footlock import jitter_cutoff
+        from dancekit.motion.jitter import jitter_cutoff
 
         cutoff = jitter_cutoff(motion.to_positions(), skeleton=motion.skeleton, fps=motion.fps,
                                max_jitter=float(max_jitter))
@@ -420,7 +413,7 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     keep = sorted({j for hip, knee, ankle, below in leg_chains(sk) for j in (hip, knee, ankle, *below)}) \
         if not legs else []
     if motion.rotations is not None:  # the rotations filtered as the smoothing stage does, positions by FK
-        from dancekit.motion._filters import fir_lowpass
+        from dancekit.motion.filters import fir_lowpass
 
         out = dataclasses.replace(result, motion=_rotations_filtered(motion, lambda x: fir_lowpass(x, h)))
         return _with_note(out, note) if note else out
@@ -848,7 +841,7 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
 
     def cap(r: DanceResult, cutoff: float | None) -> DanceResult:
         if cutoff is None and jitter_to_end and _is_3d(r.motion):  # chosen here (as settle would), and kept
-            from dancekit.motion.footlock import jitter_cutoff
+            from dancekit.motion.jitter import jitter_cutoff
 
             m = r.motion
             chosen.append(jitter_cutoff(m.to_positions(), skeleton=m.skeleton, fps=m.fps, max_jitter=float(max_jitter)))
@@ -884,7 +877,7 @@ def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float |
     head = len(steps)
     out = from_the_lock(result, None)
     if jitter_to_end and max_jitter is not None and locking and _is_3d(out.motion):
-        from dancekit.motion.footlock import CAP_CUTOFFS_HZ, jitter_speed
+        from dancekit.motion.jitter import CAP_CUTOFFS_HZ, jitter_speed
 
         first = chosen[0] if chosen else 0.0
         for c in (c for c in CAP_CUTOFFS_HZ if not first or c < first):

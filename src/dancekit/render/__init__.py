@@ -18,6 +18,7 @@ from dancekit.render.options import AudioClip, RenderOptions
 # the renderers import PIL: loaded on first use, so that a dance written as npz or bvh
 # (and ``dancekit dance``'s start-up) does not pay for them
 _LAZY = {
+    "audio_duration": "dancekit.render._ffmpeg",
     "render_html": "dancekit.render.html",
     "render_motion_html": "dancekit.render.html",
     "render_mp4": "dancekit.render.video",
@@ -27,6 +28,7 @@ _LAZY = {
 __all__ = [
     "AudioClip",
     "RenderOptions",
+    "audio_duration",
     "render_html",
     "render_motion_html",
     "render_motion_mp4",

@@ -14,7 +14,7 @@ import numpy as np
 
 from dancekit._checks import check_fps
 from dancekit.errors import ParameterError
-from dancekit.motion._filters import gaussian_filter1d, percentile_filter1d
+from dancekit.motion.filters import gaussian_filter1d, percentile_filter1d
 from dancekit.render._motion import _CHUNK
 
 #: rotation taking each supported up axis onto +y (right-handed, det = +1)

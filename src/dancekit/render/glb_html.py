@@ -19,7 +19,7 @@ from pathlib import Path
 
 from dancekit._io import atomic_path
 from dancekit.errors import ParameterError
-from dancekit.render.html import _asset, page_shell
+from dancekit.render.html import asset_text, page_shell
 from dancekit.render.options import RenderOptions
 
 _ELEVATION = 12.0
@@ -36,7 +36,7 @@ def glb_page_html(glb: bytes, *, title: str = "dancekit", azimuth: float = 30.0,
     return page_shell(title, (
         f'<script id="dk-conf" type="application/json">{conf}</script>\n'
         f'<script id="dk-glb" type="application/octet-stream">{b64}</script>\n'
-        f"<script>\n{_asset('glb_viewer.js')}</script>\n"
+        f"<script>\n{asset_text('glb_viewer.js')}</script>\n"
     ))
 
 

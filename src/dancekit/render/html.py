@@ -31,7 +31,7 @@ _ASPECT = 4.0 / 3.0  # the initial distance frames the dance in a 4:3 (or wider)
 _HTML_KEYWORDS = ("title",)  # deprecated keywords (release 0.1), besides audio_path / _start / _end
 
 
-def _asset(name: str) -> str:
+def asset_text(name: str) -> str:
     text = resources.files("dancekit.render").joinpath("assets", name).read_text(encoding="utf-8")
     assert "</script" not in text.lower() and "</style" not in text.lower(), name
     return text
@@ -134,7 +134,7 @@ def write_page(
     write(before)
     _write_base64(write, qbytes)
     write(after)
-    write(f"</script>\n<script>\n{_asset('player.js')}</script>\n")
+    write(f"</script>\n<script>\n{asset_text('player.js')}</script>\n")
     write(tail)
 
 
@@ -282,7 +282,7 @@ def _shell_parts(title: str) -> tuple[str, str]:
         "    note(Array.prototype.join.call(arguments, ' ')); err.apply(console, arguments); };\n"
         "})();\n"
         "</script>\n"
-        f"<style>\n{_asset('player.css')}</style>\n"
+        f"<style>\n{asset_text('player.css')}</style>\n"
         "</head>\n<body>\n"
         '<div id="dk-player">\n'
         '<canvas id="dk-canvas"></canvas>\n'

@@ -283,12 +283,12 @@ def _local_transforms(data: BvhData) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _fk_translations(rot: np.ndarray, trans: np.ndarray, parents: list[int]) -> np.ndarray:
-    from dancekit.motion.skeleton import _topological_order
+    from dancekit.motion.skeleton import parents_first_order
 
     T, J = rot.shape[:2]
     G = np.zeros_like(rot)
     P = np.zeros((T, J, 3))
-    for j in _topological_order(tuple(parents)):
+    for j in parents_first_order(tuple(parents)):
         p = parents[j]
         if p < 0:
             G[:, j] = rot[:, j]

@@ -190,3 +190,82 @@ def fir_lowpass(x: np.ndarray, kernel: np.ndarray, *, axis: int = 0) -> np.ndarr
     for k in range(1, len(h)):
         out += h[k] * ext[k:k + n]
     return np.moveaxis(out, 0, axis)
+
+
+#: Frames per piece in the chunked smoothing helpers (:func:`chunks`, :func:`savgol_rows`,
+#: :func:`jitter_ratio`): the filters are local, so a long song is done piece by piece with a margin.
+CHUNK = 4096
+
+
+def chunks(n: int, size: int | None = None) -> list[tuple[int, int]]:
+    """``[0, n)`` cut into ``ceil(n / size)`` pieces of nearly equal length (each at least ``size / 2``
+    frames when there are several; ``size`` default :data:`CHUNK`)."""
+    size = CHUNK if size is None else int(size)
+    k = max(1, -(-n // size))
+    edges = np.linspace(0, n, k + 1).round().astype(int)
+    return [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def savgol_rows(p: np.ndarray, window: int, order: int, a: int, b: int) -> np.ndarray:
+    """Frames ``[a, b)`` of ``savgol(p, window, order)``, from frames ``[a - window // 2, b + window // 2)``
+    of ``p`` only: the same numbers (each output frame is the same weighted sum of the same input frames;
+    only the song's own first and last ``window // 2`` frames take the edge polynomials). float64."""
+    T, half = len(p), window // 2
+    if window <= order or window > T:
+        return np.array(p[a:b], dtype=np.float64)
+    lo, hi = max(a - half, 0), min(b + half, T)
+    if hi - lo < window:  # a piece shorter than the window near both ends: widen it (rare: T < 2 * CHUNK)
+        lo, hi = max(0, min(lo, T - window)), min(T, max(hi, window))
+    q = savgol(p[lo:hi], window, order) if (lo, hi) != (0, T) else savgol(p, window, order)
+    # inside the piece, rows away from the piece's own ends are exact; the piece's ends are exact only
+    # where they are the song's ends
+    return q[a - lo: b - lo]
+
+
+def savgol(p: np.ndarray, window: int, order: int) -> np.ndarray:
+    """Savitzky-Golay smoothing along axis 0: ``scipy.signal.savgol_filter(p, window, order, axis=0,
+    mode="interp")`` in NumPy (``scipy.signal`` imports ``scipy.stats``, a second of a ``dancekit dance``
+    process): each frame the value at its centre of the degree-``order`` least-squares polynomial through
+    the ``window`` frames around it; the first and last ``window // 2`` frames take the polynomial fitted to
+    the first / last window. Equal to scipy's to float rounding (``tests/test_footlock.py``). float64 out."""
+    p = np.asarray(p)
+    if window <= order or window > len(p):
+        return p.copy()
+    x = np.asarray(p, dtype=np.float64)
+    T, half = len(x), window // 2
+    t = np.arange(window, dtype=np.float64)
+    V = (t[:, None] - half) ** np.arange(order + 1)[None, :]  # (window, order + 1), centred on the middle frame
+    fit = V @ np.linalg.pinv(V)  # (window, window): the fitted values of a window from its samples
+    out = np.zeros_like(x)
+    for k, c in enumerate(fit[half]):
+        out[half:T - half] += c * x[k:T - 2 * half + k]
+    out[:half] = np.tensordot(fit[:half], x[:window], axes=1)
+    out[T - half:] = np.tensordot(fit[window - half:], x[T - window:], axes=1)
+    return out
+
+
+def lowpass_rows(p: np.ndarray, kernel: np.ndarray, a: int, b: int) -> np.ndarray:
+    """Frames ``[a, b)`` of :func:`fir_lowpass` ``(p, kernel)`` (a zero-phase FIR along
+    axis 0), from frames ``[a - N // 2, b + N // 2)`` of ``p`` only (beyond the song's ends the same odd
+    reflection about the end frame): the same numbers, bit for bit, so a long song is filtered piece by piece
+    (:func:`chunks`). A dance shorter than the kernel comes back unfiltered. float64."""
+    h = np.asarray(kernel, np.float64)
+    T, half = len(p), len(h) // 2
+    if T < len(h) or T <= half:
+        return np.array(p[a:b], dtype=np.float64)
+    idx = np.arange(a - half, b + half)
+    lo, hi = max(a - half, 0), min(b + half, T)
+    x = np.asarray(p[lo:hi], np.float64)
+    parts = []
+    if idx[0] < 0:  # before the first frame: 2 p[0] - p[-i]
+        parts.append(2 * np.asarray(p[:1], np.float64) - np.asarray(p[-idx[idx < 0]], np.float64))
+    parts.append(x)
+    if idx[-1] >= T:  # after the last frame: 2 p[T-1] - p[2 (T-1) - i]
+        parts.append(2 * np.asarray(p[T - 1:], np.float64)
+                     - np.asarray(p[2 * (T - 1) - idx[idx >= T]], np.float64))
+    ext = np.concatenate(parts) if len(parts) > 1 else x
+    n = b - a
+    out = h[0] * ext[:n]
+    for k in range(1, len(h)):
+        out += h[k] * ext[k:k + n]
+    return out
