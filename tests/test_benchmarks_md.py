@@ -37,7 +37,7 @@ def _inputs(root: Path, result: dict) -> None:
     (root / "docs" / "results" / "speed_x.json").write_text(json.dumps(result))
 
 
-RESULT = {"title": "Speed of X", "command": "python benchmarks/bench_x.py --n 3", "machine": "m", "date": "2026-01-02",
+RESULT = {"title": "Speed of X", "command": "python benchmarks/bench_seeds.py --n 3", "machine": "m", "date": "2026-01-02",
           "columns": ["a", "b"], "rows": [["r1", 1.5], ["r|2", None]], "note": "n"}
 
 
@@ -53,7 +53,7 @@ def test_a_card_and_a_result_file_become_a_table_row_and_a_section(tmp_path):
     i = lines.index("## Speed of X")
     assert lines[i + 2] == "Measured 2026-01-02 on m (`docs/results/speed_x.json`)."
     assert lines[i + 4:i + 8] == ["| a | b |", "| --- | ---: |", "| r1 | 1.5 |", "| r\\|2 | – |"]
-    assert "python benchmarks/bench_x.py --n 3" in lines[i:]
+    assert "python benchmarks/bench_seeds.py --n 3" in lines[i:]
 
 
 @pytest.mark.parametrize("bad, what", [({k: v for k, v in RESULT.items() if k != "command"}, "missing command"),

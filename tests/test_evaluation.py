@@ -159,7 +159,7 @@ def test_format_value_and_tables():
               "counts": {"generated_files": 1, "songs": 1, "fid_reference_dances": 1},
               "settings": {"fid_reference": "ref"}}
     assert "| 0.0000 | 0.0400 |" in format_markdown(report)
-    # the published comparison tables keep the sign of a rounded zero (docs/BENCHMARKS.md)
+    # the published comparison tables keep the sign of a rounded zero (docs/research/)
     assert "| 0.0400 | -0.0000 |" in format_comparison([("a", report)])
     with pytest.raises(ParameterError):
         format_comparison([])
