@@ -10,7 +10,7 @@ STAMP  := $(VENV)/.installed
 SONG   ?=
 OUT    ?= demo_out
 
-.PHONY: demo test install bench lint clean
+.PHONY: demo test install bench bench-memory lint clean
 
 $(PY):
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' >/dev/null 2>&1 || { \
@@ -31,8 +31,19 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q
 
+# The speed figures of docs/BENCHMARKS.md (docs/results/speed_*.json), each by its own command (a few minutes;
+# the memory figures take longer: `make bench-memory`). Then update the result files and run
+# `$(PY) scripts/benchmarks_md.py` to regenerate docs/BENCHMARKS.md.
 bench: $(STAMP)
-	@for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+	$(PY) benchmarks/bench_cold_start.py --model revolution --repeats 3
+	$(PY) benchmarks/bench_cold_start.py --model music2dance --repeats 3
+	$(PY) benchmarks/bench_seeds.py --repeats 3 --formats npz
+	$(PY) benchmarks/bench_paper_size.py speed --only paper --threads 2 --repeats 3 --no-unfused
+	OMP_NUM_THREADS=1 $(PY) benchmarks/bench_render.py --figure body --repeats 3
+	OMP_NUM_THREADS=1 $(PY) benchmarks/bench_render.py --figure stick --repeats 3
+
+bench-memory: $(STAMP)
+	$(PY) benchmarks/bench_memory.py --minutes 60 20
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks scripts

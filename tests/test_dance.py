@@ -287,7 +287,7 @@ def test_models_lists_the_embedded_models(capsys):
     assert set(cards) == set(embedded_models())
     total = sum(f.stat().st_size for f in MODELS_DIR.rglob("*") if f.is_file())
     # all embedded models together: the default's three genre models at its base's larger size (L, float32)
-    # take the default to about 47.4 MB and the four models to about 50.6 MB (docs/BENCHMARKS.md, round 31)
+    # take the default to about 47.4 MB and the four models to about 50.6 MB (docs/research/seed-variety-and-fid.md, "Fifteenth session")
     assert total <= 52e6
     for card in cards.values():
         assert card["size_mb"] <= 48

@@ -159,7 +159,7 @@ def test_format_value_and_tables():
               "counts": {"generated_files": 1, "songs": 1, "fid_reference_dances": 1},
               "settings": {"fid_reference": "ref"}}
     assert "| 0.0000 | 0.0400 |" in format_markdown(report)
-    # the published comparison tables keep the sign of a rounded zero (docs/BENCHMARKS.md)
+    # the published comparison tables keep the sign of a rounded zero (docs/research/)
     assert "| 0.0400 | -0.0000 |" in format_comparison([("a", report)])
     with pytest.raises(ParameterError):
         format_comparison([])
@@ -240,3 +240,84 @@ def test_steering_dances_each_genre_through_a_pipelines_dances_with_one_genre(da
     assert sorted(calls) == sorted([(g, [0, 1]) for _ in songs for g in ("waltz", "tango")])
     assert sum(sum(row.values()) for row in out["matrix"].values()) == out["n"]
     assert set(out["per_song"][songs[0]]) == {"waltz__0", "waltz__1", "tango__0", "tango__1"}
+
+
+def test_seed_sets_score_each_set_of_seeds_as_evaluate_scores_it_alone(tiny_checkpoint, data_with_audio, tmp_path,
+                                                                        capsys):
+    """--seed-sets 2 on 4 seeds: each set's FID_k / FID_g is what `evaluate --pred` gives on a folder holding only
+    that set's dances; --seed-sets 1 is the report's own FID."""
+    import shutil
+
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
+                 "--seeds", "4", "--seed-sets", "2", "-o", str(out), "--quiet", "--no-style",
+                 "--segment-seconds", "1"]) == 0
+    assert "seed sets (2 x 2 seeds): FID_k" in capsys.readouterr().out
+    report = json.loads((out / "report.json").read_text())
+    sets = report["seed_sets"]
+    assert sets["sets"] == 2 and sets["set_size"] == 2
+    for s, row in enumerate(sets["per_set"]):
+        alone = tmp_path / f"set{s}"
+        alone.mkdir()
+        for k in (2 * s, 2 * s + 1):
+            shutil.copy(out / "pred" / f"DANCE_W_2__{k}.npz", alone / f"DANCE_W_2__{k}.npz")
+        rep = tmp_path / f"set{s}.json"
+        assert main(["evaluate", "--pred", str(alone), "--ref", str(data_with_audio), "--data", str(data_with_audio),
+                     "--split", "val", "-o", str(rep), "--no-style", "--segment-seconds", "1"]) == 0
+        m = json.loads(rep.read_text())["metrics"]
+        assert row["seed_index"] == [2 * s, 2 * s + 1]
+        assert row["fid_k"] == pytest.approx(m["fid_k"], rel=1e-9)
+        assert row["fid_g"] == pytest.approx(m["fid_g"], rel=1e-9)
+    values = [r["fid_k"] for r in sets["per_set"]]
+    assert sets["fid_k"]["min"] == min(values) and sets["fid_k"]["max"] == max(values)
+    one = tmp_path / "one.json"
+    assert main(["evaluate", "--pred", str(out / "pred"), "--ref", str(data_with_audio), "--data", str(data_with_audio),
+                 "--split", "val", "-o", str(one), "--no-style", "--segment-seconds", "1", "--seed-sets", "1"]) == 0
+    rep = json.loads(one.read_text())
+    assert rep["seed_sets"]["per_set"][0]["fid_k"] == pytest.approx(rep["metrics"]["fid_k"], rel=1e-9)
+
+
+def test_seed_sets_and_ablate_stages_flags_are_checked(tiny_checkpoint, data_with_audio, tmp_path, capsys):
+    assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
+                 "--seeds", "4", "--seed-sets", "3", "-o", str(tmp_path / "x"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "--seed-sets 3: --seeds 4 is not a multiple of 3" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists()  # checked before any dance is written
+    assert main(["evaluate", "--pred", str(tmp_path), "--ref", str(tmp_path), "--ablate-stages",
+                 "-o", str(tmp_path / "r.json")]) == 2
+    assert "--ablate-stages go with --checkpoint" in capsys.readouterr().err
+
+
+def test_ablate_stages_ends_at_the_dances_evaluate_scores(tiny_checkpoint, data_with_audio, tmp_path, capsys):
+    """--ablate-stages: one FID per stage, from the network's output to the finished dance; the last stage's dances
+    are the ones the report scores, so its FID is the report's."""
+    from dancekit.pipelines.stages import STAGE_NAMES
+
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
+                 "--seeds", "2", "--ablate-stages", "-o", str(out), "--quiet", "--no-style",
+                 "--segment-seconds", "1"]) == 0
+    assert "| FID after | raw | clean_up |" in capsys.readouterr().out
+    report = json.loads((out / "report.json").read_text())
+    table = report["stage_ablation"]
+    assert table["stages"] == ["raw", *STAGE_NAMES] and table["dances"] == 2 and table["reference"] == "train"
+    for key in ("fid_k", "fid_g"):
+        assert table[key]["beat_sync"]["fid"] == pytest.approx(report["metrics"][key], rel=1e-9)
+        for row in table[key].values():
+            assert row["mean_term"] + row["cov_term"] == pytest.approx(row["fid"])
+
+
+def test_fid_against_its_own_reference_is_zero_and_grows_when_scaled():
+    """Known answers of the per-stage FID: dances equal to the reference score 0 (up to the sqrtm's rounding);
+    the same dances three times as large (and fast) score far from it, through the features' mean too."""
+    from dancekit.evaluation.ablation import fid_against
+    from dancekit.motion import get_skeleton
+
+    sk = get_skeleton("tang2018")
+    rng = np.random.default_rng(3)
+    ref = [np.cumsum(rng.normal(0, 1.0, (100, sk.num_joints, 3)), axis=0) for _ in range(4)]
+    for kind in ("kinetic", "geometric"):
+        same = fid_against(ref, ref, fps=25.0, skeleton=sk, kind=kind, segment_seconds=1.0)
+        assert abs(same["fid"]) < 1e-6 and abs(same["mean_term"]) < 1e-12
+    moved = fid_against(ref, [r * 3.0 for r in ref], fps=25.0, skeleton=sk, kind="kinetic", segment_seconds=1.0)
+    assert moved["fid"] > 1.0 and moved["mean_term"] > 0

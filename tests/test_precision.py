@@ -137,7 +137,7 @@ def test_pipeline_precision(tmp_path):
     """load_pipeline(precision=...) decodes close to fp32, and an unknown precision fails first.
 
     A trained decoder is chaotic: any perturbation (bf16 rounding too) grows until, after some 10 s, the dance
-    is as far from the fp32 dance as another seed's (docs/BENCHMARKS.md). Pointwise, only the first frames
+    is as far from the fp32 dance as another seed's (docs/research/speed-memory.md). Pointwise, only the first frames
     are compared; the whole-song budget is on the metrics."""
     from dancekit.pipelines import load_pipeline
 

@@ -17,7 +17,7 @@ from dancekit.pipelines import load_pipeline, parse_seeds
 SR = 22050
 # A seed's dance must not depend on the batch it is danced in, bit for bit: batched matrix products round the
 # last float bits differently for every batch size (and the autoregressive decoders carry such a difference into
-# another dance within ~20 s: 28-37 cm apart after 40 s on the test song W_32 before the fix; docs/BENCHMARKS.md,
+# another dance within ~20 s: 28-37 cm apart after 40 s on the test song W_32 before the fix; docs/research/seed-variety-and-fid.md,
 # "A seed's dance whatever the batch"), so every family decodes each seed on its own. Exact equality, no
 # tolerance: on the code that batched the seeds these tests fail at the first frame (~1e-5 cm apart).
 

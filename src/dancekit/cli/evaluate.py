@@ -2,6 +2,8 @@
 
     dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 5 -o runs/eval
     dancekit evaluate --pred runs/model/test --ref data/tang2018 --data data/tang2018 -o report.json
+    dancekit evaluate --checkpoint revolution --data data/tang2018 --split val --seeds 30 --seed-sets 6 -o runs/s30
+    dancekit evaluate --checkpoint revolution --data data/tang2018 --split val --ablate-stages -o runs/stages
 
     dancekit evaluate --compose dual --data data/tang2018 --split test -o runs/compose_eval
     dancekit evaluate --music runs/composed --data data/tang2018 --split test -o music_report.json
@@ -9,7 +11,9 @@
 With ``--checkpoint`` the model first dances every song of the split (``OUT/pred/NAME__k.npz``) and the
 report goes to ``OUT/report.json``; with ``--pred`` a folder of dances is scored into the JSON file ``-o``.
 Prints a markdown table (generated vs real); the report holds every metric, per-dance values and the
-settings used (written atomically). Layout, music lookup and defaults: :mod:`dancekit.evaluation` and
+settings used (written atomically). ``--seed-sets K`` adds FID_k / FID_g of K disjoint sets of the seeds (how much a figure
+moves with the seeds); ``--ablate-stages`` adds FID_k / FID_g after each pipeline stage
+(:mod:`dancekit.evaluation.ablation`). Layout, music lookup and defaults: :mod:`dancekit.evaluation` and
 docs/METRICS.md.
 
 Music: ``--compose MODEL`` composes music for every dance of the split with a ``dual`` model
@@ -72,6 +76,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     gen.add_argument("--beat-sync", choices=("on", "off"), default=None,
                      help="the pipeline's beat-synchronous stage (default on); when on, the report also compares "
                           "the beat metrics before and after the warp (OUT/pred_unwarped holds the dances before it)")
+    gen.add_argument("--ablate-stages", action="store_true",
+                     help="also dance the split with the pipeline's stages off and report FID_k / FID_g after each "
+                          "stage (raw, clean-up, smoothing, ..., beat sync; the report's stage_ablation entry)")
+    p.add_argument("--seed-sets", type=int, default=None, metavar="K",
+                   help="also report FID_k / FID_g of K disjoint sets of consecutive seeds (each song's dances "
+                        "NAME__k split in K; their number must be a multiple of K): how much a figure moves "
+                        "from one set of seeds to another (the report's seed_sets entry)")
     p.add_argument("--sigma", type=float, default=0.05, help="BAS Gaussian sigma in seconds (default 0.05)")
     p.add_argument("--tolerance", type=float, default=0.1,
                    help="beat hit tolerance in seconds for coverage / hit rate (default 0.1)")
@@ -127,6 +138,9 @@ def run_music(args: argparse.Namespace) -> int:
             or args.precision is not None or args.first_seed is not None:
         raise ParameterError("--ref, --seeds, --first-seed, --genre and --precision go with --pred / --checkpoint, "
                              "not with --compose / --music")
+    if args.seed_sets is not None or args.ablate_stages:
+        raise ParameterError("--seed-sets and --ablate-stages score dances: they go with --checkpoint / --pred, "
+                             "not with --compose / --music")
     settings = MusicSettings(clip_lengths=_clip_lengths(args.clip_lengths), render=args.render, seed=args.seed,
                              baselines=not args.no_baselines)
     say = None if args.quiet else (lambda m: print(m, flush=True))
@@ -178,10 +192,12 @@ def run(args: argparse.Namespace) -> int:
         if args.ref is not None or args.preset is not None:
             raise ParameterError("--ref and --preset go with --pred; --checkpoint scores against --data")
         seeds = 5 if args.seeds is None else args.seeds
+        _check_seed_sets(args.seed_sets, seeds)
         report = evaluate_checkpoint(args.checkpoint, args.data, out, split=args.split, seeds=seeds,
                                      genre=args.genre or "auto", settings=settings, classifier=classifier,
                                      progress=not args.quiet, beat_sync=args.beat_sync != "off",
-                                     precision=args.precision or "fp32", first_seed=args.first_seed or 0)
+                                     precision=args.precision or "fp32", first_seed=args.first_seed or 0,
+                                     seed_sets=args.seed_sets, ablate_stages=args.ablate_stages)
         g = report["generation"]
         print(f"generated {g['seconds']:.0f} s of dance in {g['elapsed_s']:.1f} s "
               f"({g['elapsed_s'] / max(g['seconds'], 1e-9) * 60:.2f} s per minute)")
@@ -192,12 +208,14 @@ def run(args: argparse.Namespace) -> int:
     if args.ref is None:
         raise ParameterError("--pred needs --ref (the real dances)")
     if args.seeds is not None or args.genre is not None or args.beat_sync is not None or args.precision is not None \
-            or args.first_seed is not None:
-        raise ParameterError("--seeds, --first-seed, --genre, --beat-sync and --precision go with --checkpoint")
+            or args.first_seed is not None or args.ablate_stages:
+        raise ParameterError("--seeds, --first-seed, --genre, --beat-sync, --precision and --ablate-stages go with "
+                             "--checkpoint")
+    _check_seed_sets(args.seed_sets, None)
     if not out.parent.exists():
         raise ParameterError(f"output folder does not exist: {out.parent}")
     report = evaluate_dirs(args.pred, args.ref, data=args.data, audio_dir=args.audio, classifier=classifier,
-                           settings=settings, preset=args.preset, split=args.split)
+                           settings=settings, preset=args.preset, split=args.split, seed_sets=args.seed_sets)
     print(format_markdown(report), end="")
     _print_stages(report)
     with atomic_path(out) as tmp:
@@ -206,8 +224,25 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_seed_sets(sets: int | None, seeds: int | None) -> None:
+    """``--seed-sets K``: at least 1, and a divisor of ``--seeds`` when the seeds are known before dancing."""
+    if sets is None:
+        return
+    if sets < 1:
+        raise ParameterError(f"--seed-sets must be at least 1, got {sets}")
+    if seeds is not None and seeds % sets:
+        raise ParameterError(f"--seed-sets {sets}: --seeds {seeds} is not a multiple of {sets}")
+
+
 def _print_stages(report: dict) -> None:
-    """The beat-sync comparison and the seed distance of a report, a few lines."""
+    """The beat-sync comparison, the seed distance, the seed sets and the stage ablation of a report."""
+    from dancekit.evaluation.ablation import format_seed_sets, format_stage_ablation
+
+    if report.get("stage_ablation"):
+        print("FID after each stage (the dances of the split danced again with the stages off, then finished):")
+        print(format_stage_ablation(report["stage_ablation"]), end="")
+    if report.get("seed_sets"):
+        print(format_seed_sets(report["seed_sets"]), end="")
     bs = report.get("beat_sync")
     if bs:
         b, a = bs["before"], bs["after"]

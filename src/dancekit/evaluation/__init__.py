@@ -10,6 +10,8 @@ module                      what
                             (:func:`evaluate_motions`; folders: :func:`evaluate_dirs`)
 :mod:`.generate`            dance every song of a split with a model, then score it
                             (:func:`evaluate_checkpoint`, ``dancekit evaluate --checkpoint``)
+:mod:`.ablation`            FID after each pipeline stage and per set of seeds (``dancekit evaluate
+                            --ablate-stages`` / ``--seed-sets K``)
 :mod:`.report`              markdown tables (:func:`format_markdown`, :func:`format_comparison`,
                             ``dancekit compare``)
 :mod:`.baselines`           calibrating baselines (:func:`run_baselines`, ``dancekit baselines``)

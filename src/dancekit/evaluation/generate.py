@@ -140,6 +140,8 @@ def evaluate_checkpoint(
     beat_sync: bool = True,
     precision: str = "fp32",
     first_seed: int = 0,
+    seed_sets: int | None = None,
+    ablate_stages: bool = False,
 ) -> dict[str, Any]:
     """Dance every song of ``split`` with a model and score the dances against the real ones.
 
@@ -158,6 +160,11 @@ def evaluate_checkpoint(
         warp go to ``OUT/pred_unwarped`` and the report's ``beat_sync`` entry compares the beat metrics
         before and after it (:func:`dancekit.evaluation.stages.beat_sync_comparison`)
     precision : decoding precision, ``"fp32"``, ``"bf16"`` or ``"int8"`` (:func:`dancekit.pipelines.load_pipeline`)
+    seed_sets : K: the report's ``seed_sets`` entry, FID of K disjoint sets of the seeds
+        (:func:`~dancekit.evaluation.evaluate_dirs`)
+    ablate_stages : also dance the split with the stages off and score the dances after each stage: the
+        report's ``stage_ablation`` entry (:func:`dancekit.evaluation.ablation.stage_ablation`; the FID
+        reference is the training split, the segments and feature code those of ``settings``)
     """
     from dancekit.data import PreparedData
     from dancekit.pipelines import load_pipeline
@@ -169,7 +176,16 @@ def evaluate_checkpoint(
     unwarped = out / "pred_unwarped"
     gen = dance_split(pipe, prepared, split, pred, seeds=seeds, genre=genre, progress=progress, beat_sync=beat_sync,
                       unwarped_dir=unwarped if beat_sync else None, first_seed=first_seed)
-    report = evaluate_dirs(pred, data, data=data, classifier=classifier, settings=settings, split=split)
+    report = evaluate_dirs(pred, data, data=data, classifier=classifier, settings=settings, split=split,
+                           seed_sets=seed_sets)
+    if ablate_stages:
+        from dancekit.evaluation.ablation import stage_ablation
+
+        s = settings or EvalSettings()
+        report["stage_ablation"] = stage_ablation(pipe, prepared, split, seeds=seeds, first_seed=first_seed,
+                                                  segment_seconds=s.segment_seconds,
+                                                  bug_compatible=s.bug_compatible,
+                                                  reference=s.fid_reference or "train")
     if beat_sync:
         report["beat_sync"] = _beat_sync_section(pred, unwarped, prepared, report)
     report["generation"] = {"checkpoint": str(checkpoint), "split": split, "seeds": seeds, "first_seed": first_seed,

@@ -126,6 +126,12 @@ def dance_metrics(positions: np.ndarray, *, fps: float, skeleton: Any, music_bea
 # the whole evaluation
 
 
+def _sample_index(path: Path) -> int:
+    """k of ``NAME__k.npz`` (0 for ``NAME.npz``), for ordering a song's dances by seed."""
+    tail = path.stem.rsplit(SAMPLE_SEP, 1)[1] if SAMPLE_SEP in path.stem else "0"
+    return int(tail) if tail.isdigit() else 0
+
+
 def group_predictions(paths: Sequence[Path]) -> dict[str, list[Path]]:
     """Group prediction files by the reference dance they belong to (``NAME`` or ``NAME__k``)."""
     groups: dict[str, list[Path]] = {}
@@ -358,6 +364,7 @@ def evaluate_dirs(
     settings: EvalSettings | None = None,
     preset: str | None = None,
     split: str = "test",
+    seed_sets: int | None = None,
 ) -> dict[str, Any]:
     """Evaluate a folder of generated ``.npz`` dances (see the module docstring for the layout).
 
@@ -373,6 +380,9 @@ def evaluate_dirs(
     settings : :class:`EvalSettings`
     preset : feature preset whose ``beat_times`` are used (default ``revolution`` if prepared)
     split : the split of a prepared ``ref_dir`` that holds the reference dances (default ``test``)
+    seed_sets : K: the report's ``seed_sets`` entry gives FID_k / FID_g of K disjoint sets of consecutive seeds
+        (``NAME__k`` in the order of k; :func:`dancekit.evaluation.ablation.seed_set_fids`), against the same
+        FID reference
 
     Raises
     ------
@@ -430,6 +440,13 @@ def evaluate_dirs(
     report = evaluate_motions(pred, ref, music_beats=music_beats, genres=genres, fid_reference=fid_reference,
                               classifier=model, settings=dataclasses.replace(settings, fid_reference=mode))
     report["seed_distance"] = _seed_distance(pred)
+    if seed_sets is not None:
+        from dancekit.evaluation.ablation import seed_set_fids
+
+        by_seed = {n: [read_motion(p) for p in sorted(ps, key=_sample_index)] for n, ps in groups.items()}
+        report["seed_sets"] = seed_set_fids(by_seed, fid_reference, sets=seed_sets,
+                                            segment_seconds=settings.segment_seconds,
+                                            bug_compatible=settings.bug_compatible)
     report["settings"].update({
         "pred_dir": str(pred_dir), "ref": ref_source, "data": str(data) if data is not None else None,
         "audio_dir": str(audio_dir) if audio_dir is not None else None,
