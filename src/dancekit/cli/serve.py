@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--port must be in 1-65535, got {args.port}")
     try:
         import fastapi  # noqa: F401
-        import multipart  # noqa: F401
+        import python_multipart  # noqa: F401
         import uvicorn  # noqa: F401
     except ImportError as exc:
         raise DancekitError(f"dancekit serve needs the serve extra ({exc.name} is missing): "

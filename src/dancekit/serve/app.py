@@ -69,8 +69,33 @@ def _options_table() -> dict[str, Any]:
             "compose_models": compose, "formats": list(WEB_FORMATS)}
 
 
-class _BodyTooLarge(Exception):
-    pass
+class _CapBody:
+    """ASGI middleware: a job upload over ``limit`` bytes is refused (413) from its ``Content-Length``, or, sent
+    without one, cut off once ``limit`` bytes have arrived (the form parser then fails and the route answers
+    413), so no more than ``limit`` bytes of it are ever stored."""
+
+    def __init__(self, app, *, limit: int, message: str):
+        self.app, self.limit, self.message = app, limit, message
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http" or scope["method"] != "POST" or not scope["path"].startswith("/api/jobs/"):
+            return await self.app(scope, receive, send)
+        length = dict(scope["headers"]).get(b"content-length", b"")
+        if length.isdigit() and int(length) > self.limit:
+            return await JSONResponse({"detail": self.message}, status_code=413)(scope, receive, send)
+        state = scope.setdefault("dancekit.body", {"too_large": False})
+        seen = 0
+
+        async def capped():
+            nonlocal seen
+            message = await receive()
+            seen += len(message.get("body", b""))
+            if seen > self.limit:
+                state["too_large"] = True
+                return {"type": "http.disconnect"}
+            return message
+
+        return await self.app(scope, capped, send)
 
 
 def create_app(config: ServeConfig, *, manager: JobManager | None = None):
@@ -118,29 +143,10 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
         elif not _host_ok(request.headers.get("host", "")):  # a web page of another site (DNS rebinding)
             return JSONResponse({"detail": "unexpected Host header; open the server as 127.0.0.1 or localhost"},
                                 status_code=421)
-        if request.method == "POST" and request.url.path.startswith("/api/jobs/"):
-            limit = config.max_upload_bytes + _MULTIPART_SLACK
-            length = request.headers.get("content-length")
-            if length is not None and length.isdigit() and int(length) > limit:
-                return JSONResponse({"detail": f"the upload is larger than the limit of "
-                                               f"{config.max_upload_bytes / 1e6:g} MB"}, status_code=413)
-            seen = 0
-            receive = request._receive
+        return await call_next(request)
 
-            async def capped():
-                nonlocal seen
-                message = await receive()
-                seen += len(message.get("body", b""))
-                if seen > limit:
-                    raise _BodyTooLarge
-                return message
-
-            request._receive = capped
-        try:
-            return await call_next(request)
-        except _BodyTooLarge:
-            return JSONResponse({"detail": f"the upload is larger than the limit of "
-                                           f"{config.max_upload_bytes / 1e6:g} MB"}, status_code=413)
+    app.add_middleware(_CapBody, limit=config.max_upload_bytes + _MULTIPART_SLACK,
+                       message=f"the upload is larger than the limit of {config.max_upload_bytes / 1e6:g} MB")
 
     # ---- pages -------------------------------------------------------------------------------------------
     def page(name: str) -> HTMLResponse:
@@ -176,9 +182,9 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
     async def read_form(request: Request):
         try:
             return await request.form(max_files=1, max_fields=16, max_part_size=64 * 1024)
-        except _BodyTooLarge:
-            raise
-        except Exception as exc:  # malformed multipart
+        except Exception as exc:  # malformed multipart, or a body cut off by _CapBody
+            if request.scope.get("dancekit.body", {}).get("too_large"):
+                fail(413, f"the upload is larger than the limit of {config.max_upload_bytes / 1e6:g} MB")
             fail(400, f"bad multipart form: {exc}")
 
     def field(form, name: str, default: str | None = None) -> str | None:

@@ -14,7 +14,7 @@
   });
   $("demo").addEventListener("click", function (e) {
     e.stopPropagation(); song = null; demo = true; error("");
-    $("song-name").textContent = "the demo tune: Ode to Joy (synthesised, 16 s)";
+    $("song-name").textContent = "the demo tune: Ode to Joy (synthesised, 32 s)";
     ready();
   });
 
