@@ -30,7 +30,8 @@
   }
   DK.get("/api/options").then(function (o) {
     options = o;
-    Object.keys(o.dance_models).forEach(function (name) {
+    var names = Object.keys(o.dance_models).sort(function (a, b) { return (b === o.default_model) - (a === o.default_model); });
+    names.forEach(function (name) {
       var opt = document.createElement("option"); opt.value = name; opt.textContent = name;
       opt.title = o.dance_models[name].description; $("model").appendChild(opt);
     });
