@@ -2,7 +2,17 @@
 "use strict";
 (function () {
   var $ = function (id) { return document.getElementById(id); };
-  var song = null, demo = false, job = null, options = null, shown = null;
+  var song = null, demo = false, job = null, options = null, shown = null, result = null;
+
+  // What the pipeline decided for the dance on show (the genre it read or drew, the stages).
+  function describe() {
+    if (!result) return;
+    result.dances.forEach(function (d) {
+      if (shown === d.stem + ".html")
+        $("summary").textContent = (result.dances.length > 1 ? "seed " + d.seed + ": " : "") + d.seconds.toFixed(1) +
+          " s at " + d.fps + " fps" + (d.summary ? ", " + d.summary : "");
+    });
+  }
 
   function error(msg) { $("error").textContent = msg || ""; }
   function ready() { $("go").disabled = !(song || demo) || !!job; }
@@ -45,6 +55,7 @@
     document.querySelectorAll("#seed-buttons button").forEach(function (b) {
       b.className = b.dataset.name === name ? "" : "plain";
     });
+    describe();
   }
 
   function update(s) {
@@ -68,11 +79,17 @@
     if (s.state === "done") {
       $("bar").style.width = "100%"; $("msg").textContent = "done";
       if (!shown) update(Object.assign({}, s, { playable: s.files.filter(function (f) { return /\.html$/.test(f.name); }).map(function (f) { return f.name; }) }));
-      var lines = s.result.dances.map(function (d) {
-        return (s.result.dances.length > 1 ? "seed " + d.seed + ": " : "") + d.seconds.toFixed(1) + " s at " + d.fps + " fps" + (d.summary ? ", " + d.summary : "");
+      result = s.result;
+      describe();
+      var box = $("downloads"); box.innerHTML = "";
+      s.result.dances.forEach(function (d) {
+        var mine = s.files.filter(function (f) { return f.name.indexOf(d.stem + ".") === 0 || f.name.indexOf(d.stem + "_") === 0; });
+        var row = document.createElement("div");
+        if (s.result.dances.length > 1) { var h = document.createElement("b"); h.textContent = "seed " + d.seed + ": "; row.appendChild(h); }
+        var links = document.createElement("span"); row.appendChild(links);
+        DK.downloads(links, s.id, mine);
+        box.appendChild(row);
       });
-      $("summary").textContent = lines.join(" · ");
-      DK.downloads($("downloads"), s.id, s.files);
     } else {
       $("progress").style.display = "none";
       error(s.state === "cancelled" ? "cancelled" : s.error);
@@ -81,7 +98,7 @@
   }
 
   $("go").addEventListener("click", async function () {
-    error(""); shown = null; $("player").style.display = "none"; $("summary").textContent = "";
+    error(""); shown = null; result = null; $("player").style.display = "none"; $("summary").textContent = "";
     $("downloads").innerHTML = '<span class="muted">the files appear here when they are written</span>';
     var fd = new FormData();
     if (demo) fd.append("demo", "true"); else fd.append("file", song, song.name);
