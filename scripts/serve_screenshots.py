@@ -36,9 +36,8 @@ def main() -> int:
     parser.add_argument("--chromium", default="/usr/bin/chromium")
     parser.add_argument("--out", default=str(ROOT / "docs"))
     args = parser.parse_args()
-    from playwright.sync_api import sync_playwright
-
     from _serve import Server
+    from playwright.sync_api import sync_playwright
 
     out = Path(args.out)
     with tempfile.TemporaryDirectory() as tmp:

@@ -145,6 +145,16 @@ def _zip_folder(folder: Path, path: Path) -> None:
             z.write(f, f"{folder.name}/{f.name}")
 
 
+def _warm_imports() -> None:
+    """Import what every job uses (the writers, the renderers, the stages) before the first job, not in it."""
+    import importlib
+
+    for name in ("dancekit.export.writer", "dancekit.render.html", "dancekit.render.video", "dancekit.motion.formats.bvh",
+                 "dancekit.motion.formats.gltf", "dancekit.motion.formats.aistpp", "dancekit.motion.formats.openpose",
+                 "dancekit.pipelines.stages"):
+        importlib.import_module(name)
+
+
 class _Conn:
     """The worker's end of its pipe as an event queue (``put`` sends)."""
 
@@ -172,6 +182,7 @@ def worker_main(index: int, conn: Any, preload: list[str], threads: int) -> None
             w.pipeline(name)
         except DancekitError:
             pass  # the job that asks for it gets the error
+    _warm_imports()
     events.put(("ready", index))
     while True:
         try:
