@@ -10,11 +10,26 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from dancekit.audio import save_wav
 from dancekit.audio.synth import ode_to_joy
 
 SR = 22050
+
+
+def need(module: str):
+    """Import ``module`` (a package of the dev extra: FastAPI, httpx, Playwright); without it skip, or fail on CI
+    (``CI=true``), where the serve tests must run."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        hint = f"{module} is missing: pip install -c constraints.txt -e '.[dev]'"
+        if os.environ.get("CI", "").strip().lower() == "true":
+            pytest.fail(f"CI=true but {hint}", pytrace=False)
+        pytest.skip(hint, allow_module_level=True)
 
 
 def ode_wav(path: Path, seconds: float) -> Path:

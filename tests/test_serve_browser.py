@@ -9,12 +9,11 @@ import time
 
 import numpy as np
 import pytest
+from _media import chromium, stream_info
+from _serve import Server, need, ode_wav
 
-pytest.importorskip("fastapi")
-sync_api = pytest.importorskip("playwright.sync_api")
-
-from _media import chromium, stream_info  # noqa: E402
-from _serve import Server, ode_wav  # noqa: E402
+need("fastapi")
+sync_api = need("playwright.sync_api")
 
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",

@@ -10,11 +10,10 @@ import time
 
 import numpy as np
 import pytest
+from _serve import Server, need, ode_wav, rss_bytes, wait_job
 
-pytest.importorskip("fastapi")
-httpx = pytest.importorskip("httpx")
-
-from _serve import Server, ode_wav, rss_bytes, wait_job  # noqa: E402
+need("fastapi")
+httpx = need("httpx")
 
 N_SUBMISSIONS = 20
 SEEDS = (0, 1)

@@ -116,8 +116,7 @@ class JobManager:
         for w in self.workers:
             w["proc"].join(timeout=3)
             if w["proc"].is_alive():
-                w["proc"].kill()
-                w["proc"].join(timeout=3)
+                _kill(w["proc"])
         with self.lock:
             for job_id in list(self.running) + list(self.pending):
                 self._finish(job_id, "failed", error="the server stopped before the job finished")
@@ -262,8 +261,7 @@ class JobManager:
             elif job_id in self.running:
                 index = self.running.pop(job_id)
                 w = self.workers[index]
-                w["proc"].kill()
-                w["proc"].join(timeout=10)
+                _kill(w["proc"])
                 w["conn"].close()
                 self.workers[index] = self._spawn(index)
             self._finish(job_id, "cancelled", error="cancelled")
@@ -289,7 +287,7 @@ class JobManager:
         else:
             _remove(folder / "input")
             files = folder / "files"
-            status.update(state="done", progress=1.0, message="done", result=result, playable=[],
+            status.update(state="done", progress=1.0, message="done", result=result,
                           files=[{"name": p.name, "bytes": p.stat().st_size}
                                  for p in sorted(files.iterdir()) if p.is_file()])
         status["finished"] = time.time()
@@ -310,7 +308,7 @@ class JobManager:
             if kind == "progress":
                 status.update(progress=round(rest[1], 4), message=rest[2])
             elif kind == "playable":
-                status["playable"] = list(rest[1])
+                status.update(playable=list(rest[1]), playable_at=time.time())
             elif kind in ("done", "failed"):
                 index = self.running.pop(job_id)
                 self.workers[index]["job"] = None
@@ -374,6 +372,17 @@ class JobManager:
 
                 traceback.print_exc()
                 time.sleep(0.5)
+
+
+def _kill(proc) -> None:
+    """Stop a worker and the programs it runs (its process group: ffmpeg encoders), and wait for it."""
+    import signal
+
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        proc.kill()  # not yet in its own group
+    proc.join(timeout=10)
 
 
 def _remove(path: Path) -> None:

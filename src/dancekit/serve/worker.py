@@ -155,6 +155,33 @@ def _warm_imports() -> None:
         importlib.import_module(name)
 
 
+def _warm_up(w: _Worker, model: str) -> None:
+    """Dance 4 s of a synthesised tune with ``model`` and write its player, in a temporary folder, so that the
+    first job does not pay the one-time costs (compiled feature code, first calls into torch and ffmpeg)."""
+    import tempfile
+
+    from dancekit.audio import save_wav
+    from dancekit.audio.synth import ode_to_joy
+    from dancekit.export import export_motion
+
+    old = os.environ.get("DANCEKIT_CACHE")
+    try:
+        pipe = w.pipeline(model)
+        with tempfile.TemporaryDirectory(prefix="dancekit-serve-warm-") as tmp:
+            os.environ["DANCEKIT_CACHE"] = tmp  # features computed, not read from (or left in) the user's cache
+            sr = 22050
+            song = save_wav(Path(tmp) / "warm.wav", ode_to_joy(sr=sr)[: 4 * sr], sr=sr)
+            result = pipe.dances(str(song), seeds=[0])[0]
+            export_motion(result.motion, tmp, stem="warm", formats=["html"], audio=song)
+    except DancekitError:
+        pass  # a model that cannot dance: the job that asks for it gets the error
+    finally:
+        if old is None:
+            os.environ.pop("DANCEKIT_CACHE", None)
+        else:
+            os.environ["DANCEKIT_CACHE"] = old
+
+
 class _Conn:
     """The worker's end of its pipe as an event queue (``put`` sends)."""
 
@@ -171,6 +198,7 @@ def worker_main(index: int, conn: Any, preload: list[str], threads: int) -> None
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the server, which stops its workers
+    os.setpgid(0, 0)  # a group of its own: cancelling a job stops the worker with its ffmpeg children
     os.environ.setdefault("OMP_NUM_THREADS", str(threads))
     import torch
 
@@ -183,6 +211,8 @@ def worker_main(index: int, conn: Any, preload: list[str], threads: int) -> None
         except DancekitError:
             pass  # the job that asks for it gets the error
     _warm_imports()
+    if preload:
+        _warm_up(w, preload[0])
     events.put(("ready", index))
     while True:
         try:
