@@ -45,6 +45,13 @@ def test_upload_progress_playing_player_and_downloads(server, tmp_path):
             page.goto(server.url + "/")
             page.wait_for_selector("#model option", state="attached")
             assert page.locator("#genre option").first.inner_text().startswith("auto")
+            # a bad upload: the page shows the server's one-line reason
+            fake = tmp_path / "notes.mp3"
+            fake.write_text("my notes, not a song\n" * 10)
+            page.set_input_files("#file", str(fake))
+            page.click("#go")
+            page.wait_for_function("document.getElementById('error').textContent.length > 0")
+            assert "notes.mp3 is not audio" in page.inner_text("#error")
             page.set_input_files("#file", str(song))
             assert "ode.wav" in page.inner_text("#song-name")
             page.click("#go")
