@@ -36,8 +36,10 @@ ALLOWED: dict[str, set[str]] = {
     "export": {"motion", "render", "audio"},
     "evaluation": {"audio", "features", "motion", "metrics", "models", "checkpoints", "data", "pipelines",
                    "render", "export", "training"},
+    "serve": {"audio", "features", "motion", "metrics", "models", "checkpoints", "data", "training", "pipelines",
+              "render", "export", "evaluation"},
     "cli": {"audio", "features", "motion", "metrics", "models", "checkpoints", "data", "training", "pipelines",
-            "render", "export", "evaluation"},
+            "render", "export", "evaluation", "serve"},
     "__init__": set(),  # the package root re-exports the errors only
 }
 

@@ -134,6 +134,27 @@ def model_card(folder: str | os.PathLike) -> dict:
     return json.loads(card.read_text()) if card.is_file() else {}
 
 
+def model_cards() -> dict[str, dict]:
+    """Name → card of every model :func:`available_models` finds (what ``dancekit models`` prints): ``name``,
+    ``family``, ``kind`` (the registry's: dance, classifier, postprocess; ``unknown`` for an unregistered
+    family), ``folder``, ``default``, ``size_mb``, ``genre_models`` (names), ``reads_genre_from_music`` and the
+    fields of its ``card.json`` (``description``, ``training_data``, ``metrics``, ...)."""
+    from dancekit import registry
+
+    cards = {}
+    for name, folder in available_models().items():
+        meta = read_meta(folder)
+        family = meta["model"]
+        kind = registry.get(family).kind if family in registry.families() else "unknown"
+        parts = components(folder, meta)
+        size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
+        cards[name] = {"name": name, "family": family, "kind": kind, "folder": str(folder),
+                       "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
+                       "genre_models": list(parts.get("genres", {})),
+                       "reads_genre_from_music": "genre_reader" in parts, **model_card(folder)}
+    return cards
+
+
 def declare_components(folder: str | os.PathLike, index: dict[str, Any]) -> dict[str, Any]:
     """Add ``index`` (name → relative folder, or name → {key → relative folder}) to the component index of
     the model in ``folder`` (its ``config.json``, rewritten atomically); a mapping merges into an existing one.

@@ -14,21 +14,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dancekit import registry
-    from dancekit.checkpoints import DEFAULT_MODEL, available_models, components, model_card
-    from dancekit.checkpoints.hub import read_meta
+    from dancekit.checkpoints import model_cards
 
-    cards = {}
-    for name, folder in available_models().items():
-        meta = read_meta(folder)
-        family = meta["model"]
-        kind = registry.get(family).kind if family in registry.families() else "unknown"
-        parts = components(folder, meta)
-        size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
-        card = {"name": name, "family": family, "kind": kind, "folder": str(folder), "default": name == DEFAULT_MODEL,
-                "size_mb": round(size / 1e6, 2), "genre_models": list(parts.get("genres", {})),
-                "reads_genre_from_music": "genre_reader" in parts, **model_card(folder)}
-        cards[name] = card
+    cards = model_cards()
     if args.json:
         print(json.dumps(cards, indent=1))
         return 0
