@@ -6,26 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
+from dancekit.cli._options import SEEDS_HELP, add_output, one_seed, output_fps, seed_list
 from dancekit.errors import DancekitError, ParameterError
 from dancekit.export import DEFAULT_FORMATS, FORMATS
-
-
-def _seed(text: str) -> int:
-    from dancekit._checks import reduce_seed
-
-    try:
-        return reduce_seed(int(text))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-
-
-def _seeds(text: str) -> list[int]:
-    from dancekit.pipelines.base import parse_seeds
-
-    try:
-        return parse_seeds(text)
-    except ParameterError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -36,7 +19,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "then render and export it into OUTDIR.",
     )
     p.add_argument("audio", help="the song (wav, flac, ogg, mp3, m4a, ...)")
-    p.add_argument("-o", "--out", required=True, help="output folder (created if missing)")
+    add_output(p, help="output folder (created if missing)", metavar="OUTDIR")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--model", default=None,
                    help="model name (see `dancekit models`; also the user's models folder $DANCEKIT_MODELS) or folder")
@@ -45,14 +28,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="dance genre: auto, none or one of the model's genres (`dancekit models` lists them; the "
                         "default model: waltz, rumba, chacha, tango); auto (default): read from the music when the "
                         "model has a music attribute classifier, else as none; none: the model alone")
-    seeds = p.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=_seed, default=0,
-                       help="random seed: another seed, another dance (default 0); any integer (seeds outside "
-                            "[0, 2**63) are hashed to 63 bits)")
-    seeds.add_argument("--seeds", type=_seeds, default=None, metavar="LIST",
-                       help="several dances in one pass, one per seed: 0-7 (a range, ends included), 0,3,9, or "
-                            "both (0-3,10); generated as one batch (the song's features once) and written as "
-                            "NAME_seedK.mp4, NAME_seedK.html, ... (one output set per seed; at most 64)")
+    p.add_argument("--seed", default=None, metavar="N",
+                   help="random seed: another seed, another dance (default 0); any integer (seeds outside "
+                        "[0, 2**63) are hashed to 63 bits)")
+    p.add_argument("--seeds", default=None, metavar="LIST",
+                   help=f"several dances in one run, one per seed: {SEEDS_HELP}; the song is read and its "
+                        "features computed once, each seed is then decoded on its own (the same dance as "
+                        "--seed K), and written as NAME_seedK.mp4, NAME_seedK.html, ... (at most 64 seeds)")
     p.add_argument("--foot-constraint", nargs="?", const="default", default=None, metavar="MODEL",
                    help="post-process the dance with the Foot Constraint Model of Music2Dance (less foot sliding; "
                         "the lower body alone is corrected, the path over the floor is kept): the one embedded with "
@@ -107,8 +89,11 @@ def run(args: argparse.Namespace) -> int:
     audio = Path(args.audio)
     if not audio.exists():
         raise DancekitError(f"audio file not found: {audio}")
-    if args.fps is not None and not args.fps > 0:
-        raise ParameterError(f"--fps must be positive, got {args.fps:g}")
+    if args.seed is not None and args.seeds is not None:
+        raise ParameterError("give --seed N (one dance) or --seeds LIST (several), not both")
+    args.seeds = seed_list(args.seeds)
+    args.seed = one_seed(args.seed if args.seed is not None else 0)
+    args.fps = output_fps(args.fps)
     if args.threads < 1:
         raise ParameterError(f"--threads must be at least 1, got {args.threads}")
     clip = AudioClip(audio, args.start, args.end)

@@ -15,6 +15,7 @@ import importlib
 import os
 import signal
 import sys
+from typing import NoReturn
 
 from dancekit import __version__
 from dancekit.errors import DancekitError
@@ -39,8 +40,17 @@ VERBS: dict[str, str] = {
 }
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, as every other dancekit error: ``dancekit VERB: error:
+    MESSAGE (see dancekit VERB --help)``, exit status 2 (argparse's own error prints the whole usage first).
+    Sub-commands are made of the same class (``add_subparsers`` uses the parent's class)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="dancekit",
         description="Turn music into dance and dance into music.",
     )
@@ -51,6 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
     _alias_output_flags(parser)
     return parser
 
+
+#: The names under which verbs store their output path (``-o``).
+_OUTPUT_DESTS = ("out", "output", "install")
 
 #: The output flag's two spellings: every verb that has one accepts both (documented: ``-o/--output``).
 OUTPUT_FLAGS = ("--output", "--out")
@@ -109,6 +122,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     replaced = _handle_signals()
     try:
+        for dest in _OUTPUT_DESTS:  # an empty -o would write into the current folder
+            if isinstance(getattr(args, dest, None), str):
+                from dancekit.cli._options import check_output
+
+                check_output(getattr(args, dest))
         result = args.func(args)
     except DancekitError as exc:
         if os.environ.get("DANCEKIT_DEBUG") == "1":

@@ -1,4 +1,4 @@
-"""``dancekit train FAMILY --data DIR --out RUN [--set key=value ...] [--resume]``: train a model.
+"""``dancekit train FAMILY --data DIR -o RUN [--set key=value ...] [--resume]``: train a model.
 
 ``--set`` takes any field of the family's model configuration (e.g. ``d_model=256``,
 ``encoder=global``) or of :class:`~dancekit.training.TrainConfig` (e.g. ``steps=3000``,
@@ -30,7 +30,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
     p.add_argument("family", choices=registry.families(), help="model family (dancekit.registry)")
     p.add_argument("--data", required=True, help="prepared dataset folder (from `dancekit prepare`)")
-    p.add_argument("--out", required=True, help="run folder: checkpoints, log.jsonl, model/, best/")
+    p.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="RUN",
+                   help="run folder: checkpoints, log.jsonl, model/, best/")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="override a model or training setting (repeatable)")
     p.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")

@@ -35,12 +35,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from dancekit._io import atomic_path
 from dancekit.errors import DancekitError, MotionFormatError, ParameterError
+from dancekit.motion.formats._known import adopt_builtin
 from dancekit.motion.motion import Motion
-from dancekit.motion.rotations import euler_angles_to_matrix, matrix_to_euler_angles
 from dancekit.motion.skeleton import Skeleton, branch_joint_name
 
 __all__ = ["BVH_RIGS", "HUMANOID_NAMES", "BvhData", "format_bvh", "guess_roles", "humanoid_motion", "parse_bvh",
@@ -269,17 +268,26 @@ def _local_transforms(data: BvhData) -> tuple[np.ndarray, np.ndarray]:
                 trans[:, j, _POS[c]] = data.values[:, c0 + i]
         if not rot_cols:
             continue
-        ang = torch.from_numpy(np.deg2rad(data.values[:, rot_cols]))
-        if len(order) == 3 and len(set(order)) == 3:
-            rot[:, j] = euler_angles_to_matrix(ang, order).numpy()
-        else:  # 1, 2 or repeated axes: compose one axis at a time
-            R = torch.eye(3, dtype=torch.float64).expand(T, 3, 3)
-            for k, ax in enumerate(order):
-                a = torch.zeros(T, 3, dtype=torch.float64)
-                a[:, "XYZ".index(ax)] = ang[:, k]
-                R = R @ euler_angles_to_matrix(a, "XYZ")
-            rot[:, j] = R.numpy()
+        ang = np.deg2rad(data.values[:, rot_cols])
+        R = _axis_matrix(order[0], ang[:, 0])
+        for k in range(1, len(order)):  # intrinsic: R = R_a0 @ R_a1 @ R_a2, any number of axes
+            R = R @ _axis_matrix(order[k], ang[:, k])
+        rot[:, j] = R
     return rot, trans
+
+
+def _axis_matrix(axis: str, angle: np.ndarray) -> np.ndarray:
+    """(T,) radians about ``axis`` ("X", "Y" or "Z") → (T, 3, 3) rotation matrices (NumPy: reading a BVH
+    needs no torch; the same matrices as :func:`dancekit.motion.rotations.euler_angles_to_matrix`)."""
+    c, s = np.cos(angle), np.sin(angle)
+    o, z = np.ones_like(angle), np.zeros_like(angle)
+    if axis == "X":
+        flat = (o, z, z, z, c, -s, z, s, c)
+    elif axis == "Y":
+        flat = (c, z, s, z, o, z, -s, z, c)
+    else:
+        flat = (c, -s, z, s, c, z, z, z, o)
+    return np.stack(flat, axis=-1).reshape(angle.shape + (3, 3))
 
 
 def _fk_translations(rot: np.ndarray, trans: np.ndarray, parents: list[int]) -> np.ndarray:
@@ -491,6 +499,12 @@ def read_bvh(path: str | os.PathLike, *, units: str | None = None) -> Motion:
             up_axis=up, units=units, roles=roles, left_right=pairs, feet=feet, end_effectors=leaves,
             branch_joints=branch_parents,
         )
+        known = adopt_builtin(names, parents, offsets)  # a built-in skeleton (write_bvh's) reads back as itself
+        if known is not None:
+            skeleton, order = known
+            positions = positions[:, order]
+            names = list(skeleton.joint_names)
+            root = skeleton.root
         file_index = {n: j for j, n in enumerate(file_names)}
         rig_order = [file_index[n] for n in skeleton.rig().joint_names]
         assert sorted(rig_order) == list(range(len(file_names)))
@@ -590,6 +604,10 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
     MotionFormatError
         For a 2D motion or a bad ``rotation_order``.
     """
+    import torch
+
+    from dancekit.motion.rotations import matrix_to_euler_angles
+
     sk = motion.skeleton
     if sk.dims != 3:
         raise MotionFormatError(f"cannot write a 2D motion ({sk.name!r}) as BVH: {path}")
