@@ -256,3 +256,81 @@ def test_the_same_dance_from_npz_bvh_and_glb_composes_the_same_music(tang2018_di
     for name, (t, b) in music.items():
         assert abs(t - tempo) <= 0.01 * tempo, (name, t, tempo)
         assert len(b) == len(beats) and np.abs(b - beats).max() < 1.5 / dance.fps, name
+
+
+# ------------------------------------------------------------------- one flag per idea
+#: Verbs that write files or folders (the rest only print).
+WRITING_VERBS = {"features", "prepare", "train", "evaluate", "baselines", "compare", "select-checkpoint", "steering",
+                 "score-classifier", "dance", "render", "convert", "compose"}
+
+
+def _verbs():
+    import argparse
+
+    from dancekit.cli.main import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(sub.choices)
+
+
+def test_every_verb_that_writes_takes_o_out_and_output():
+    verbs = _verbs()
+    assert WRITING_VERBS <= set(verbs)
+    for verb, p in verbs.items():
+        outs = [a for a in p._actions if {"-o", "--out", "--output"} & set(a.option_strings)]
+        if verb in WRITING_VERBS:
+            assert len(outs) == 1 and {"-o", "--out", "--output"} <= set(outs[0].option_strings), verb
+            for flag in ("-o", "--out", "--output"):  # every spelling is the same option
+                assert p._option_string_actions[flag] is outs[0], (verb, flag)
+        else:
+            assert outs == [], verb
+
+
+def test_seeds_is_a_list_of_seeds_in_every_verb(capsys):
+    """``--seeds`` is a seed LIST wherever it appears (``dance`` and the evaluation verbs alike), parsed by one
+    function at run time (so a bad list is one error line); ``--seed`` is one integer."""
+    from dancekit.cli._options import seed_list, seed_run
+
+    with_seeds = {verb: p for verb, p in _verbs().items() if "--seeds" in p._option_string_actions}
+    assert {"dance", "evaluate", "select-checkpoint", "steering"} <= set(with_seeds)
+    for verb, p in with_seeds.items():
+        action = p._option_string_actions["--seeds"]
+        assert action.type is None and action.metavar == "LIST" and action.nargs is None, verb
+    assert seed_list("0-2,7") == [0, 1, 2, 7]
+    assert seed_run("3-5", verb="evaluate", default=5) == (3, 3)
+    assert seed_run(None, verb="evaluate", default=5) == (0, 5)
+    assert seed_run("2", verb="evaluate", default=5) == (2, 1)  # seed 2, as in dance (with a note)
+    assert "seed 2 alone" in capsys.readouterr().err
+    for verb in ("evaluate", "select-checkpoint", "steering"):
+        assert main([verb, "--seeds", "3-1", *_required(verb)]) == 2
+        _one_error_line(capsys.readouterr().err, verb, "--seeds 3-1")
+
+
+def _required(verb: str) -> list[str]:
+    return {"evaluate": ["--checkpoint", "x", "--data", "y", "-o", "z"],
+            "select-checkpoint": ["--run", "x", "--data", "y"],
+            "steering": ["--checkpoint", "x", "--data", "y"]}[verb]
+
+
+def test_argparse_errors_are_one_line(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["dance", "song.wav", "-o", "x", "--beat-sync", "maybe"])
+    assert exc.value.code == 2
+    line = _one_error_line(capsys.readouterr().err, "dance", "--beat-sync")
+    assert "--help" in line
+
+
+# ------------------------------------------------------------------- progress into a pipe
+def test_dance_into_a_pipe_writes_a_few_progress_lines(tmp_path):
+    """stderr a pipe (a log, CI): no carriage-return redraws, at most a progress line every few seconds."""
+    song = _wav(tmp_path / "song.wav", 4.0)
+    r = subprocess.run([sys.executable, "-m", "dancekit.cli.main", "dance", str(song), "-o", str(tmp_path / "o"),
+                        "--format", "npz,mp4", "--width", "160", "--height", "120"],
+                       capture_output=True, timeout=600, env={**os.environ, "PYTHONPATH": str(ROOT / "src")})
+    assert r.returncode == 0, r.stderr.decode()
+    err = r.stderr.decode()
+    assert "\r" not in err
+    bars = [ln for ln in err.splitlines() if "%|" in ln]
+    assert 1 <= len(bars) <= 4, err
+    assert len(err) < 1000, len(err)

@@ -114,6 +114,38 @@ def _handle_signals() -> dict[int, object]:
     return replaced
 
 
+class QuietProgress:
+    """``sys.stderr`` for a run whose stderr is not a terminal (a pipe, a log file): progress bars redraw their
+    line with carriage returns many times a second, which a log keeps as one long line per update. Here a
+    redraw becomes one plain line at most every :attr:`interval` seconds (the first one at once); everything
+    else (warnings, error lines) passes through unchanged."""
+
+    interval = 10.0
+
+    def __init__(self, stream):
+        self._stream = stream
+        self._last = float("-inf")
+        self._in_bar = False
+
+    def write(self, text: str) -> int:
+        import time
+
+        if "\r" in text or (self._in_bar and not text.strip()):
+            self._in_bar = True
+            line = text.replace("\r", "").strip()
+            now = time.monotonic()
+            if line and now - self._last >= self.interval:
+                self._stream.write(line + "\n")
+                self._stream.flush()
+                self._last = now
+            return len(text)
+        self._in_bar = False
+        return self._stream.write(text)
+
+    def __getattr__(self, name: str):  # flush, fileno, isatty, encoding, ...: the real stream's
+        return getattr(self._stream, name)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -121,6 +153,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     replaced = _handle_signals()
+    stderr = sys.stderr
+    if not _isatty(stderr):
+        sys.stderr = QuietProgress(stderr)
     try:
         for dest in _OUTPUT_DESTS:  # an empty -o would write into the current folder
             if isinstance(getattr(args, dest, None), str):
@@ -141,9 +176,17 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 128 + exc.signum
     finally:
+        sys.stderr = stderr
         for sig, handler in replaced.items():
             signal.signal(sig, handler)
     return int(result or 0)
+
+
+def _isatty(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # a closed or file-less stream
+        return False
 
 
 if __name__ == "__main__":  # pragma: no cover
