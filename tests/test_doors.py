@@ -334,3 +334,25 @@ def test_dance_into_a_pipe_writes_a_few_progress_lines(tmp_path):
     bars = [ln for ln in err.splitlines() if "%|" in ln]
     assert 1 <= len(bars) <= 4, err
     assert len(err) < 1000, len(err)
+
+
+def test_train_help_lists_the_set_keys(capsys):
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    out = capsys.readouterr().out
+    assert "--set keys" in out and "steps=" in out and "batch_size=" in out
+    assert "model (revolution):" in out and "d_model=" in out and "model (music2dance):" in out
+
+
+def test_models_says_what_every_model_is_and_its_genres(capsys):
+    assert main(["models"]) == 0
+    out = capsys.readouterr().out
+    heads = [ln for ln in out.splitlines() if ln and not ln.startswith(" ")]
+    assert heads and all(ln.split(":", 1)[1].strip() for ln in heads), heads  # never "style:" and nothing
+    blocks, name = {}, None
+    for ln in out.splitlines():
+        if ln and not ln.startswith(" "):
+            name = ln.split(":", 1)[0].split()[0]
+        blocks.setdefault(name, []).append(ln)
+    for model in ("music2dance", "revolution"):  # a dance-type condition, genre models
+        assert any(ln.startswith("  --genre: auto") and "waltz" in ln for ln in blocks[model]), blocks[model]

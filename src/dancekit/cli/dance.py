@@ -11,6 +11,16 @@ from dancekit.errors import DancekitError, ParameterError
 from dancekit.export import DEFAULT_FORMATS, FORMATS
 
 
+def describe(result) -> str:
+    """What the summary line says of a dance: ``as waltz (read from the music, p = 0.46); beat-synced ...``,
+    or for a model without genres ``by dual; energy lifted ...``: it always says what danced."""
+    summary = result.summary()
+    if summary.startswith("as ") or summary.startswith("by "):
+        return summary
+    name = Path(str(result.model)).name or str(result.model)
+    return f"by {name}" + (f"; {summary}" if summary else "")
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "dance",
@@ -140,18 +150,21 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
                           start=args.start, end=args.end, beat_sync_on=stages_on["beat_sync"],
                           cleanup_on=stages_on["cleanup"], beats=beats, **extra, **pipe.stage_options(r))
                    for r in results]  # the checkpoint's own per-dance settings (a jitter cap) as in pipe.dances
+    t_made = time.perf_counter()
     for result in results:
         motion = result.motion
         if args.fps is not None and args.fps != motion.fps:
             motion = motion.resample(args.fps)
         stem = audio.stem if args.seeds is None else f"{audio.stem}_seed{result.seed}"
+        t_export = time.perf_counter()
         written = export_motion(motion, out, stem=stem, formats=formats, audio=clip, options=options,
                                 progress=not args.quiet, bvh_rig=args.bvh_rig)
-        elapsed = time.perf_counter() - t0
-        how = f" {result.summary()}" if result.summary() else ""
         seed = "" if args.seeds is None else f" (seed {result.seed})"
-        print(
-            f"danced {audio.name}{seed}{how}: {motion.duration:.1f} s, {motion.num_frames} frames at "
-            f"{motion.fps:g} fps in {elapsed:.1f} s → " + ", ".join(str(p) for p in written)
-        )
+        took = time.perf_counter() - t0 if args.seeds is None else time.perf_counter() - t_export
+        timing = f"in {took:.1f} s" if args.seeds is None else f"written in {took:.1f} s"
+        print(f"danced {audio.name}{seed} {describe(result)}: {motion.duration:.1f} s, {motion.num_frames} frames "
+              f"at {motion.fps:g} fps {timing} → " + ", ".join(str(p) for p in written))
+    if args.seeds is not None:
+        print(f"danced {len(results)} seeds in {time.perf_counter() - t0:.1f} s (the dances made in "
+              f"{t_made - t0:.1f} s, then written one by one)")
     return 0

@@ -27,7 +27,13 @@ def run(args: argparse.Namespace) -> int:
         size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
         card = {"name": name, "family": family, "kind": kind, "folder": str(folder), "default": name == DEFAULT_MODEL,
                 "size_mb": round(size / 1e6, 2), "genre_models": list(parts.get("genres", {})),
-                "reads_genre_from_music": "genre_reader" in parts, **model_card(folder)}
+                "reads_genre_from_music": "genre_reader" in parts,
+                "genre_condition": list(meta.get("genres", [])) if meta.get("config", {}).get("n_genres") else [],
+                **model_card(folder)}
+        if not card.get("description"):  # a model without a card.json still says what it is
+            genres = meta.get("genres") or meta.get("config", {}).get("genres") or []
+            card["description"] = f"a {family} model ({kind}, no model card)" + (
+                f"; genres: {', '.join(genres)}" if genres else "")
         cards[name] = card
     if args.json:
         print(json.dumps(cards, indent=1))
@@ -40,9 +46,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"{name}{flag}: {card.get('description', '')}")
         print(f"  family: {card['family']} ({card['kind']}); folder: {card['folder']}")
         print(f"  size: {card['size_mb']} MB")
+        auto = "auto (read from the music), none" if card["reads_genre_from_music"] else "auto"
         if card["genre_models"]:
-            auto = "auto (read from the music), none" if card["reads_genre_from_music"] else "auto"
             print(f"  --genre: {auto}, {', '.join(card['genre_models'])} (genre models)")
+        elif card["genre_condition"]:
+            print(f"  --genre: {auto}, {', '.join(card['genre_condition'])} (the model's dance-type condition)")
         for key in ("training_data", "training_time", "parameters"):
             if key in card:
                 print(f"  {key.replace('_', ' ')}: {card[key]}")

@@ -39,6 +39,28 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="start from the weights (and model configuration) of a checkpoint folder: fine-tuning")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
+    plain = p.format_help
+    p.format_help = lambda: plain() + "\n" + set_keys_help()  # computed on `train --help` only (imports torch)
+
+
+def set_keys_help() -> str:
+    """The ``--set`` keys: every field of TrainConfig and of each family's model configuration, with defaults."""
+    import dataclasses
+    import textwrap
+
+    from dancekit import registry
+    from dancekit.training.config import TrainConfig
+
+    def fields(cls) -> str:
+        items = [f"{f.name}={f.default!r}" if f.default is not dataclasses.MISSING else f.name
+                 for f in dataclasses.fields(cls) if f.init]
+        return textwrap.fill(", ".join(items), width=100, initial_indent="    ", subsequent_indent="    ")
+
+    out = ["--set keys (KEY=VALUE; defaults shown; prefix train. or model. to be explicit):", "  training:",
+           fields(TrainConfig)]
+    for family in registry.families():
+        out += [f"  model ({family}):", fields(registry.get(family).config_class)]
+    return "\n".join(out) + "\n"
 
 
 def __getattr__(name: str) -> Any:
