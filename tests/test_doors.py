@@ -218,12 +218,19 @@ def test_info_reads_the_midi_compose_writes(tmp_path, capsys):
         read_motion(tmp_path / "song.mid")
 
 
-def test_reading_a_file_for_info_imports_no_torch(tmp_path):
+def test_info_models_and_convert_of_rotations_import_no_torch(tmp_path):
+    """``info`` of any motion, ``models``, and ``convert`` between files that hold rotations (BVH, glb, npz
+    with rotations) to npz or BVH do no model work: torch (seconds to import) stays out."""
     m = _tang_walk(T=10)
     for name in ("d.npz", "d.bvh", "d.glb"):
         write_motion(tmp_path / name, m)
+    d = str(tmp_path)
     code = ("import sys; from dancekit.cli.main import main\n"
-            f"for f in ('d.npz', 'd.bvh', 'd.glb'): assert main(['info', {str(tmp_path)!r} + '/' + f]) == 0\n"
+            f"for f in ('d.npz', 'd.bvh', 'd.glb'): assert main(['info', {d!r} + '/' + f]) == 0\n"
+            "assert main(['models']) == 0\n"
+            f"assert main(['convert', {d!r} + '/d.glb', '-o', {d!r} + '/e.bvh']) == 0\n"
+            f"assert main(['convert', {d!r} + '/d.bvh', '-o', {d!r} + '/e.npz']) == 0\n"
+            f"assert main(['convert', {d!r} + '/d.npz', '-o', {d!r} + '/f.bvh']) == 0\n"
             "print('torch' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                        env={**os.environ, "PYTHONPATH": str(ROOT / "src")})

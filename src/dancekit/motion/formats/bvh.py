@@ -290,6 +290,23 @@ def _axis_matrix(axis: str, angle: np.ndarray) -> np.ndarray:
     return np.stack(flat, axis=-1).reshape(angle.shape + (3, 3))
 
 
+def _matrix_to_euler(m: np.ndarray, order: str) -> np.ndarray:
+    """(..., 3, 3) rotation matrices → (..., 3) intrinsic Euler angles (radians) in ``order`` (e.g. "ZXY"):
+    :func:`dancekit.motion.rotations.matrix_to_euler_angles` in NumPy (writing a BVH needs no torch), the
+    same branch rules: the middle angle in [-π/2, π/2]; at gimbal lock the last angle is 0."""
+    i, j, k = ("XYZ".index(a) for a in order)
+    sign = 1.0 if (i, j, k) in ((0, 1, 2), (1, 2, 0), (2, 0, 1)) else -1.0
+    sb = np.clip(sign * m[..., i, k], -1.0, 1.0)
+    b = np.arcsin(sb)
+    a = np.arctan2(-sign * m[..., j, k], m[..., k, k])
+    c = np.arctan2(-sign * m[..., i, j], m[..., i, i])
+    locked = np.abs(sb) > 1 - 1e-10
+    if locked.any():
+        a = np.where(locked, np.arctan2(sign * m[..., k, j], m[..., j, j]), a)
+        c = np.where(locked, 0.0, c)
+    return np.stack([a, b, c], axis=-1)
+
+
 def _fk_translations(rot: np.ndarray, trans: np.ndarray, parents: list[int]) -> np.ndarray:
     from dancekit.motion.skeleton import _topological_order
 
@@ -604,10 +621,6 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
     MotionFormatError
         For a 2D motion or a bad ``rotation_order``.
     """
-    import torch
-
-    from dancekit.motion.rotations import matrix_to_euler_angles
-
     sk = motion.skeleton
     if sk.dims != 3:
         raise MotionFormatError(f"cannot write a 2D motion ({sk.name!r}) as BVH: {path}")
@@ -651,8 +664,7 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
         except DancekitError as exc:
             raise MotionFormatError(f"cannot compute rotations for {path}: {exc}") from exc
         assert m.rotations is not None and m.root_translation is not None
-        eul = np.rad2deg(matrix_to_euler_angles(torch.from_numpy(np.asarray(m.rotations, np.float64)),
-                                                order).numpy())  # (chunk, J, 3)
+        eul = np.rad2deg(_matrix_to_euler(np.asarray(m.rotations, np.float64), order))  # (chunk, J, 3)
         col = 0
         for j in order_idx:
             if j == root:
