@@ -307,8 +307,10 @@ def test_seeds_is_a_list_of_seeds_in_every_verb(capsys):
     assert seed_list("0-2,7") == [0, 1, 2, 7]
     assert seed_run("3-5", verb="evaluate", default=5) == (3, 3)
     assert seed_run(None, verb="evaluate", default=5) == (0, 5)
-    assert seed_run("2", verb="evaluate", default=5) == (2, 1)  # seed 2, as in dance (with a note)
-    assert "seed 2 alone" in capsys.readouterr().err
+    assert seed_run("4-4", verb="evaluate", default=5) == (4, 1)
+    assert seed_run("2", verb="evaluate", default=5) == (0, 2)  # the old count, deprecated (with a note)
+    err = capsys.readouterr().err
+    assert "deprecated" in err and "write --seeds 0-1" in err, err
     for verb in ("evaluate", "select-checkpoint", "steering"):
         assert main([verb, "--seeds", "3-1", *_required(verb)]) == 2
         _one_error_line(capsys.readouterr().err, verb, "--seeds 3-1")

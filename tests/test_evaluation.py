@@ -203,7 +203,7 @@ def test_select_checkpoint_on_a_tiny_run(data_with_audio, tmp_path, capsys):
     losses = val_losses(run)
     assert sorted(losses) == [1, 2] and step_of(run / "best", losses) == min(losses, key=losses.get)
     capsys.readouterr()
-    assert main(["select-checkpoint", "--run", str(run), "--data", str(data_with_audio), "--seeds", "0",
+    assert main(["select-checkpoint", "--run", str(run), "--data", str(data_with_audio), "--seeds", "0-0",
                  "--quiet", "--install", str(tmp_path / "chosen")]) == 0
     report = json.loads((run / "selection.json").read_text())
     assert report["split"] == "val" and len(report["candidates"]) == len(found)

@@ -66,14 +66,6 @@ def consecutive(seeds: list[int], *, verb: str) -> tuple[int, int]:
     return first, len(seeds)
 
 
-def note_bare_seed_count(text: str | None, *, verb: str) -> None:
-    """A note on stderr when ``--seeds`` is one bare number: before, ``VERB --seeds N`` meant N seeds."""
-    if text is not None and text.strip().isdigit():
-        n = int(text)
-        print(f"dancekit {verb}: note: --seeds {n} is the seed {n} alone (a list, as in `dancekit dance`); "
-              f"for {n} seeds write --seeds 0-{max(n - 1, 0)}", file=sys.stderr)
-
-
 def output_fps(fps: float | None, *, flag: str = "--fps") -> float | None:
     """An output frame rate in ``(0, MAX_OUTPUT_FPS]``, or None."""
     if fps is None:
@@ -90,22 +82,27 @@ def seed_run(text: str | None, *, verb: str, default: int, first_seed: int | Non
     """``(first, count)`` of the consecutive seeds ``--seeds LIST`` names, for the verbs that dance a run of
     seeds per song (default: ``0..default-1``). ``from_zero``: the run must start at seed 0.
 
-    The deprecated ``--first-seed K`` (with a bare ``--seeds N``: N seeds from K, the old meaning) is still
-    read, with a note saying how to write it now."""
-    if first_seed is not None:
-        if first_seed < 0:
-            raise ParameterError(f"--first-seed: the first seed must be a whole number >= 0, got {first_seed}")
+    Deprecated, still read with a note on stderr saying how to write it now: a bare number ``--seeds N`` in
+    these verbs (their old count: N seeds, ``0..N-1``; documented commands keep their results) and
+    ``--first-seed K`` (N seeds from K)."""
+    if first_seed is not None and first_seed < 0:
+        raise ParameterError(f"--first-seed: the first seed must be a whole number >= 0, got {first_seed}")
+    if text is not None and text.strip().isdigit() or first_seed is not None:
         n = default if text is None else (int(text) if text.strip().isdigit() else None)
         if n is None:
             raise ParameterError(f"--first-seed goes with a number of seeds (deprecated); write --seeds as a list "
-                                 f"instead, e.g. --seeds {max(first_seed, 0)}-{max(first_seed, 0) + 4}")
-        print(f"dancekit {verb}: note: --first-seed is deprecated; write --seeds {first_seed}-{first_seed + n - 1}",
-              file=sys.stderr)
-        return first_seed, n
-    if text is None:
+                                 f"instead, e.g. --seeds {first_seed}-{first_seed + 4}")
+        if n < 1:
+            raise ParameterError(f"--seeds {text}: at least one seed")
+        k = first_seed or 0
+        old = f"--seeds {n}" + (f" --first-seed {k}" if first_seed is not None else "")
+        print(f"dancekit {verb}: note: {old} (a count of seeds) is deprecated: --seeds is a list, as in "
+              f"`dancekit dance`; write --seeds {k}-{k + n - 1}", file=sys.stderr)
+        first, count = k, n
+    elif text is None:
         return 0, default
-    note_bare_seed_count(text, verb=verb)
-    first, count = consecutive(seed_list(text), verb=verb)
+    else:
+        first, count = consecutive(seed_list(text), verb=verb)
     if from_zero and first != 0:
         raise ParameterError(f"{verb} dances the seeds 0..N-1: write --seeds 0-{count - 1}, got --seeds {text}")
     return first, count

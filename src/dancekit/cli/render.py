@@ -117,7 +117,10 @@ def run(args: argparse.Namespace) -> int:
         from dancekit.render._ffmpeg import audio_duration
 
         left = audio_duration(audio) - (start or 0.0)
-        if 0 < left and left + 0.5 / motion.fps < motion.duration:
+        # the dance's last frame shows at (T - 1) / fps: a dance of a whole song (1 + n // hop frames, as
+        # `dancekit dance` makes) ends with the song, one frame period past it by motion.duration
+        last = (motion.num_frames - 1) / motion.fps
+        if 0 < left and left + 0.5 / motion.fps < last:
             raise ParameterError(f"the song {str(audio)!r} holds {max(left, 0):.2f} s from --start "
                                  f"{start or 0:g} s, shorter than the dance ({motion.duration:.2f} s): give a "
                                  "longer song, or --end to render only the part of the dance the song covers")
