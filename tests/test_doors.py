@@ -132,7 +132,7 @@ def test_empty_output_and_unbounded_fps_are_one_line_each(tmp_path, capsys, monk
 def test_convert_writes_the_path_it_is_given(tmp_path, capsys):
     write_motion(tmp_path / "d.npz", _tang_walk(T=10))
     assert main(["convert", str(tmp_path / "d.npz"), "-o", str(tmp_path / "a.json")]) == 2
-    _one_error_line(capsys.readouterr().err, "convert", "a.json", "folder")
+    _one_error_line(capsys.readouterr().err, "convert", "a.json", "one file per frame")
     assert not (tmp_path / "a").exists() and not (tmp_path / "a.json").exists()
     assert main(["convert", str(tmp_path / "d.npz"), "-o", str(tmp_path / "kp"), "-q"]) == 0
     assert len(list((tmp_path / "kp").glob("*.json"))) == 10
@@ -365,3 +365,14 @@ def test_models_says_what_every_model_is_and_its_genres(capsys):
         blocks.setdefault(name, []).append(ln)
     for model in ("music2dance", "revolution"):  # a dance-type condition, genre models
         assert any(ln.startswith("  --genre: auto") and "waltz" in ln for ln in blocks[model]), blocks[model]
+
+
+def test_render_takes_the_song_a_dance_was_made_for(tmp_path, capsys):
+    """A dance of a whole song has 1 + n // hop frames (its last frame at the song's end, so ``duration`` is one
+    frame period longer than the song): render plays it with that song; a dance a frame longer is refused."""
+    song = _wav(tmp_path / "song.wav", 2.0)
+    write_motion(tmp_path / "d.npz", _tang_walk(T=51))  # 2 s at 25 fps: frames 0 .. 50, the last at 2.00 s
+    assert main(["render", str(tmp_path / "d.npz"), "--audio", str(song), "-o", str(tmp_path / "d.html"), "-q"]) == 0
+    write_motion(tmp_path / "e.npz", _tang_walk(T=53))  # the last frame 0.08 s after the song
+    assert main(["render", str(tmp_path / "e.npz"), "--audio", str(song), "-o", str(tmp_path / "e.html")]) == 2
+    _one_error_line(capsys.readouterr().err, "render", "shorter than the dance")
