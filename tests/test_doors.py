@@ -242,7 +242,9 @@ def test_info_models_and_convert_of_rotations_import_no_torch(tmp_path):
 @pytest.mark.shared
 def test_the_same_dance_from_npz_bvh_and_glb_composes_the_same_music(tang2018_dir, tmp_path):
     """A dance read from the npz, the exact-rig BVH and the glb the toolkit writes is the same dance (same
-    skeleton, positions to 1e-3 cm) and composes the same music (tempo within 1 %, the same beats)."""
+    skeleton, positions to 1e-3 cm, the same ``info``) and composes the same music (tempo within 1 %, the same
+    beats)."""
+    from dancekit.cli.info import motion_info
     from dancekit.motion.formats import read_tang2018
     from dancekit.pipelines.dual import ComposePipeline
 
@@ -259,6 +261,9 @@ def test_the_same_dance_from_npz_bvh_and_glb_composes_the_same_music(tang2018_di
         np.testing.assert_allclose(m.to_positions(), dance.to_positions(), atol=1e-3)
         arr = pipe(m, seed=0).arrangement
         music[name] = (arr.tempo, np.asarray(arr.beat_times))
+        info = motion_info(tmp_path / name)
+        infos[name] = {k: v for k, v in info.items() if k not in ("format", "stored")}
+    assert infos["d.bvh"] == infos["d.npz"] == infos["d.glb"], infos
     tempo, beats = music["d.npz"]
     for name, (t, b) in music.items():
         assert abs(t - tempo) <= 0.01 * tempo, (name, t, tempo)
