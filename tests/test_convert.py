@@ -19,7 +19,7 @@ def walk(fixtures_dir):
 
 def test_convert_to_every_format(tmp_path, walk):
     src = read_motion(walk)
-    for name in ("w.npz", "w.bvh", "w.glb", "w.pkl", "w.json"):
+    for name in ("w.npz", "w.bvh", "w.glb", "w.pkl", "w"):
         assert main(["convert", str(walk), "-o", str(tmp_path / name), "-q"]) == 0, name
     assert np.allclose(read_motion(tmp_path / "w.npz").positions, src.positions, atol=1e-3)
     assert np.allclose(read_motion(tmp_path / "w.bvh").positions, src.positions, atol=1e-3)
@@ -33,7 +33,7 @@ def test_convert_options(tmp_path, walk):
     assert main(["convert", str(walk), "-o", str(tmp_path / "h.bvh"), "--bvh-rig", "humanoid", "-q"]) == 0
     names = parse_bvh(tmp_path / "h.bvh").names
     assert names[0] == "Hips" and {"Spine", "Spine1", "Neck", "Head", "LeftArm"} <= set(names)
-    assert main(["convert", str(walk), "-o", str(tmp_path / "c.json"), "--keypoints", "coco18", "-q"]) == 0
+    assert main(["convert", str(walk), "-o", str(tmp_path / "c"), "--keypoints", "coco18", "-q"]) == 0
     obj = json.loads(sorted((tmp_path / "c").glob("*.json"))[0].read_text())
     assert obj["keypoint_format"] == "coco18" and len(obj["people"][0]["pose_keypoints_2d"]) == 54
     assert main(["convert", str(walk), "-o", str(tmp_path / "f.npz"), "--fps", "10", "-q"]) == 0

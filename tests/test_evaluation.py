@@ -54,7 +54,7 @@ def tiny_checkpoint(tmp_path_factory):
 def test_evaluate_checkpoint_end_to_end(tiny_checkpoint, data_with_audio, tmp_path, capsys):
     out = tmp_path / "eval"
     rc = main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
-               "--seeds", "2", "-o", str(out), "--quiet", "--segment-seconds", "1"])
+               "--seeds", "0-1", "-o", str(out), "--quiet", "--segment-seconds", "1"])
     assert rc == 0
     printed = capsys.readouterr().out
     assert "| FID_k (AIST++) |" in printed and "generated" in printed
@@ -98,15 +98,16 @@ def test_evaluate_flags_are_checked(tiny_checkpoint, data_with_audio, tmp_path, 
 
 
 def test_evaluate_first_seed_dances_another_seed_set(tiny_checkpoint, data_with_audio, tmp_path, capsys):
-    """--first-seed 3 --seeds 2: the files NAME__0 / NAME__1 hold the dances of seeds 3 and 4 (bit for bit the
-    pipeline's), the report records the first seed; a negative one is a one-line error naming it."""
+    """--seeds 3-4: the files NAME__0 / NAME__1 hold the dances of seeds 3 and 4 (bit for bit the
+    pipeline's), the report records the first seed; the deprecated --first-seed still reads, and a negative
+    one is a one-line error naming it."""
     from dancekit.data import PreparedData
     from dancekit.motion import read_motion
     from dancekit.pipelines import load_pipeline
 
     out = tmp_path / "eval"
     assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
-                 "--seeds", "2", "--first-seed", "3", "-o", str(out), "--quiet", "--no-style",
+                 "--seeds", "3-4", "-o", str(out), "--quiet", "--no-style",
                  "--segment-seconds", "1"]) == 0
     ref = PreparedData(data_with_audio).audio("DANCE_W_2")
     want = load_pipeline(str(tiny_checkpoint)).dances(ref.path, seeds=[3, 4], start=ref.start, end=ref.end)
@@ -120,6 +121,9 @@ def test_evaluate_first_seed_dances_another_seed_set(tiny_checkpoint, data_with_
     err = capsys.readouterr().err
     assert "first seed must be a whole number >= 0, got -1" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "bad").exists()  # nothing half-written
+    assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
+                 "--seeds", "3-4,9", "-o", str(tmp_path / "bad"), "--quiet"]) == 2
+    assert "consecutive" in capsys.readouterr().err
     assert main(["evaluate", "--pred", str(tmp_path), "--ref", str(tmp_path), "--first-seed", "2",
                  "-o", str(tmp_path / "r.json")]) == 2
     assert "--first-seed" in capsys.readouterr().err
@@ -199,7 +203,7 @@ def test_select_checkpoint_on_a_tiny_run(data_with_audio, tmp_path, capsys):
     losses = val_losses(run)
     assert sorted(losses) == [1, 2] and step_of(run / "best", losses) == min(losses, key=losses.get)
     capsys.readouterr()
-    assert main(["select-checkpoint", "--run", str(run), "--data", str(data_with_audio), "--seeds", "1",
+    assert main(["select-checkpoint", "--run", str(run), "--data", str(data_with_audio), "--seeds", "0-0",
                  "--quiet", "--install", str(tmp_path / "chosen")]) == 0
     report = json.loads((run / "selection.json").read_text())
     assert report["split"] == "val" and len(report["candidates"]) == len(found)

@@ -286,7 +286,8 @@ def test_info_reads_the_audio_track_of_a_video_dance_accepts(tmp_path, capfd):
     import json
 
     info = json.loads(capfd.readouterr().out)
-    assert info["kind"] == "audio" and abs(info["duration_s"] - 3.0) < 0.1, info
+    assert info["kind"] == "video" and abs(info["duration_s"] - 3.0) < 0.1, info
+    assert info["channels"] == 1 and info["video"]["width"] == 64 and info["video"]["height"] == 48, info
 
 
 def test_readme_says_what_the_dance_npz_holds(tmp_path):

@@ -40,6 +40,18 @@ def _describe(path: str | os.PathLike | None) -> str:
     return f"audio file {str(path)!r}" if path is not None else "audio"
 
 
+def special_file_kind(path: str | os.PathLike) -> str:
+    """What a path that exists but is neither a regular file nor a folder is, in words ("a named pipe (FIFO)")."""
+    import stat
+
+    mode = os.stat(path).st_mode
+    for test, what in ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device")):
+        if test(mode):
+            return what
+    return "a special file"
+
+
 def check_audio_path(path: str | os.PathLike) -> None:
     """Raise :class:`AudioError` (naming the file) if ``path`` is missing, a folder, unreadable or 0 bytes."""
     path = Path(path)
@@ -47,6 +59,8 @@ def check_audio_path(path: str | os.PathLike) -> None:
         raise AudioError(f"audio file not found: {str(path)!r}")
     if path.is_dir():
         raise AudioError(f"expected an audio file but got a folder: {str(path)!r}")
+    if not path.is_file():  # a named pipe, socket or device: reading it could block, and it cannot be seeked
+        raise AudioError(f"expected an audio file but got {special_file_kind(path)}: {str(path)!r}")
     if not os.access(path, os.R_OK):
         raise AudioError(f"audio file is not readable (permissions): {str(path)!r}")
     if path.stat().st_size == 0:
@@ -261,9 +275,36 @@ def _seek_range(f: sf.SoundFile, path: Path, start: float | None, end: float | N
     return max(0, b - a)
 
 
+#: Largest Vorbis block (samples): a stream's last granule position may declare up to one block more than
+#: its decoder returns (the end trim of an encoder that rounds to blocks); Opus frames are shorter (5760).
+OGG_BLOCK_MAX = 8192
+
+
+def _ogg_block(path: Path) -> int:
+    """The long block size (samples) of an Ogg Vorbis stream from its identification header (byte 28 of the
+    packet: two 4-bit exponents), or :data:`OGG_BLOCK_MAX` when the header is not Vorbis (Opus) or unreadable."""
+    with open(path, "rb") as f:
+        head = f.read(1 << 12)
+    at = head.find(b"\x01vorbis")
+    if at < 0 or len(head) < at + 29:
+        return OGG_BLOCK_MAX
+    exp = head[at + 28] >> 4
+    return 1 << exp if 6 <= exp <= 13 else OGG_BLOCK_MAX
+
+
+def ogg_rounding(path: Path, shortfall: int) -> bool:
+    """Whether ``shortfall`` samples missing at the end of a complete Ogg stream (its last page whole, with
+    the end-of-stream flag) are explained by the container's rounding: at most one long block of the stream
+    (an encoder or a cut such as ``ffmpeg -t`` sets the last granule position past the decoded end)."""
+    return 0 < shortfall <= _ogg_block(path) and not _ogg_truncated(path)
+
+
 def _check_decoded(f: sf.SoundFile, path: Path, *, got: int, want: int) -> None:
     """Refuse a file that decoded to fewer frames than its header declares (an mp3's length is only an
-    estimate: a short mp3 that decoded at all is accepted)."""
+    estimate: a short mp3 that decoded at all is accepted; an Ogg stream may end up to one block short of
+    its last granule position, :func:`ogg_rounding`)."""
+    if got < want and f.format == "OGG" and ogg_rounding(path, want - got):
+        return
     if got < want and not (f.format in ("MP3", "MPEG") and got > 0):
         raise AudioError(
             f"audio file is truncated or corrupt: {str(path)!r} declares {f.frames} frames but only "
@@ -586,3 +627,67 @@ def save_wav(path: str | os.PathLike, y: np.ndarray, *, sr: int, subtype: str = 
                     block = np.clip(block, -1.0, 1.0)
                 f.write(block)
     return path
+
+
+# ---------------------------------------------------------------------------------------------
+# describing a media file (``dancekit info``)
+
+_STREAM = re.compile(r"Stream #\d+:\d+[^:]*: (Audio|Video): (.*)")
+
+
+def probe(path: str | os.PathLike) -> dict:
+    """What an audio or video file holds, from its headers (no samples decoded, nothing on stderr).
+
+    Returns ``{"format", "duration_s", "audio": {"sample_rate", "channels", "codec"} | None,
+    "video": {"codec", "width", "height", "fps"} | None}`` (seconds, Hz, pixels, frames per second).
+    libsndfile reads the header of wav / flac / ogg / mp3; anything else (mp4, m4a, mkv, ...) is described by
+    the bundled ffmpeg (``ffmpeg -i``). A cover picture in a music file is not a video stream.
+
+    Raises
+    ------
+    AudioError
+        Missing, special (a pipe) or empty file, or one that neither libsndfile nor ffmpeg can read (names
+        the file, without the libraries' own messages).
+    """
+    path = Path(path)
+    check_audio_path(path)
+    f = _open_soundfile(path)
+    if f is not None:
+        with f:
+            if f.samplerate > 0 and f.frames > 0:
+                return {"format": f.format, "duration_s": f.frames / f.samplerate, "video": None,
+                        "audio": {"sample_rate": int(f.samplerate), "channels": int(f.channels),
+                                  "codec": f.subtype}}
+    cmd = [_ffmpeg_exe(), "-nostdin", "-hide_banner", "-i", str(path)]
+    try:  # no output file: ffmpeg describes the input on stderr and exits 1
+        err = subprocess.run(cmd, capture_output=True, process_group=0).stderr.decode("utf-8", "replace")
+    except OSError as exc:
+        raise ExternalToolError(f"cannot run ffmpeg: {exc}") from exc
+    m = re.search(r"Input #0, ([^,\s]+)", err)
+    if m is None:
+        lines = [ln.strip() for ln in err.splitlines() if ln.strip()]
+        reason = lines[-1] if lines else "unknown format"
+        raise AudioError(f"cannot read media file {str(path)!r}: not an audio or video file ({reason})")
+    fmt = m.group(1)
+    d = re.search(r"Duration: (\d+):(\d+):(\d+(?:\.\d+)?)", err)
+    duration = int(d.group(1)) * 3600 + int(d.group(2)) * 60 + float(d.group(3)) if d else None
+    audio = video = None
+    for kind, desc in _STREAM.findall(err):
+        if kind == "Audio" and audio is None:
+            rate = re.search(r"(\d+) Hz", desc)
+            parts = [p.strip() for p in desc.split(",")]
+            layout = parts[2] if len(parts) > 2 else "mono"
+            try:
+                channels = _channels_from_layout(layout)
+            except AudioError:
+                channels = 0
+            audio = {"sample_rate": int(rate.group(1)) if rate else 0, "channels": channels,
+                     "codec": desc.split()[0]}
+        elif kind == "Video" and video is None and "attached pic" not in desc:
+            size = re.search(r"(\d{2,})x(\d{2,})", desc)
+            fps = re.search(r"([\d.]+) fps", desc)
+            video = {"codec": desc.split()[0], "width": int(size.group(1)) if size else 0,
+                     "height": int(size.group(2)) if size else 0, "fps": float(fps.group(1)) if fps else None}
+    if audio is None and video is None:
+        raise AudioError(f"cannot read media file {str(path)!r}: it holds no audio or video stream")
+    return {"format": fmt.upper(), "duration_s": duration, "audio": audio, "video": video}

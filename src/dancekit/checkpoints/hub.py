@@ -137,7 +137,8 @@ def model_card(folder: str | os.PathLike) -> dict:
 def model_cards() -> dict[str, dict]:
     """Name → card of every model :func:`available_models` finds (what ``dancekit models`` prints): ``name``,
     ``family``, ``kind`` (the registry's: dance, classifier, postprocess; ``unknown`` for an unregistered
-    family), ``folder``, ``default``, ``size_mb``, ``genre_models`` (names), ``reads_genre_from_music`` and the
+    family), ``folder``, ``default``, ``size_mb``, ``genre_models`` (names), ``reads_genre_from_music``, ``genre_condition`` (the genres a model takes as
+    an input, e.g. music2dance's dance type) and the
     fields of its ``card.json`` (``description``, ``training_data``, ``metrics``, ...)."""
     from dancekit import registry
 
@@ -148,10 +149,17 @@ def model_cards() -> dict[str, dict]:
         kind = registry.get(family).kind if family in registry.families() else "unknown"
         parts = components(folder, meta)
         size = sum(f.stat().st_size for f in folder.rglob("*") if f.is_file())
-        cards[name] = {"name": name, "family": family, "kind": kind, "folder": str(folder),
-                       "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
-                       "genre_models": list(parts.get("genres", {})),
-                       "reads_genre_from_music": "genre_reader" in parts, **model_card(folder)}
+        card = {"name": name, "family": family, "kind": kind, "folder": str(folder),
+                "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
+                "genre_models": list(parts.get("genres", {})),
+                "reads_genre_from_music": "genre_reader" in parts,
+                "genre_condition": list(meta.get("genres", [])) if meta.get("config", {}).get("n_genres") else [],
+                **model_card(folder)}
+        if not card.get("description"):  # a model without a card.json still says what it is
+            genres = meta.get("genres") or meta.get("config", {}).get("genres") or []
+            card["description"] = f"a {family} model ({kind}, no model card)" + (
+                f"; genres: {', '.join(genres)}" if genres else "")
+        cards[name] = card
     return cards
 
 

@@ -13,9 +13,14 @@ import tempfile
 import time
 from pathlib import Path
 
+from dancekit.cli._options import add_output
+from dancekit.cli.info import AUDIO_SUFFIXES, MIDI_SUFFIXES, VIDEO_SUFFIXES
 from dancekit.errors import ParameterError
 
 DEFAULT_COMPOSE_MODEL = "dual"
+#: The shortest dance composed for (seconds): the shortest song dancekit reads back (``dancekit.audio.MIN_DURATION``),
+#: so the WAV and mp4 that compose writes are songs ``dancekit dance`` and ``info`` accept.
+MIN_COMPOSE_SECONDS = 1.0
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -27,8 +32,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     "FluidSynth when installed, else the built-in synthesiser; the dance with its new music as an "
                     "mp4 and an html player. A dance on another skeleton is mapped to the model's joints by role.",
     )
-    p.add_argument("motion", help="a dance file the toolkit reads (npz, BVH, AIST++ pkl, tang2018 folder)")
-    p.add_argument("-o", "--out", required=True, help="output folder (created if missing)")
+    p.add_argument("motion", help="a dance file the toolkit reads (npz, BVH, glb, AIST++ pkl, tang2018 folder), "
+                                  f"at least {MIN_COMPOSE_SECONDS:g} s long")
+    add_output(p, help="output folder (created if missing)", metavar="OUTDIR")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--model", default=None,
                    help=f"a dual model name (`dancekit models`) or folder (default: the embedded "
@@ -59,8 +65,16 @@ def run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     tempo = parse_tempo(args.tempo)
+    src = Path(args.motion)
+    if src.suffix.lower() in AUDIO_SUFFIXES | VIDEO_SUFFIXES | MIDI_SUFFIXES:
+        raise ParameterError(f"{str(src)!r} is music, not a dance: compose makes music for a dance; for a dance to "
+                             f"this song use `dancekit dance {src} -o OUTDIR`")
     out = check_output_folder(args.out)
     motion = read_motion(args.motion)
+    if motion.num_frames / motion.fps < MIN_COMPOSE_SECONDS:
+        raise ParameterError(f"the dance {str(src)!r} lasts {motion.num_frames / motion.fps:.2f} s "
+                             f"({motion.num_frames} frames at {motion.fps:g} fps); compose needs at least "
+                             f"{MIN_COMPOSE_SECONDS:g} s")
     pipe = ComposePipeline.from_pretrained(args.checkpoint or args.model or DEFAULT_COMPOSE_MODEL)
     result = pipe(motion, seed=args.seed, tempo=tempo)
     stem = Path(args.motion).stem or "dance"

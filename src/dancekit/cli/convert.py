@@ -2,8 +2,9 @@
 
 IN is anything :func:`dancekit.motion.formats.read_motion` reads (npz, BVH, AIST++ pkl, OpenPose
 folder, tang2018 dance folder). OUT's suffix picks the format (:func:`~dancekit.motion.formats.write_motion`):
-``.npz``, ``.bvh``, ``.glb``, ``.pkl`` (AIST++ SMPL) or ``.json`` / a suffix-less folder (keypoint JSON,
-one file per frame).
+``.npz``, ``.bvh``, ``.glb``, ``.pkl`` (AIST++ SMPL) or a suffix-less folder (keypoint JSON, one file per
+frame). OUT is the path written: ``-o a.json`` is refused (keypoints are a folder of files), not turned into
+a folder ``a/``.
 """
 
 from __future__ import annotations
@@ -11,9 +12,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from dancekit.cli._options import output_fps
 from dancekit.errors import ParameterError
 
-_SUFFIXES = (".npz", ".bvh", ".glb", ".pkl", ".json", "")
+_SUFFIXES = (".npz", ".bvh", ".glb", ".pkl", "")
 
 
 def add_parser(subparsers) -> None:
@@ -21,11 +23,13 @@ def add_parser(subparsers) -> None:
         "convert",
         help="convert a motion file: npz, bvh, glb, pkl (AIST++ SMPL), json keypoints",
         description="Read any motion file or folder the toolkit reads and write it in the format of OUT's "
-        "suffix: .npz, .bvh, .glb (glTF with a skinned body), .pkl (AIST++ SMPL), or .json / a folder "
-        "(keypoint JSON, one file per frame).",
+        "suffix: .npz, .bvh, .glb (glTF with a skinned body), .pkl (AIST++ SMPL), or a folder without a "
+        "suffix (keypoint JSON, one file per frame).",
     )
-    p.add_argument("motion", metavar="IN", help="motion file or folder (npz, bvh, pkl, OpenPose or tang2018 folder)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output .npz, .bvh, .glb, .pkl or .json")
+    p.add_argument("motion", metavar="IN",
+                   help="motion file or folder (npz, bvh, glb, pkl, OpenPose or tang2018 folder)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="output .npz, .bvh, .glb, .pkl, or a folder (keypoint JSON files)")
     p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first (slerp)")
     p.add_argument("--bvh-rig", choices=("exact", "humanoid"), default="exact",
                    help="BVH rig: the skeleton's own joints (default) or a standard humanoid (Mixamo-like names)")
@@ -37,10 +41,14 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
-    if args.fps is not None and not args.fps > 0:
-        raise ParameterError(f"--fps must be positive, got {args.fps:g}")
+    args.fps = output_fps(args.fps)
+    if out.suffix.lower() == ".json":
+        raise ParameterError(f"keypoint JSON is one file per frame: give a folder without a suffix (e.g. "
+                             f"{str(out.with_suffix(''))!r}), got {str(out)!r}")
     if out.suffix.lower() not in _SUFFIXES:
-        raise ParameterError(f"output must end in .npz, .bvh, .glb, .pkl or .json (or be a folder), got {str(out)!r}")
+        raise ParameterError(f"output must end in .npz, .bvh, .glb or .pkl (or be a folder), got {str(out)!r}")
+    if out.is_dir() and out.suffix:
+        raise ParameterError(f"output {str(out)!r} is a folder; give a file name")
     if str(out.parent) and not out.parent.is_dir():
         raise ParameterError(f"output folder does not exist: {out.parent}")
 
@@ -49,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     motion = read_motion(args.motion)
     if args.fps is not None:
         motion = motion.resample(args.fps)
-    target = out.with_suffix("") if out.suffix.lower() == ".json" else out
+    target = out
     kwargs = {}
     if target.suffix.lower() == ".bvh":
         kwargs["rig"] = args.bvh_rig

@@ -6,26 +6,19 @@ import argparse
 import time
 from pathlib import Path
 
+from dancekit.cli._options import SEEDS_HELP, add_output, one_seed, output_fps, seed_list
 from dancekit.errors import DancekitError, ParameterError
 from dancekit.export import DEFAULT_FORMATS, FORMATS
 
 
-def _seed(text: str) -> int:
-    from dancekit._checks import reduce_seed
-
-    try:
-        return reduce_seed(int(text))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-
-
-def _seeds(text: str) -> list[int]:
-    from dancekit.pipelines.base import parse_seeds
-
-    try:
-        return parse_seeds(text)
-    except ParameterError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+def describe(result) -> str:
+    """What the summary line says of a dance: ``as waltz (read from the music, p = 0.46); beat-synced ...``,
+    or for a model without genres ``by dual; energy lifted ...``: it always says what danced."""
+    summary = result.summary()
+    if summary.startswith("as ") or summary.startswith("by "):
+        return summary
+    name = Path(str(result.model)).name or str(result.model)
+    return f"by {name}" + (f"; {summary}" if summary else "")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -36,7 +29,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "then render and export it into OUTDIR.",
     )
     p.add_argument("audio", help="the song (wav, flac, ogg, mp3, m4a, ...)")
-    p.add_argument("-o", "--out", required=True, help="output folder (created if missing)")
+    add_output(p, help="output folder (created if missing)", metavar="OUTDIR")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--model", default=None,
                    help="model name (see `dancekit models`; also the user's models folder $DANCEKIT_MODELS) or folder")
@@ -45,14 +38,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="dance genre: auto, none or one of the model's genres (`dancekit models` lists them; the "
                         "default model: waltz, rumba, chacha, tango); auto (default): read from the music when the "
                         "model has a music attribute classifier, else as none; none: the model alone")
-    seeds = p.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=_seed, default=0,
-                       help="random seed: another seed, another dance (default 0); any integer (seeds outside "
-                            "[0, 2**63) are hashed to 63 bits)")
-    seeds.add_argument("--seeds", type=_seeds, default=None, metavar="LIST",
-                       help="several dances in one pass, one per seed: 0-7 (a range, ends included), 0,3,9, or "
-                            "both (0-3,10); generated as one batch (the song's features once) and written as "
-                            "NAME_seedK.mp4, NAME_seedK.html, ... (one output set per seed; at most 64)")
+    p.add_argument("--seed", default=None, metavar="N",
+                   help="random seed: another seed, another dance (default 0); any integer (seeds outside "
+                        "[0, 2**63) are hashed to 63 bits)")
+    p.add_argument("--seeds", default=None, metavar="LIST",
+                   help=f"several dances in one run, one per seed: {SEEDS_HELP}; the song is read and its "
+                        "features computed once, each seed is then decoded on its own (the same dance as "
+                        "--seed K), and written as NAME_seedK.mp4, NAME_seedK.html, ... (at most 64 seeds)")
     p.add_argument("--foot-constraint", nargs="?", const="default", default=None, metavar="MODEL",
                    help="post-process the dance with the Foot Constraint Model of Music2Dance (less foot sliding; "
                         "the lower body alone is corrected, the path over the floor is kept): the one embedded with "
@@ -107,8 +99,11 @@ def run(args: argparse.Namespace) -> int:
     audio = Path(args.audio)
     if not audio.exists():
         raise DancekitError(f"audio file not found: {audio}")
-    if args.fps is not None and not args.fps > 0:
-        raise ParameterError(f"--fps must be positive, got {args.fps:g}")
+    if args.seed is not None and args.seeds is not None:
+        raise ParameterError("give --seed N (one dance) or --seeds LIST (several), not both")
+    args.seeds = seed_list(args.seeds)
+    args.seed = one_seed(args.seed if args.seed is not None else 0)
+    args.fps = output_fps(args.fps)
     if args.threads < 1:
         raise ParameterError(f"--threads must be at least 1, got {args.threads}")
     clip = AudioClip(audio, args.start, args.end)
@@ -155,18 +150,21 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
                           start=args.start, end=args.end, beat_sync_on=stages_on["beat_sync"],
                           cleanup_on=stages_on["cleanup"], beats=beats, **extra, **pipe.stage_options(r))
                    for r in results]  # the checkpoint's own per-dance settings (a jitter cap) as in pipe.dances
+    t_made = time.perf_counter()
     for result in results:
         motion = result.motion
         if args.fps is not None and args.fps != motion.fps:
             motion = motion.resample(args.fps)
         stem = audio.stem if args.seeds is None else f"{audio.stem}_seed{result.seed}"
+        t_export = time.perf_counter()
         written = export_motion(motion, out, stem=stem, formats=formats, audio=clip, options=options,
                                 progress=not args.quiet, bvh_rig=args.bvh_rig)
-        elapsed = time.perf_counter() - t0
-        how = f" {result.summary()}" if result.summary() else ""
         seed = "" if args.seeds is None else f" (seed {result.seed})"
-        print(
-            f"danced {audio.name}{seed}{how}: {motion.duration:.1f} s, {motion.num_frames} frames at "
-            f"{motion.fps:g} fps in {elapsed:.1f} s → " + ", ".join(str(p) for p in written)
-        )
+        took = time.perf_counter() - t0 if args.seeds is None else time.perf_counter() - t_export
+        timing = f"in {took:.1f} s" if args.seeds is None else f"written in {took:.1f} s"
+        print(f"danced {audio.name}{seed} {describe(result)}: {motion.duration:.1f} s, {motion.num_frames} frames "
+              f"at {motion.fps:g} fps {timing} → " + ", ".join(str(p) for p in written))
+    if args.seeds is not None:
+        print(f"danced {len(results)} seeds in {time.perf_counter() - t0:.1f} s (the dances made in "
+              f"{t_made - t0:.1f} s, then written one by one)")
     return 0

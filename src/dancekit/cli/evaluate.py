@@ -1,6 +1,6 @@
 """``dancekit evaluate``: score generated dances against the real ones.
 
-    dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 5 -o runs/eval
+    dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 0-4 -o runs/eval
     dancekit evaluate --pred runs/model/test --ref data/tang2018 --data data/tang2018 -o report.json
     dancekit evaluate --checkpoint revolution --data data/tang2018 --split val --seeds 30 --seed-sets 6 -o runs/s30
     dancekit evaluate --checkpoint revolution --data data/tang2018 --split val --ablate-stages -o runs/stages
@@ -30,6 +30,7 @@ import json
 from pathlib import Path
 
 from dancekit._io import atomic_path
+from dancekit.cli._options import seed_run
 from dancekit.errors import ParameterError
 
 
@@ -64,9 +65,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("-o", "--output", required=True, metavar="PATH",
                    help="with --checkpoint: output folder (pred/, report.json); with --pred: the report file")
     gen = p.add_argument_group("generation (--checkpoint)")
-    gen.add_argument("--seeds", type=int, default=None, help="dances per song, seeds 0..N-1 (default 5)")
-    gen.add_argument("--first-seed", type=int, default=None, metavar="K",
-                     help="dance seeds K..K+N-1 instead (another seed set: how much the metrics move between sets)")
+    gen.add_argument("--seeds", default=None, metavar="LIST",
+                     help="the seeds danced for every song, consecutive: 0-4 (default), or another seed set such "
+                          "as 5-9 (how much the metrics move between sets)")
+    gen.add_argument("--first-seed", type=int, default=None, help=argparse.SUPPRESS)  # deprecated: --seeds K-L
     gen.add_argument("--genre", default=None,
                      help="auto (the genre read from the music when the model has a music attribute classifier, "
                           "else the model alone; default), none (the model alone), true (each song's own genre), "
@@ -191,12 +193,12 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError("--checkpoint needs --data (the prepared dataset whose songs are danced)")
         if args.ref is not None or args.preset is not None:
             raise ParameterError("--ref and --preset go with --pred; --checkpoint scores against --data")
-        seeds = 5 if args.seeds is None else args.seeds
+        first, seeds = seed_run(args.seeds, verb="evaluate", default=5, first_seed=args.first_seed)
         _check_seed_sets(args.seed_sets, seeds)
         report = evaluate_checkpoint(args.checkpoint, args.data, out, split=args.split, seeds=seeds,
                                      genre=args.genre or "auto", settings=settings, classifier=classifier,
                                      progress=not args.quiet, beat_sync=args.beat_sync != "off",
-                                     precision=args.precision or "fp32", first_seed=args.first_seed or 0,
+                                     precision=args.precision or "fp32", first_seed=first,
                                      seed_sets=args.seed_sets, ablate_stages=args.ablate_stages)
         g = report["generation"]
         print(f"generated {g['seconds']:.0f} s of dance in {g['elapsed_s']:.1f} s "

@@ -15,6 +15,7 @@ import importlib
 import os
 import signal
 import sys
+from typing import NoReturn
 
 from dancekit import __version__
 from dancekit.errors import DancekitError
@@ -40,8 +41,17 @@ VERBS: dict[str, str] = {
 }
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, as every other dancekit error: ``dancekit VERB: error:
+    MESSAGE (see dancekit VERB --help)``, exit status 2 (argparse's own error prints the whole usage first).
+    Sub-commands are made of the same class (``add_subparsers`` uses the parent's class)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="dancekit",
         description="Turn music into dance and dance into music.",
     )
@@ -52,6 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
     _alias_output_flags(parser)
     return parser
 
+
+#: The names under which verbs store their output path (``-o``).
+_OUTPUT_DESTS = ("out", "output", "install")
 
 #: The output flag's two spellings: every verb that has one accepts both (documented: ``-o/--output``).
 OUTPUT_FLAGS = ("--output", "--out")
@@ -102,6 +115,38 @@ def _handle_signals() -> dict[int, object]:
     return replaced
 
 
+class QuietProgress:
+    """``sys.stderr`` for a run whose stderr is not a terminal (a pipe, a log file): progress bars redraw their
+    line with carriage returns many times a second, which a log keeps as one long line per update. Here a
+    redraw becomes one plain line at most every :attr:`interval` seconds (the first one at once); everything
+    else (warnings, error lines) passes through unchanged."""
+
+    interval = 10.0
+
+    def __init__(self, stream):
+        self._stream = stream
+        self._last = float("-inf")
+        self._in_bar = False
+
+    def write(self, text: str) -> int:
+        import time
+
+        if "\r" in text or (self._in_bar and not text.strip()):
+            self._in_bar = True
+            line = text.replace("\r", "").strip()
+            now = time.monotonic()
+            if line and now - self._last >= self.interval:
+                self._stream.write(line + "\n")
+                self._stream.flush()
+                self._last = now
+            return len(text)
+        self._in_bar = False
+        return self._stream.write(text)
+
+    def __getattr__(self, name: str):  # flush, fileno, isatty, encoding, ...: the real stream's
+        return getattr(self._stream, name)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -109,7 +154,15 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     replaced = _handle_signals()
+    stderr = sys.stderr
+    if not _isatty(stderr):
+        sys.stderr = QuietProgress(stderr)
     try:
+        for dest in _OUTPUT_DESTS:  # an empty -o would write into the current folder
+            if isinstance(getattr(args, dest, None), str):
+                from dancekit.cli._options import check_output
+
+                check_output(getattr(args, dest))
         result = args.func(args)
     except DancekitError as exc:
         if os.environ.get("DANCEKIT_DEBUG") == "1":
@@ -124,9 +177,17 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 128 + exc.signum
     finally:
+        sys.stderr = stderr
         for sig, handler in replaced.items():
             signal.signal(sig, handler)
     return int(result or 0)
+
+
+def _isatty(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # a closed or file-less stream
+        return False
 
 
 if __name__ == "__main__":  # pragma: no cover

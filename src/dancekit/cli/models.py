@@ -28,9 +28,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"{name}{flag}: {card.get('description', '')}")
         print(f"  family: {card['family']} ({card['kind']}); folder: {card['folder']}")
         print(f"  size: {card['size_mb']} MB")
+        auto = "auto (read from the music), none" if card["reads_genre_from_music"] else "auto"
         if card["genre_models"]:
-            auto = "auto (read from the music), none" if card["reads_genre_from_music"] else "auto"
             print(f"  --genre: {auto}, {', '.join(card['genre_models'])} (genre models)")
+        elif card["genre_condition"]:
+            print(f"  --genre: {auto}, {', '.join(card['genre_condition'])} (the model's dance-type condition)")
         for key in ("training_data", "training_time", "parameters"):
             if key in card:
                 print(f"  {key.replace('_', ' ')}: {card[key]}")

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from dancekit.cli._options import output_fps
 from dancekit.errors import ParameterError
 
 _FORMATS = {".mp4": "mp4", ".html": "html", ".htm": "html"}
@@ -77,10 +78,11 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError("--fps does not apply to a .glb shown as it is")
     if kind == "mp4" and args.title is not None:
         raise ParameterError("--title applies to .html output only")
-    if args.fps is not None and not args.fps > 0:
-        raise ParameterError(f"--fps must be positive, got {args.fps:g}")
+    args.fps = output_fps(args.fps)
     if not out.parent.is_dir() and str(out.parent):
         raise ParameterError(f"output folder does not exist: {out.parent}")
+    if out.is_dir():  # the final rename onto a folder would fail after the whole render
+        raise ParameterError(f"output {str(out)!r} is a folder; give a file name (e.g. {str(out / out.name)!r})")
 
     from dancekit.motion.formats import detect_format, read_motion, read_tang2018
     from dancekit.render import AudioClip, RenderOptions, render_motion_html, render_motion_mp4
@@ -115,7 +117,10 @@ def run(args: argparse.Namespace) -> int:
         from dancekit.render import audio_duration
 
         left = audio_duration(audio) - (start or 0.0)
-        if 0 < left and left + 0.5 / motion.fps < motion.duration:
+        # the dance's last frame shows at (T - 1) / fps: a dance of a whole song (1 + n // hop frames, as
+        # `dancekit dance` makes) ends with the song, one frame period past it by motion.duration
+        last = (motion.num_frames - 1) / motion.fps
+        if 0 < left and left + 0.5 / motion.fps < last:
             raise ParameterError(f"the song {str(audio)!r} holds {max(left, 0):.2f} s from --start "
                                  f"{start or 0:g} s, shorter than the dance ({motion.duration:.2f} s): give a "
                                  "longer song, or --end to render only the part of the dance the song covers")

@@ -13,6 +13,8 @@ import json
 import shutil
 from pathlib import Path
 
+from dancekit.cli._options import seed_run
+
 MODEL_FILES = ("config.json", "model.safetensors", "stats.npz")
 
 
@@ -26,11 +28,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("--run", required=True, help="training run folder (with checkpoints/ and log.jsonl)")
     p.add_argument("--data", required=True, metavar="PREPARED_DIR", help="prepared dataset folder")
     p.add_argument("--split", default="val", help="split to score on (default val; never select on test)")
-    p.add_argument("--seeds", type=int, default=2, help="dances per song (default 2)")
+    p.add_argument("--seeds", default=None, metavar="LIST", help="the seeds danced for every song: 0-N (default 0-1)")
     p.add_argument("--steer", action="store_true", help="also score genre steering")
     p.add_argument("--max-stillness", type=float, default=0.05, help="largest admissible stillness share")
     p.add_argument("--min-step", type=int, default=0, help="skip step checkpoints before this step")
-    p.add_argument("--install", metavar="DIR", help="copy the chosen checkpoint's model files to this folder")
+    p.add_argument("-o", "--out", "--output", "--install", dest="install", metavar="DIR",
+                   help="copy the chosen checkpoint's model files to this folder (--install: the old spelling)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
     return p
@@ -41,7 +44,8 @@ def run(args: argparse.Namespace) -> int:
     from dancekit.data import PreparedData
     from dancekit.evaluation import select_checkpoint
 
-    report = select_checkpoint(args.run, PreparedData(args.data), split=args.split, seeds=args.seeds,
+    _, seeds = seed_run(args.seeds, verb="select-checkpoint", default=2, from_zero=True)
+    report = select_checkpoint(args.run, PreparedData(args.data), split=args.split, seeds=seeds,
                                steer=args.steer, max_stillness=args.max_stillness, min_step=args.min_step,
                                progress=not args.quiet)
     chosen = report["chosen"]

@@ -11,6 +11,8 @@ import argparse
 import json
 import time
 
+from dancekit.cli._options import seed_run
+
 
 def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
@@ -22,7 +24,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     p.add_argument("--checkpoint", required=True, metavar="MODEL", help="checkpoint folder or model name")
     p.add_argument("--data", required=True, metavar="PREPARED_DIR", help="prepared dataset folder")
     p.add_argument("--split", default="test")
-    p.add_argument("--seeds", type=int, default=1, help="dances per song and genre (default 1)")
+    p.add_argument("--seeds", default=None, metavar="LIST",
+                   help="the seeds danced for every song and genre: 0-N (default 0)")
     p.add_argument("--classifier", metavar="DIR", default=None,
                    help="style classifier checkpoint (default: the one shipped with dancekit)")
     p.add_argument("-o", "--output", metavar="JSON", help="write the report here")
@@ -38,12 +41,13 @@ def run(args: argparse.Namespace) -> int:
     from dancekit.evaluation import load_classifier, steering
     from dancekit.pipelines import load_pipeline
 
+    _, seeds = seed_run(args.seeds, verb="steering", default=1, from_zero=True)
     pipe = load_pipeline(args.checkpoint)
     style, note = load_classifier(args.classifier or "default")
     if style is None:
         raise CheckpointError(note or "no style classifier")
     t0 = time.perf_counter()
-    report = steering(pipe, PreparedData(args.data), style, split=args.split, seeds=args.seeds,
+    report = steering(pipe, PreparedData(args.data), style, split=args.split, seeds=seeds,
                       progress=not args.quiet)
     report["checkpoint"] = str(args.checkpoint)
     report["elapsed_s"] = round(time.perf_counter() - t0, 1)

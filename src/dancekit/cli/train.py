@@ -1,4 +1,4 @@
-"""``dancekit train FAMILY --data DIR --out RUN [--set key=value ...] [--resume]``: train a model.
+"""``dancekit train FAMILY --data DIR -o RUN [--set key=value ...] [--resume]``: train a model.
 
 ``--set`` takes any field of the family's model configuration (e.g. ``d_model=256``,
 ``encoder=global``) or of :class:`~dancekit.training.TrainConfig` (e.g. ``steps=3000``,
@@ -30,7 +30,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
     p.add_argument("family", choices=registry.families(), help="model family (dancekit.registry)")
     p.add_argument("--data", required=True, help="prepared dataset folder (from `dancekit prepare`)")
-    p.add_argument("--out", required=True, help="run folder: checkpoints, log.jsonl, model/, best/")
+    p.add_argument("-o", "--out", "--output", dest="out", required=True, metavar="RUN",
+                   help="run folder: checkpoints, log.jsonl, model/, best/")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="override a model or training setting (repeatable)")
     p.add_argument("--resume", action="store_true", help="continue from the newest checkpoint in --out")
@@ -38,6 +39,28 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="start from the weights (and model configuration) of a checkpoint folder: fine-tuning")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
+    plain = p.format_help
+    p.format_help = lambda: plain() + "\n" + set_keys_help()  # computed on `train --help` only (imports torch)
+
+
+def set_keys_help() -> str:
+    """The ``--set`` keys: every field of TrainConfig and of each family's model configuration, with defaults."""
+    import dataclasses
+    import textwrap
+
+    from dancekit import registry
+    from dancekit.training.config import TrainConfig
+
+    def fields(cls) -> str:
+        items = [f"{f.name}={f.default!r}" if f.default is not dataclasses.MISSING else f.name
+                 for f in dataclasses.fields(cls) if f.init]
+        return textwrap.fill(", ".join(items), width=100, initial_indent="    ", subsequent_indent="    ")
+
+    out = ["--set keys (KEY=VALUE; defaults shown; prefix train. or model. to be explicit):", "  training:",
+           fields(TrainConfig)]
+    for family in registry.families():
+        out += [f"  model ({family}):", fields(registry.get(family).config_class)]
+    return "\n".join(out) + "\n"
 
 
 def __getattr__(name: str) -> Any:

@@ -6,7 +6,7 @@ what                   recognised by                   module
 dancekit npz           ``*.npz``                       :mod:`.npz`
 BVH                    ``*.bvh``                       :mod:`.bvh`
 AIST++ SMPL            ``*.pkl``                       :mod:`.aistpp`
-glTF 2.0 binary        ``*.glb``                       :mod:`.gltf` (write only)
+glTF 2.0 binary        ``*.glb``                       :mod:`.gltf`
 OpenPose BODY_25       folder of ``*_keypoints.json``  :mod:`.openpose`
                        or ``*.json`` files
 tang2018 dance         folder with ``skeletons.json``  :mod:`.tang2018` (read only)
@@ -35,7 +35,7 @@ __all__ = [
 
 
 def detect_format(path: str | os.PathLike) -> str:
-    """The format of a motion path: ``"npz"``, ``"bvh"``, ``"aistpp"``, ``"openpose"`` or ``"tang2018"``.
+    """The format of a motion path: ``"npz"``, ``"bvh"``, ``"glb"``, ``"aistpp"``, ``"openpose"`` or ``"tang2018"``.
 
     Files are recognised by suffix, folders by content (``skeletons.json`` →
     tang2018; ``*.json`` files → OpenPose). A path that does not exist yet is
@@ -54,12 +54,15 @@ def detect_format(path: str | os.PathLike) -> str:
         if any(path.glob("*.json")):
             return "openpose"
         raise MotionFormatError(f"folder {path} holds neither skeletons.json (tang2018) nor *.json (OpenPose)")
-    formats = {".npz": "npz", ".bvh": "bvh", ".pkl": "aistpp"}
+    formats = {".npz": "npz", ".bvh": "bvh", ".glb": "glb", ".pkl": "aistpp"}
     if suffix in formats:
         return formats[suffix]
     if not path.exists() and suffix == "":
         return "openpose"
-    raise MotionFormatError(f"unknown motion format for {path} (expected .npz, .bvh, .pkl or a folder)")
+    if suffix in (".mid", ".midi"):
+        raise MotionFormatError(f"{path} is a MIDI file (music), not a motion: `dancekit info` describes it, "
+                                "`dancekit dance` needs a song (wav, ogg, mp3, ...)")
+    raise MotionFormatError(f"unknown motion format for {path} (expected .npz, .bvh, .glb, .pkl or a folder)")
 
 
 def read_motion(path: str | os.PathLike, **kwargs) -> Motion:
@@ -76,6 +79,8 @@ def read_motion(path: str | os.PathLike, **kwargs) -> Motion:
     path = Path(path)
     if not path.exists():
         raise MotionFormatError(f"motion file not found: {path}")
+    if not (path.is_file() or path.is_dir()):  # a named pipe: reading would wait for a writer
+        raise MotionFormatError(f"expected a motion file or folder but got a special file (a pipe?): {path}")
     fmt = detect_format(path)
     if fmt == "npz":
         return read_npz(path, **kwargs)
@@ -83,6 +88,10 @@ def read_motion(path: str | os.PathLike, **kwargs) -> Motion:
         from dancekit.motion.formats.bvh import read_bvh
 
         return read_bvh(path, **kwargs)
+    if fmt == "glb":
+        from dancekit.motion.formats.gltf import read_glb
+
+        return read_glb(path, **kwargs)
     if fmt == "aistpp":
         from dancekit.motion.formats.aistpp import read_aistpp
 

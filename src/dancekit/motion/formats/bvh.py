@@ -35,12 +35,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from dancekit._io import atomic_path
 from dancekit.errors import DancekitError, MotionFormatError, ParameterError
+from dancekit.motion.formats._known import adopt_builtin
 from dancekit.motion.motion import Motion
-from dancekit.motion.rotations import euler_angles_to_matrix, matrix_to_euler_angles
 from dancekit.motion.skeleton import Skeleton, branch_joint_name
 
 __all__ = ["BVH_RIGS", "HUMANOID_NAMES", "BvhData", "format_bvh", "guess_roles", "humanoid_motion", "parse_bvh",
@@ -269,17 +268,43 @@ def _local_transforms(data: BvhData) -> tuple[np.ndarray, np.ndarray]:
                 trans[:, j, _POS[c]] = data.values[:, c0 + i]
         if not rot_cols:
             continue
-        ang = torch.from_numpy(np.deg2rad(data.values[:, rot_cols]))
-        if len(order) == 3 and len(set(order)) == 3:
-            rot[:, j] = euler_angles_to_matrix(ang, order).numpy()
-        else:  # 1, 2 or repeated axes: compose one axis at a time
-            R = torch.eye(3, dtype=torch.float64).expand(T, 3, 3)
-            for k, ax in enumerate(order):
-                a = torch.zeros(T, 3, dtype=torch.float64)
-                a[:, "XYZ".index(ax)] = ang[:, k]
-                R = R @ euler_angles_to_matrix(a, "XYZ")
-            rot[:, j] = R.numpy()
+        ang = np.deg2rad(data.values[:, rot_cols])
+        R = _axis_matrix(order[0], ang[:, 0])
+        for k in range(1, len(order)):  # intrinsic: R = R_a0 @ R_a1 @ R_a2, any number of axes
+            R = R @ _axis_matrix(order[k], ang[:, k])
+        rot[:, j] = R
     return rot, trans
+
+
+def _axis_matrix(axis: str, angle: np.ndarray) -> np.ndarray:
+    """(T,) radians about ``axis`` ("X", "Y" or "Z") → (T, 3, 3) rotation matrices (NumPy: reading a BVH
+    needs no torch; the same matrices as :func:`dancekit.motion.rotations.euler_angles_to_matrix`)."""
+    c, s = np.cos(angle), np.sin(angle)
+    o, z = np.ones_like(angle), np.zeros_like(angle)
+    if axis == "X":
+        flat = (o, z, z, z, c, -s, z, s, c)
+    elif axis == "Y":
+        flat = (c, z, s, z, o, z, -s, z, c)
+    else:
+        flat = (c, -s, z, s, c, z, z, z, o)
+    return np.stack(flat, axis=-1).reshape(angle.shape + (3, 3))
+
+
+def _matrix_to_euler(m: np.ndarray, order: str) -> np.ndarray:
+    """(..., 3, 3) rotation matrices → (..., 3) intrinsic Euler angles (radians) in ``order`` (e.g. "ZXY"):
+    :func:`dancekit.motion.rotations.matrix_to_euler_angles` in NumPy (writing a BVH needs no torch), the
+    same branch rules: the middle angle in [-π/2, π/2]; at gimbal lock the last angle is 0."""
+    i, j, k = ("XYZ".index(a) for a in order)
+    sign = 1.0 if (i, j, k) in ((0, 1, 2), (1, 2, 0), (2, 0, 1)) else -1.0
+    sb = np.clip(sign * m[..., i, k], -1.0, 1.0)
+    b = np.arcsin(sb)
+    a = np.arctan2(-sign * m[..., j, k], m[..., k, k])
+    c = np.arctan2(-sign * m[..., i, j], m[..., i, i])
+    locked = np.abs(sb) > 1 - 1e-10
+    if locked.any():
+        a = np.where(locked, np.arctan2(sign * m[..., k, j], m[..., j, j]), a)
+        c = np.where(locked, 0.0, c)
+    return np.stack([a, b, c], axis=-1)
 
 
 def _fk_translations(rot: np.ndarray, trans: np.ndarray, parents: list[int]) -> np.ndarray:
@@ -491,6 +516,12 @@ def read_bvh(path: str | os.PathLike, *, units: str | None = None) -> Motion:
             up_axis=up, units=units, roles=roles, left_right=pairs, feet=feet, end_effectors=leaves,
             branch_joints=branch_parents,
         )
+        known = adopt_builtin(names, parents, offsets)  # a built-in skeleton (write_bvh's) reads back as itself
+        if known is not None:
+            skeleton, order = known
+            positions = positions[:, order]
+            names = list(skeleton.joint_names)
+            root = skeleton.root
         file_index = {n: j for j, n in enumerate(file_names)}
         rig_order = [file_index[n] for n in skeleton.rig().joint_names]
         assert sorted(rig_order) == list(range(len(file_names)))
@@ -633,8 +664,7 @@ def write_bvh(path: str | os.PathLike, motion: Motion, *, rotation_order: str = 
         except DancekitError as exc:
             raise MotionFormatError(f"cannot compute rotations for {path}: {exc}") from exc
         assert m.rotations is not None and m.root_translation is not None
-        eul = np.rad2deg(matrix_to_euler_angles(torch.from_numpy(np.asarray(m.rotations, np.float64)),
-                                                order).numpy())  # (chunk, J, 3)
+        eul = np.rad2deg(_matrix_to_euler(np.asarray(m.rotations, np.float64), order))  # (chunk, J, 3)
         col = 0
         for j in order_idx:
             if j == root:

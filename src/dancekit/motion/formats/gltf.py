@@ -1,4 +1,4 @@
-"""glTF 2.0 binary (``.glb``) output: the rig as a node hierarchy, the dance as an animation, a skinned body.
+"""glTF 2.0 binary (``.glb``): the rig as a node hierarchy, the dance as an animation, a skinned body.
 
 :func:`write_glb` writes one self-contained ``.glb`` (written with ``pygltflib``):
 
@@ -17,6 +17,11 @@
   The bind pose is the rest pose (identity rotations, root at the origin).
 
 Forward kinematics of the file's nodes gives the motion's joint positions (those of the npz).
+
+:func:`read_glb` reads such a file back (and other glb files with one skin and one node animation): the
+skin's joints with their parents and rest translations, the animation's rotation and translation keys, the
+fps from the key times. A file with a tang2018 rig reads back as the tang2018 skeleton in centimetres; any
+other rig is a skeleton named after the file, in metres, y up (z up under a ``y_up`` node).
 """
 
 from __future__ import annotations
@@ -25,15 +30,14 @@ import os
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from dancekit._io import atomic_path
 from dancekit.errors import DancekitError, MotionFormatError
+from dancekit.motion.formats._known import adopt_builtin, builtin_for
 from dancekit.motion.motion import Motion
-from dancekit.motion.rotations import matrix_to_quaternion
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["body_mesh", "write_glb"]
+__all__ = ["body_mesh", "read_glb", "write_glb"]
 
 _FLOAT, _USHORT, _UINT = 5126, 5123, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
@@ -156,6 +160,10 @@ def _to_y_up(skeleton: Skeleton) -> np.ndarray:
 
 def _quat_xyzw(R: np.ndarray) -> np.ndarray:
     """(..., 3, 3) → (..., 4) (x, y, z, w), unit, float32, sign-continuous along the first axis."""
+    import torch
+
+    from dancekit.motion.rotations import matrix_to_quaternion
+
     q = matrix_to_quaternion(torch.from_numpy(np.asarray(R, np.float64))).numpy()
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     if q.ndim >= 2:  # no flips between frames, so LINEAR keys turn the short way
@@ -322,3 +330,141 @@ def write_glb(path: str | os.PathLike, motion: Motion) -> None:
     gltf.set_binary_blob(bytes(blob))
     with atomic_path(path, suffix=".glb") as tmp:
         gltf.save_binary(str(tmp))
+
+
+# ------------------------------------------------------------------ reading
+_COMPONENTS = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+
+
+def _accessor(gltf, blob: bytes, index: int) -> np.ndarray:
+    """The array of accessor ``index`` (count, width), float64 (normalised integers are not used here)."""
+    acc = gltf.accessors[index]
+    view = gltf.bufferViews[acc.bufferView]
+    dtype = np.dtype(_COMPONENTS[acc.componentType])
+    width = _WIDTH[acc.type]
+    start = (view.byteOffset or 0) + (acc.byteOffset or 0)
+    stride = view.byteStride or dtype.itemsize * width
+    raw = np.frombuffer(blob, np.uint8, count=stride * (acc.count - 1) + dtype.itemsize * width, offset=start)
+    rows = np.lib.stride_tricks.as_strided(raw, (acc.count, dtype.itemsize * width), (stride, 1))
+    return np.ascontiguousarray(rows).view(dtype).reshape(acc.count, width).astype(np.float64)
+
+
+def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(..., 4) (x, y, z, w) quaternions (normalised here) → (..., 3, 3) rotation matrices."""
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    x, y, z, w = np.moveaxis(q, -1, 0)
+    return np.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
+    ], axis=-1).reshape(q.shape[:-1] + (3, 3))
+
+
+def read_glb(path: str | os.PathLike) -> Motion:
+    """Read the dance of a glTF 2.0 binary (``.glb``): its skin's joints and its first animation.
+
+    Returns a :class:`Motion` with rotations (on the rig, ``(T, J_rig, 3, 3)``), root translation and
+    positions at ``fps = 1 / (t1 - t0)`` of the animation's keys (rounded to an integer within 0.1 %). A
+    tang2018 rig (as :func:`write_glb` writes it) reads back as the built-in ``tang2018`` skeleton in its
+    units (cm); another rig keeps the file's joint names, roles guessed from them
+    (:func:`~dancekit.motion.formats.bvh.guess_roles`), metres, and z up when its root hangs under a node
+    ``y_up`` (as :func:`write_glb` writes a z-up skeleton), else y up.
+
+    Raises
+    ------
+    MotionFormatError
+        If the file is not a glb, has no skin or no animation, or its keys are not evenly spaced (names the
+        file).
+    """
+    import pygltflib as g
+
+    path = Path(path)
+    try:
+        gltf = g.GLTF2().load_binary(str(path))
+        blob = gltf.binary_blob()
+    except Exception as exc:  # pygltflib raises several kinds for a file that is not a glb
+        raise MotionFormatError(f"cannot read glb {path}: not a glTF 2.0 binary ({type(exc).__name__})") from None
+    if gltf is None or blob is None:
+        raise MotionFormatError(f"cannot read glb {path}: not a glTF 2.0 binary")
+    if not gltf.skins or not gltf.animations:
+        raise MotionFormatError(f"{path}: a glb without a skin and an animation holds no dance")
+    joints = list(gltf.skins[0].joints)
+    index = {n: j for j, n in enumerate(joints)}
+    parent_of = {c: p for p, node in enumerate(gltf.nodes) for c in (node.children or [])}
+    parents = [index.get(parent_of.get(n, -1), -1) for n in joints]
+    if parents.count(-1) != 1:
+        raise MotionFormatError(f"{path}: the skin's joints form {parents.count(-1)} trees, not one")
+    names = [gltf.nodes[n].name or f"joint{j}" for j, n in enumerate(joints)]
+    offsets = np.array([gltf.nodes[n].translation or [0.0, 0.0, 0.0] for n in joints], np.float64)
+    root = parents.index(-1)
+    z_up = gltf.nodes[parent_of[joints[root]]].name == "y_up" if joints[root] in parent_of else False
+
+    anim = gltf.animations[0]
+    times, rot_keys, trans_keys = None, {}, {}
+    for ch in anim.channels:
+        if ch.target.node not in index or ch.target.path not in ("rotation", "translation"):
+            continue
+        sampler = anim.samplers[ch.sampler]
+        t = _accessor(gltf, blob, sampler.input)[:, 0]
+        if times is None:
+            times = t
+        elif len(t) != len(times) or np.abs(t - times).max() > 1e-4:
+            raise MotionFormatError(f"{path}: the animation's channels are keyed at different times")
+        values = _accessor(gltf, blob, sampler.output)
+        (rot_keys if ch.target.path == "rotation" else trans_keys)[index[ch.target.node]] = values
+    if times is None or len(times) < 1:
+        raise MotionFormatError(f"{path}: the animation has no keys on the skin's joints")
+    T = len(times)
+    if T > 1:
+        steps = np.diff(times)
+        if steps.min() <= 0 or (steps.max() - steps.min()) > 1e-3 * steps.mean():
+            raise MotionFormatError(f"{path}: the animation's keys are not evenly spaced in time")
+        fps = 1.0 / float(np.mean(steps))
+        if abs(fps - round(fps)) < 1e-3 * fps:
+            fps = float(round(fps))
+    else:
+        fps = 30.0
+
+    J = len(joints)
+    rest_q = np.array([gltf.nodes[n].rotation or [0.0, 0.0, 0.0, 1.0] for n in joints], np.float64)
+    quats = np.broadcast_to(rest_q, (T, J, 4)).copy()
+    for j, v in rot_keys.items():
+        quats[:, j] = v
+    rot = _quat_to_matrix(quats)
+    trans = np.broadcast_to(offsets, (T, J, 3)).copy()
+    for j, v in trans_keys.items():
+        trans[:, j] = v
+
+    from dancekit.motion.formats.bvh import _find_branch_joints, _fk_translations, guess_roles
+
+    positions = _fk_translations(rot, trans, parents)
+    animated = np.array([j in trans_keys and j != root for j in range(J)])
+    branches = _find_branch_joints(names, parents, offsets, animated)
+    drop = {b for bs in branches.values() for b in bs}
+    keep = [j for j in range(J) if j not in drop]
+    remap = {old: new for new, old in enumerate(keep)}
+    kept_parents = [-1 if parents[j] < 0 else remap[parents[parents[j]] if parents[j] in drop else parents[j]]
+                    for j in keep]
+    kept_names = [names[j] for j in keep]
+    known = builtin_for(kept_names, kept_parents)
+    try:
+        if known is not None:
+            unit = 1.0 / known[0].unit_scale  # metres → the skeleton's units
+            skeleton, order = adopt_builtin(kept_names, kept_parents, offsets[keep] * unit)
+            keep = [keep[i] for i in order]
+        else:
+            roles, pairs = guess_roles(kept_names, kept_parents)
+            unit = 1.0
+            skeleton = Skeleton(name=path.stem, joint_names=tuple(kept_names), parents=tuple(kept_parents),
+                                offsets=offsets[keep], up_axis="z" if z_up else "y", units="m", roles=roles,
+                                left_right=pairs, branch_joints=tuple(names[p] for p in sorted(branches)))
+        rig_order = [names.index(n) for n in skeleton.rig().joint_names]
+        if sorted(rig_order) != list(range(J)):
+            raise MotionFormatError(f"{path}: the skin's joints do not form the rig of {skeleton.name!r}")
+        return Motion(skeleton=skeleton, fps=fps, positions=positions[:, keep] * unit, rotations=rot[:, rig_order],
+                      root_translation=trans[:, root] * unit)
+    except MotionFormatError:
+        raise
+    except DancekitError as exc:
+        raise MotionFormatError(f"{path}: {exc}") from exc
