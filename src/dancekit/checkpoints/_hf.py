@@ -21,6 +21,7 @@ import json
 import logging
 import os
 import re
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -82,25 +83,22 @@ def _hub():
 
 @contextlib.contextmanager
 def _quiet():
-    """huggingface_hub's progress bars and warnings kept off the user's terminal."""
+    """huggingface_hub's progress bars, log lines and warnings kept off the user's terminal."""
+    from huggingface_hub.utils import are_progress_bars_disabled, disable_progress_bars, enable_progress_bars
+
     log = logging.getLogger("huggingface_hub")
     level = log.level
     log.setLevel(logging.ERROR)
-    saved = os.environ.get("HF_HUB_DISABLE_PROGRESS_BARS")
-    os.environ["HF_HUB_DISABLE_PROGRESS_BARS"] = "1"
+    was_disabled = are_progress_bars_disabled()
+    disable_progress_bars()
     try:
-        from huggingface_hub.utils import disable_progress_bars, enable_progress_bars
-
-        disable_progress_bars()
-        with contextlib.redirect_stderr(io.StringIO()):
+        with contextlib.redirect_stderr(io.StringIO()), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             yield
     finally:
-        enable_progress_bars()
+        if not was_disabled:
+            enable_progress_bars()
         log.setLevel(level)
-        if saved is None:
-            os.environ.pop("HF_HUB_DISABLE_PROGRESS_BARS", None)
-        else:
-            os.environ["HF_HUB_DISABLE_PROGRESS_BARS"] = saved
 
 
 def _why(exc: BaseException) -> str:
