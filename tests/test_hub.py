@@ -3,7 +3,7 @@
 A small HTTP server on 127.0.0.1 serves model repositories in the Hugging Face Hub's layout, with only
 the endpoints that huggingface_hub's ``snapshot_download`` and ``create_repo`` / ``create_commit`` call:
 
-- ``GET /api/models/U/N/revision/REV``: the repository's info at a revision (``sha``: the commit);
+- ``GET /api/models/U/N[/revision/REV]``: the repository's info at a revision (``sha``: the commit);
 - ``GET /api/models/U/N/tree/REV?recursive=..``: the files of a commit (path, size, git blob id);
 - ``HEAD`` / ``GET /U/N/resolve/REV/PATH``: a file, with ``ETag`` and ``X-Repo-Commit``;
 - ``POST /api/repos/create``, ``POST /api/validate-yaml``, ``POST /api/models/U/N/preupload/REV`` (every
@@ -48,6 +48,7 @@ class Hub:
         self.repos: dict[str, dict] = {}
         self.log: list[tuple[str, str]] = []  # (method, path) of every request
         self.unknown: list[tuple[str, str]] = []
+        self.read_only = False  # True: writes answer 401 (no token, or a read-only one)
 
     def add(self, repo: str, files: dict[str, bytes], branch: str = "main") -> str:
         r = self.repos.setdefault(repo, {"refs": {}, "commits": {}})
@@ -106,6 +107,8 @@ def _handler(hub: Hub):
             parts = [unquote(p) for p in url.path.strip("/").split("/")]
             hub.log.append((self.command, url.path))
             m = self.command
+            if m == "GET" and parts[:2] == ["api", "models"] and len(parts) == 4:  # the info at the default branch
+                parts += ["revision", "main"]
             if m == "GET" and parts[:2] == ["api", "models"] and len(parts) >= 6 and parts[4] in ("revision", "tree"):
                 repo = self._repo(parts[2:4])
                 if repo is None:
@@ -134,6 +137,9 @@ def _handler(hub: Hub):
                     return self._error(404, "EntryNotFound", f"{path} not found") or None
                 return self._send(200, data, {"ETag": f'"{_blob_id(data)}"', "X-Repo-Commit": sha},
                                   "application/octet-stream")
+            if m == "POST" and hub.read_only and "preupload" not in url.path:
+                self._body()
+                return self._error(401, "Unauthorized", "Invalid credentials in Authorization header")
             if m == "POST" and url.path == "/api/repos/create":
                 doc = json.loads(self._body())
                 repo = f"{doc['organization']}/{doc['name']}"
@@ -358,3 +364,15 @@ def test_push_refuses_a_folder_that_is_not_a_checkpoint(hub_env, tmp_path):
     with pytest.raises(ParameterError, match="not a revision"):
         hfmod.push_model(M2D, "carol/x@v1")
     assert hub_env.log == []  # refused before any request
+
+
+def test_push_without_write_access_is_one_line(hub_env):
+    from dancekit.cli.main import main
+
+    hub_env.read_only = True
+    with pytest.raises(CheckpointError, match=r"^cannot push to carol/m2d on http://127\.0\.0\.1:\d+: not allowed "
+                                              r"\(HTTP 401\); log in with `hf auth login` or set HF_TOKEN") as e:
+        hfmod.push_model(M2D, "carol/m2d")
+    assert "\n" not in str(e.value)
+    assert main(["models", "push", str(M2D), "carol/m2d"]) == 2
+    assert "carol/m2d" not in hub_env.repos
