@@ -180,7 +180,7 @@ def download_model(model: str) -> Path:
     return folder
 
 
-def _card_readme(folder: Path, repo: str, meta: dict, card: dict) -> str:
+def _card_readme(repo: str, meta: dict, card: dict) -> str:
     """A Hugging Face model card (``README.md``) from the checkpoint's ``config.json`` and ``card.json``."""
     lines = ["---", "library_name: dancekit", "tags:", "- dancekit", f"- {meta['model']}",
              "- music-to-dance", "---", "", f"# {repo}", ""]
@@ -231,7 +231,7 @@ def push_model(folder: str | os.PathLike, repo: str, *, private: bool = False, m
     api = hf.HfApi(endpoint=where, token=token, library_name="dancekit")
     ops = []
     if not (folder / "README.md").is_file():
-        readme = _card_readme(folder, repo_id, meta, model_card(folder)).encode()
+        readme = _card_readme(repo_id, meta, model_card(folder)).encode()
         ops.append(hf.CommitOperationAdd(path_in_repo="README.md", path_or_fileobj=readme))
     skip = {".git", "__pycache__", ".cache"}
     for path in sorted(folder.rglob("*")):
