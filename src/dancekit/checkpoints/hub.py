@@ -8,6 +8,10 @@
 3. the models embedded in the package (``dancekit/assets/models/<name>/``), so the default model needs
    no download.
 
+A name ``hf:USER/NAME`` (or ``hf:USER/NAME@REVISION``: a branch, tag or commit) is a model on the Hugging
+Face Hub, downloaded once into ``<user models folder>/hf`` (:mod:`dancekit.checkpoints._hf`;
+``HF_ENDPOINT`` and ``HF_HUB_OFFLINE=1`` are honoured).
+
 A **composite model** declares its parts in its own ``config.json`` (as diffusers' ``model_index.json``
 does), never by the presence of folders::
 
@@ -59,16 +63,22 @@ def available_models() -> dict[str, Path]:
 
 def resolve_model(model: str | os.PathLike | None = None) -> Path:
     """The checkpoint folder of ``model``: an explicit folder, else a name in the user's models folder,
-    else an embedded model (``None``: the default model).
+    else an embedded model (``None``: the default model); ``hf:USER/NAME[@REVISION]``: a hub model,
+    downloaded into the hub cache on first use (:func:`dancekit.checkpoints._hf.download_model`).
 
     Raises
     ------
     CheckpointError
-        For a path (anything with a separator) that does not exist or holds no ``config.json``.
+        For a path (anything with a separator) that does not exist or holds no ``config.json``; for a hub
+        model that cannot be downloaded or is not a dancekit checkpoint.
     ParameterError
         For a name found nowhere (the message lists the names that exist).
     """
     name = DEFAULT_MODEL if model is None else model
+    if isinstance(name, str) and name.startswith("hf:"):
+        from dancekit.checkpoints._hf import download_model
+
+        return download_model(name)
     path = Path(name)
     if path.is_dir():
         if not (path / CONFIG_FILE).is_file():

@@ -68,7 +68,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--format", default=",".join(DEFAULT_FORMATS),
                    help=f"comma-separated outputs from {', '.join(FORMATS)}")
     p.add_argument("--bvh-rig", choices=("exact", "humanoid"), default="exact",
-                   help="BVH rig: the skeleton's own joints (exact, default) or a standard humanoid "
+                   help="BVH and FBX rig: the skeleton's own joints (exact, default) or a standard humanoid "
                         "(Hips/Spine/Neck/Head, Mixamo-like names, for retargeting in Blender or Unity)")
     p.add_argument("--fps", type=float, default=None,
                    help="frame rate of the outputs (resampled with slerp; default: the model's)")

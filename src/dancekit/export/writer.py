@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from dancekit.motion import Motion
     from dancekit.render import AudioClip, RenderOptions
 
-FORMATS = ("mp4", "html", "npz", "bvh", "openpose", "glb", "pkl", "coco17", "coco18")
+FORMATS = ("mp4", "html", "npz", "bvh", "openpose", "glb", "pkl", "coco17", "coco18", "fbx")
 DEFAULT_FORMATS = ("mp4", "html", "npz", "bvh")
 _STAGE_PREFIX = ".dancekit-"
 
@@ -28,6 +28,8 @@ def check_formats(formats: str | Iterable[str]) -> list[str]:
     ------
     ParameterError
         If a name is not in :data:`FORMATS` (the message names it), or none is given.
+    ExternalToolError
+        For ``fbx`` without Blender (one line naming what to install), before any work is done.
     """
     items = formats.split(",") if isinstance(formats, str) else list(formats)
     names = [str(f).strip().lower() for f in items if str(f).strip()]
@@ -36,6 +38,10 @@ def check_formats(formats: str | Iterable[str]) -> list[str]:
         raise ParameterError(
             f"unknown output format {', '.join(bad) or repr(formats)}; choose from {', '.join(FORMATS)}"
         )
+    if "fbx" in names:
+        from dancekit.export.fbx import require_blender
+
+        require_blender()
     return list(dict.fromkeys(names))
 
 
@@ -98,7 +104,9 @@ def export_motion(
         file per frame; a 3D motion is projected), ``glb`` (glTF 2.0: the rig, the animation
         and a skinned body, :mod:`dancekit.motion.formats.gltf`), ``pkl`` (AIST++ SMPL at 60 fps,
         retargeted onto SMPL, :func:`dancekit.motion.formats.aistpp.write_aistpp`), ``coco17`` /
-        ``coco18`` (folders of COCO keypoint JSON, like ``openpose``). Default :data:`DEFAULT_FORMATS`.
+        ``coco18`` (folders of COCO keypoint JSON, like ``openpose``), ``fbx`` (the armature, the skinned
+        mannequin and the baked dance through Blender's exporter, :mod:`dancekit.export.fbx`; needs
+        ``blender``). Default :data:`DEFAULT_FORMATS`.
     audio : AudioClip, path-like or None
         The song slice that plays with the dance in the mp4 and html (a plain path: the
         song from 0 s); None: silent.
@@ -108,14 +116,14 @@ def export_motion(
     progress : bool
         Show a progress bar while the mp4 renders.
     bvh_rig : {"exact", "humanoid"}
-        The BVH's rig: the skeleton's own joints (default) or the standard humanoid rig
+        The rig of the BVH and the FBX: the skeleton's own joints (default) or the standard humanoid rig
         (Mixamo-like names, :func:`dancekit.motion.formats.bvh.humanoid_motion`).
 
     Returns
     -------
     list of Path
         The written paths in ``folder``, in the order of ``formats``: ``{stem}.mp4``,
-        ``{stem}.html``, ``{stem}.npz``, ``{stem}.bvh``, ``{stem}_openpose/``, ``{stem}.glb``, ``{stem}.pkl``, ``{stem}_coco17/``, ``{stem}_coco18/``.
+        ``{stem}.html``, ``{stem}.npz``, ``{stem}.bvh``, ``{stem}_openpose/``, ``{stem}.glb``, ``{stem}.pkl``, ``{stem}_coco17/``, ``{stem}_coco18/``, ``{stem}.fbx``.
 
     Raises
     ------
@@ -196,6 +204,11 @@ def _write(fmt: str, motion, folder: Path, stem: str, audio, options, progress: 
     elif fmt == "bvh":
         path = folder / f"{stem}.bvh"
         write_motion(path, motion, rig=bvh_rig)
+    elif fmt == "fbx":
+        from dancekit.export.fbx import write_fbx
+
+        path = folder / f"{stem}.fbx"
+        write_fbx(path, motion, rig=bvh_rig)
     elif fmt in ("openpose", "coco17", "coco18"):
         from dancekit.motion.formats.openpose import write_openpose
 
