@@ -137,21 +137,62 @@ def test_baselines_and_compare(data_with_audio, tmp_path, capsys):
     shutil.copytree(data_with_audio, data)
     (data / "splits.json").write_text(json.dumps(split))
     out = tmp_path / "bl"
-    assert main(["baselines", "--data", str(data), "-o", str(out)]) == 0
+    assert main(["baselines", "--data", str(data), "-o", str(out), "--draws", "3"]) == 0
     printed = capsys.readouterr().out
     table = (out / "table.md").read_text()
-    assert table.startswith("| metric | ground_truth | mean_pose | random_train | nearest_music |")
+    assert table.startswith("| metric | ground_truth | mean_pose | random_train (median of 3) | random_train min | "
+                            "random_train max | nearest_music |")
     assert printed.endswith(table)
     gt = json.loads((out / "ground_truth.json").read_text())
     frozen = json.loads((out / "mean_pose.json").read_text())
     assert gt["metrics"]["fid_k"] == pytest.approx(gt["real"]["fid_k"])  # the real dances themselves
     assert frozen["metrics"]["stillness_share"] == 1.0
-    assert set(json.loads((out / "choices.json").read_text())) == {"random_train", "nearest_music"}
+    choices = json.loads((out / "choices.json").read_text())
+    assert set(choices) == {"random_train", "nearest_music"}
+    assert len(choices["random_train"]) == 3 and all(set(c) == {"DANCE_W_2"} for c in choices["random_train"])
+    # draw 0 is the earlier single draw: the first integer of the seeded generator
+    assert choices["random_train"][0]["DANCE_W_2"] == split["train"][int(np.random.default_rng(0).integers(2))]
+    # each draw is the chosen training dance cropped to the test dance's length, scored on its own
+    from dancekit.data import PreparedData
+    from dancekit.motion import read_motion
+
+    prepared = PreparedData(data)
+    n_test = prepared.motion("DANCE_W_2").num_frames
+    summary = json.loads((out / "random_train.json").read_text())
+    energies = []  # (FID needs more than one test dance: this fixture has one)
+    for k, c in enumerate(choices["random_train"]):
+        got = read_motion(out / "random_train_draws" / f"{k:02d}" / "DANCE_W_2.npz").positions
+        src = prepared.motion(c["DANCE_W_2"]).to_positions()
+        m = min(n_test, len(src))
+        np.testing.assert_allclose(got[:m], src[:m], atol=1e-4)
+        draw = json.loads((out / "random_train_draws" / f"{k:02d}.json").read_text())
+        energies.append(draw["metrics"]["smoothed_energy"])
+    key = "smoothed_energy"
+    assert summary["metrics"][key] == pytest.approx(sorted(energies)[1])  # the middle of three
+    assert summary["min"][key] == pytest.approx(min(energies)) and summary["max"][key] == pytest.approx(max(energies))
+    assert main(["baselines", "--data", str(data), "-o", str(tmp_path / "bad"), "--draws", "0"]) == 2
+    assert "draws must be a whole number >= 1, got 0" in capsys.readouterr().err
     assert main(["compare", f"gt={out / 'ground_truth.json'}", f"frozen={out / 'mean_pose.json'}"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0] == "| metric | real (test) | gt | frozen |"
     assert any(line.startswith("| Stillness share") and line.endswith("| 1.000 |") for line in lines)
     assert main(["compare", "nonsense"]) == 2
+
+
+def test_summarize_draws_known_answer():
+    """Each metric's own median / min / max over the draws; NaN and missing values left out."""
+    from dancekit.evaluation.baselines import summarize_draws
+
+    reports = [{"metrics": {"fid_k": 30.0, "fid_g": 9.0, "acc": None}},
+               {"metrics": {"fid_k": 10.0, "fid_g": float("nan"), "acc": None}},
+               {"metrics": {"fid_k": 50.0, "fid_g": 13.0, "acc": None}},
+               {"metrics": {"fid_k": 20.0, "fid_g": 12.0, "acc": None}}]
+    s = summarize_draws(reports)
+    assert s["metrics"]["fid_k"] == 25.0 and s["min"]["fid_k"] == 10.0 and s["max"]["fid_k"] == 50.0
+    assert s["metrics"]["fid_g"] == 12.0 and s["min"]["fid_g"] == 9.0 and s["max"]["fid_g"] == 13.0
+    assert s["metrics"]["acc"] is None and len(s["draws"]) == 4
+    with pytest.raises(ParameterError):
+        summarize_draws([])
 
 
 def test_format_value_and_tables():

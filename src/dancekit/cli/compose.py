@@ -41,8 +41,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f"{DEFAULT_COMPOSE_MODEL!r} model)")
     g.add_argument("--checkpoint", default=None, help="a dual checkpoint folder (from `dancekit train dual`)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the start chord (default 0)")
-    p.add_argument("--tempo", default=None, help="auto (the peaks of the composed beat activation), periodic (beats "
-                   "on its periodicity), or a tempo in BPM; default: the model's setting (auto)")
+    p.add_argument("--tempo", default=None, help="dance (the dance's own tempo, beats and metre; G_D→M chooses the "
+                   "chords and accents), a tempo in BPM (the same at that tempo), auto (the peaks of G_D→M's beat "
+                   "activation) or periodic (beats on its periodicity); default: the model's setting (dance)")
     p.add_argument("--render", default="auto", choices=("auto", "fluidsynth", "builtin"), help="audio renderer")
     p.add_argument("--no-video", action="store_true", help="write the MIDI and WAV only (no mp4 / html)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
@@ -50,12 +51,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def parse_tempo(text: str | None) -> str | float | None:
-    if text is None or text in ("auto", "periodic"):
+    if text is None or text in ("dance", "auto", "periodic"):
         return text
     try:
         return float(text)
     except ValueError:
-        raise ParameterError(f"--tempo must be 'auto', 'periodic' or a number of BPM, got {text!r}") from None
+        raise ParameterError(f"--tempo must be 'dance', 'auto', 'periodic' or a number of BPM, got {text!r}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -98,7 +99,9 @@ def run(args: argparse.Namespace) -> int:
         shutil.rmtree(stage, ignore_errors=True)
     if not args.quiet:
         arr = result.arrangement
-        print(f"composed {arr.duration:.1f} s from {result.start_chord}: {len(arr.beat_times)} beats at "
+        key = (f"in {arr.key_name()}, {arr.beats_per_bar} beats to a bar" if hasattr(arr, "key_name")
+               else f"from {result.start_chord}")
+        print(f"composed {arr.duration:.1f} s {key}: {len(arr.beat_times)} beats at "
               f"{arr.tempo:.1f} BPM, chords {' '.join(arr.chord_names()[:8])}{' ...' if len(arr.chords) > 8 else ''} "
               f"in {time.perf_counter() - t0:.1f} s")
         for path in files:

@@ -247,7 +247,9 @@ class ComposePipeline:
         # beat picking, the checkpoint's composing settings (chosen on the validation dances, docs/DUAL.md)
         self.beat_threshold = float(meta.get("beat_threshold", 0.5))
         self.beat_min_gap = float(meta.get("beat_min_gap", 0.25))
-        self.beat_tempo = meta.get("beat_tempo", "auto")  # "auto" (thresholded peaks) or "periodic"
+        # "dance" (the arranger that follows the dance, pipelines/compose.py), or G_D→M's own beats: "auto"
+        # (thresholded peaks) or "periodic"
+        self.beat_tempo = meta.get("beat_tempo", "dance")
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> ComposePipeline:
@@ -264,9 +266,12 @@ class ComposePipeline:
         motion : a 3D dance (resampled to the model's fps when it differs); a dance on another skeleton is
             mapped to the model's joints by role (:func:`dancekit.motion.retarget.map_by_role`)
         seed : draws the start chord (root of 12 pitch classes × major / minor) unless given
-        tempo : "auto" (the composed beats: peaks of the beat activation), "periodic" (beats on the
-            activation's periodicity, :func:`dancekit.audio.midi.periodic_beats`), a BPM (a regular grid phased on
-            the first composed beat), or None: the checkpoint's ``beat_tempo`` setting ("auto" when it has none)
+        tempo : "dance" (music that follows the dance: its tempo, beats and metre; G_D→M's chroma choosing the
+            chords of the key and its beat activation the accents, :mod:`dancekit.pipelines.compose`), a BPM (the
+            same at that tempo), "auto" (G_D→M's beats: peaks of its beat activation, chords on every beat,
+            :func:`dancekit.audio.midi.arrange`), "periodic" (beats on the activation's periodicity,
+            :func:`dancekit.audio.midi.periodic_beats`), or None: the checkpoint's ``beat_tempo`` setting
+            ("dance" when it has none)
         root, minor : the start chord (e.g. ``root="A", minor=True``)
         """
         if not isinstance(motion, Motion):
@@ -286,10 +291,24 @@ class ComposePipeline:
 
         chroma, beat = out[:, :12], out[:, 12]
         root_name = PITCH_CLASSES[int(root)] if not isinstance(root, str) else root
+        tempo = self.beat_tempo if tempo is None else tempo
+        if tempo in ("auto", "periodic"):
+            arrangement = arrange(chroma, beat, fps=self.fps, tempo=tempo, threshold=self.beat_threshold,
+                                  min_gap=self.beat_min_gap)
+        else:
+            from dancekit.pipelines.compose import follow
+
+            arrangement = follow(motion, key=(PITCH_CLASSES.index(root_name), bool(minor)), chroma=chroma, activation=beat,
+                                 bpm=None if tempo == "dance" else _bpm(tempo))
         return ComposeResult(chroma=chroma, beat=beat, fps=self.fps, seed=int(seed),
-                             start_chord=f"{root_name} {'minor' if minor else 'major'}",
-                             arrangement=arrange(chroma, beat, fps=self.fps, tempo=self.beat_tempo if tempo is None else tempo,
-                                                 threshold=self.beat_threshold, min_gap=self.beat_min_gap))
+                             start_chord=f"{root_name} {'minor' if minor else 'major'}", arrangement=arrangement)
+
+
+def _bpm(tempo: str | float) -> float:
+    try:
+        return float(tempo)
+    except (TypeError, ValueError):
+        raise ParameterError(f"tempo must be 'dance', 'auto', 'periodic' or a number of BPM, got {tempo!r}") from None
 
 
 def moving_average(y: np.ndarray, frames: int) -> np.ndarray:
