@@ -36,6 +36,7 @@ VERBS: dict[str, str] = {
     "models": "dancekit.cli.models",
     "convert": "dancekit.cli.convert",
     "compose": "dancekit.cli.compose",
+    "live": "dancekit.cli.live",
 }
 
 
