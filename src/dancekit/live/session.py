@@ -84,13 +84,16 @@ class Frame:
 @dataclass
 class SessionStats:
     """What a session measured: per frame the latency and its lookahead part (s); per block the compute time
-    (s) and its audio length (s); how often it took the lighter path or fed waiting blocks at once."""
+    (wall s, waiting for the CPU included; and the CPU time of the session's thread, s) and its audio length
+    (s); how often it took the lighter path or fed waiting blocks at once."""
 
     latency: list[float] = field(default_factory=list)
     lookahead: list[float] = field(default_factory=list)
     compute: list[float] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
     block_audio: list[float] = field(default_factory=list)
     light_blocks: int = 0
+    light_switches: int = 0
     merged_blocks: int = 0
     dropped_blocks: int = 0
 
@@ -104,7 +107,8 @@ class SessionStats:
                 "compute_median_s": float(np.median(np.asarray(self.latency) - np.asarray(self.lookahead)))
                 if self.lookahead else None,
                 "compute_per_audio_s": comp / audio if audio else None,
-                "light_blocks": self.light_blocks, "merged_blocks": self.merged_blocks,
+                "cpu_per_audio_s": float(np.sum(self.cpu)) / audio if audio and self.cpu else None,
+                "light_blocks": self.light_blocks, "light_switches": self.light_switches, "merged_blocks": self.merged_blocks,
                 "dropped_blocks": self.dropped_blocks}
 
 
@@ -160,7 +164,9 @@ class LiveSession:
         lag = now() - blocks[0].arrival
         if lag > c.max_lag_s and not self._light:
             self._light = True
-            self.notes.append(f"fell {lag:.2f} s behind at {self._samples / self.sr:.1f} s: chromagram held")
+            self.stats.light_switches += 1
+            if self.stats.light_switches <= 3:  # the first few said; all counted
+                self.notes.append(f"fell {lag:.2f} s behind at {self._samples / self.sr:.1f} s: chromagram held")
         elif self._light and lag < 0.5 * c.max_lag_s:
             self._light = False
         self.features.hold_chroma = self._light
@@ -256,9 +262,10 @@ class LiveSession:
                         ended = True
                         break
                     blocks.append(nxt)
-                t0 = time.monotonic()
+                t0, c0 = time.monotonic(), time.thread_time()
                 self.feed(blocks)
                 self.stats.compute.append(time.monotonic() - t0)
+                self.stats.cpu.append(time.thread_time() - c0)
                 self.stats.block_audio.append(sum(b.n for b in blocks) / self.sr)
                 fed += sum(b.n for b in blocks) / self.sr
                 if duration_s is not None and fed >= duration_s:
@@ -268,35 +275,39 @@ class LiveSession:
         if error:
             raise error[0]
         self.finish()
+        if self.stats.light_switches > 3:
+            self.notes.append(f"took the lighter path {self.stats.light_switches} times in all")
         if self.stats.merged_blocks:
             self.notes.append(f"{self.stats.merged_blocks} blocks fed together with the one before (behind the clock)")
         return self.stats
 
 
 # ---------------------------------------------------------------------- sources
-def file_source(path: str | os.PathLike, *, sr: int, block_s: float = 0.08, realtime: bool = True,
+def file_source(path: str | os.PathLike | list, *, sr: int, block_s: float = 0.04, realtime: bool = True,
                 loop: bool = False, start_at: float | None = None) -> Iterator[Block]:
-    """An audio file as blocks of ``block_s`` at ``sr`` Hz; ``realtime``: each block arrives when its last
-    sample would play (the clock starts at the first block), else as fast as they are asked for (arrival:
-    when asked). ``loop``: the file again and again (for long runs)."""
+    """An audio file (or a list of files, one after the other) as blocks of ``block_s`` at ``sr`` Hz;
+    ``realtime``: each block arrives when its last sample would play (the clock starts at the first block),
+    else as fast as they are asked for (arrival: when asked). ``loop``: the file(s) again and again."""
     from dancekit.audio import load
 
-    y, _ = load(path, sr=sr)
+    paths = list(path) if isinstance(path, (list, tuple)) else [path]
+    songs = [load(p, sr=sr)[0] for p in paths]  # decoded first: no decoding pause on the clock
     n = max(1, int(round(block_s * sr)))
     t0 = time.monotonic() if start_at is None else start_at
     played = 0
     while True:
-        for a in range(0, len(y), n):
-            block = y[a : a + n]
-            played += len(block)
-            if realtime:
-                due = t0 + played / sr
-                wait = due - time.monotonic()
-                if wait > 0:
-                    time.sleep(wait)
-                yield Block(np.ascontiguousarray(block, np.float32), due)
-            else:
-                yield Block(np.ascontiguousarray(block, np.float32), time.monotonic())
+        for y in songs:
+            for a in range(0, len(y), n):
+                block = y[a : a + n]
+                played += len(block)
+                if realtime:
+                    due = t0 + played / sr
+                    wait = due - time.monotonic()
+                    if wait > 0:
+                        time.sleep(wait)
+                    yield Block(np.ascontiguousarray(block, np.float32), due)
+                else:
+                    yield Block(np.ascontiguousarray(block, np.float32), time.monotonic())
         if not loop:
             return
 
