@@ -37,6 +37,9 @@ TEMPOGRAM_WINDOW = 384
 LEFT_CONTEXT_S = 1.2
 #: the beat tracker's onset envelope: STFT size and hop at the feature rate (hop 128 at 12.8 kHz: 100 Hz)
 FINE_NFFT, FINE_HOP, FINE_MELS = 1024, 128, 40
+#: the flux of a click peaks 3/8 of a window before the click reaches the window's centre: the beat times
+#: are moved by that (0.03 s at 12.8 kHz; measured on the click tracks of tests/test_live.py)
+FINE_SHIFT = 3 * FINE_NFFT // 8
 
 
 class OnlineChroma:
@@ -168,7 +171,8 @@ class OnlineFeatures:
         self.fine_next = 0  # next fine frame
         self.fine_prev: np.ndarray | None = None
         delay = min(float(lookahead_s), 0.1) if beat_delay_s is None else float(beat_delay_s)
-        self.tracker = BeatTracker(rate=self.fine_rate, delay_s=delay, window_s=beat_window_s)
+        self.tracker = BeatTracker(rate=self.fine_rate, delay_s=delay, window_s=beat_window_s,
+                                   offset_s=FINE_SHIFT / self.sr)
         self.beat_frames: set[int] = set()
         self.downbeat_frames: set[int] = set()
 
