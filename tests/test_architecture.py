@@ -32,14 +32,15 @@ ALLOWED: dict[str, set[str]] = {
     "data": {"audio", "features", "motion", "checkpoints"},
     "training": {"data", "models", "motion", "checkpoints", "features", "audio"},
     "pipelines": {"audio", "features", "motion", "models", "checkpoints"},
+    "live": {"audio", "features", "motion", "models", "checkpoints", "pipelines"},
     "render": {"motion", "audio"},
     "export": {"motion", "render", "audio"},
     "evaluation": {"audio", "features", "motion", "metrics", "models", "checkpoints", "data", "pipelines",
                    "render", "export", "training"},
     "serve": {"audio", "features", "motion", "metrics", "models", "checkpoints", "data", "training", "pipelines",
-              "render", "export", "evaluation"},
+              "live", "render", "export", "evaluation"},
     "cli": {"audio", "features", "motion", "metrics", "models", "checkpoints", "data", "training", "pipelines",
-            "render", "export", "evaluation", "serve"},
+            "live", "render", "export", "evaluation", "serve"},
     "__init__": set(),  # the package root re-exports the errors only
 }
 

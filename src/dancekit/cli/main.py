@@ -38,6 +38,7 @@ VERBS: dict[str, str] = {
     "convert": "dancekit.cli.convert",
     "compose": "dancekit.cli.compose",
     "serve": "dancekit.cli.serve",
+    "live": "dancekit.cli.live",
 }
 
 

@@ -1,0 +1,99 @@
+"""The online stage settings of ``dancekit live`` (:class:`LiveConfig`): one frozen dataclass, units in the names.
+
+Every time below is seconds of audio (the clock of the music), every rate a fraction. The offline stage
+settings live beside the pipelines; these are their online counterparts.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from dancekit.errors import ParameterError
+
+__all__ = ["LiveConfig"]
+
+
+@dataclass(frozen=True)
+class LiveConfig:
+    """Settings of a live session (:class:`dancekit.live.LiveSession`).
+
+    Attributes
+    ----------
+    block_s : length of the audio blocks a file or stdin source delivers (s, > 0); a microphone delivers
+        blocks of this length too
+    lookahead_s : audio after a frame that its features may see before the row is made (s, ≥ 0). The
+        offline extractor's support is about 0.9 s (the lowest constant-Q filter, the MFCC delta's ±4 frames):
+        with ``lookahead_s ≥ EXACT_LOOKAHEAD_S`` the online features equal the offline ones
+        (``tests/test_live.py``); less trades that for latency (0.08 s: the mel spectrogram's own window)
+    model_lookahead_s : feature rows after a frame that the model's music encoder may see (s, ≥ 0; whole
+        frames, rounded up). With ``lookahead_s`` it is the latency floor: ``lookahead_s + model_lookahead_s``
+        plus up to one block
+    context_s : audio history the online features are recomputed over at each block (s, ≥ 5: the constant-Q
+        chromagram's 4 s margin fits)
+    encoder_context_s : music history the Dance Revolution encoder sees for each new latent (s, ≥ 0); its
+        receptive field (4 s for the embedded model) makes the history exact
+    beat_window_s : onset history the beat tracker's tempo and phase are estimated over (s, ≥ 2)
+    smooth_hz : cut-off of the causal one-pole smoothing of the joints (Hz, > 0; ``inf``: off)
+    floor_window_s : the floor is the lowest joint's lowest height over this past window (s, > 0)
+    silence_db : a block whose RMS is below this level (dB full scale) is silence (the dancer calms)
+    calm : how much of the movement is left while the music is silent or not music (0 … 1; offline: 0.4)
+    calm_glide_s : time constant of the glide between dancing and calm (s, > 0)
+    rate_bound : the beat alignment nudges the playback rate of the dance within ``1 ± rate_bound`` (the
+        offline warp's ±15 %)
+    max_lag_s : behind the clock by more than this (s, > 0), the session drops to its lighter path (the
+        chromagram held, not recomputed) and says so; behind by more than ``3 × max_lag_s`` it drops blocks
+    seed : the seed of the model's draws
+    """
+
+    block_s: float = 0.04
+    lookahead_s: float = 0.08
+    model_lookahead_s: float = 0.08
+    context_s: float = 6.0
+    encoder_context_s: float = 4.0
+    beat_window_s: float = 6.0
+    smooth_hz: float = 6.0
+    floor_window_s: float = 2.0
+    silence_db: float = -50.0
+    calm: float = 0.4
+    calm_glide_s: float = 0.5
+    rate_bound: float = 0.15
+    max_lag_s: float = 0.25
+    seed: int = 0
+
+    #: lookahead (s) at which the online features equal the offline extractor's (the constant-Q support)
+    EXACT_LOOKAHEAD_S = 1.0
+
+    def __post_init__(self) -> None:
+        def number(name: str) -> float:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
+                raise ParameterError(f"LiveConfig.{name} must be a number, got {v!r}")
+            return float(v)
+
+        checks = {
+            "block_s": lambda v: 0 < v <= 2.0, "lookahead_s": lambda v: 0 <= v <= 10.0, "model_lookahead_s": lambda v: 0 <= v <= 10.0,
+            "context_s": lambda v: 5.0 <= v <= 60.0, "encoder_context_s": lambda v: 0 <= v <= 60.0,
+            "beat_window_s": lambda v: 2.0 <= v <= 30.0, "smooth_hz": lambda v: v > 0,
+            "floor_window_s": lambda v: 0 < v <= 60.0, "silence_db": lambda v: -120 <= v <= 0,
+            "calm": lambda v: 0 <= v <= 1, "calm_glide_s": lambda v: 0 < v <= 10,
+            "rate_bound": lambda v: 0 <= v < 0.5, "max_lag_s": lambda v: 0 < v <= 10,
+        }
+        ranges = {"block_s": "(0, 2] s", "lookahead_s": "[0, 10] s", "model_lookahead_s": "[0, 10] s", "context_s": "[5, 60] s",
+                  "encoder_context_s": "[0, 60] s", "beat_window_s": "[2, 30] s", "smooth_hz": "> 0 Hz",
+                  "floor_window_s": "(0, 60] s", "silence_db": "[-120, 0] dB", "calm": "[0, 1]",
+                  "calm_glide_s": "(0, 10] s", "rate_bound": "[0, 0.5)", "max_lag_s": "(0, 10] s"}
+        for name, ok in checks.items():
+            if not ok(number(name)):
+                raise ParameterError(f"LiveConfig.{name} must be in {ranges[name]}, got {getattr(self, name)!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int):
+            raise ParameterError(f"LiveConfig.seed must be an integer, got {self.seed!r}")
+
+    @classmethod
+    def from_dict(cls, spec: dict) -> LiveConfig:
+        """A config from a mapping of field names (an unknown key is an error that names it)."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(spec) - known)
+        if unknown:
+            raise ParameterError(f"unknown live setting(s) {unknown}; known: {sorted(known)}")
+        return cls(**spec)

@@ -1,0 +1,245 @@
+"""The dance models stepped frame by frame with their state kept (inference only).
+
+A stepper takes normalised-later feature rows as they come (:meth:`push`, the rows of
+:class:`dancekit.live.OnlineFeatures`) and returns the poses ``(k, J, 3)`` (world positions, the model's
+skeleton and units) of the frames it can dance now; :meth:`finish` dances the rest at the stream's end.
+
+* :class:`RevolutionStepper` (Dance Revolution): the local self-attention encoder looks ``window // 2`` frames
+  ahead in each of its layers (the embedded model: 2 × 50 frames, 4 s at 25 fps). Live, each latent is encoded
+  from the music up to ``lookahead`` frames after it (the frames beyond are not there yet: the encoder sees the
+  stream's end there, as it sees a song's end offline) and ``context`` frames before it. With ``lookahead`` and
+  ``context`` at least the receptive field the latents are the offline ones, and the dance — the LSTM decoder
+  stepped with its state carried from block to block — equals one offline pass (``tests/test_live.py``); the
+  default lookahead is the latency floor's 3 frames, an approximation whose cost the quality benchmark
+  measures. The seed draws the initial state; the checkpoint's per-phrase state noise is drawn phrase by
+  phrase as the phrases come.
+* :class:`Music2DanceStepper` (Music2Dance): the WaveNet is causal; its F_map (convolutions and a BiLSTM) is
+  run on the last ``context`` frames up to ``lookahead`` frames ahead, and each frame is stepped with the
+  model's own :meth:`~dancekit.models.music2dance.Music2DanceModel.step` and its queues (state carried: one
+  offline pass on the same conditions). The motion is decoded from ``rotations_rootdelta`` with the root's
+  place and heading carried.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from dancekit.errors import ParameterError
+from dancekit.motion.kinematics import normalize_bone_lengths
+
+__all__ = ["Music2DanceStepper", "RevolutionStepper", "make_stepper"]
+
+
+class _Stepper:
+    """What both steppers share: the feature history (normalised) and the frame counters."""
+
+    def __init__(self, pipe, *, lookahead: int, context: int):
+        if lookahead < 0 or context < 0:
+            raise ParameterError(f"lookahead and context must be >= 0 frames, got {lookahead}, {context}")
+        self.pipe = pipe
+        self.skeleton = pipe.skeleton
+        self.fps = pipe.fps
+        self.lookahead, self.context = int(lookahead), int(context)
+        self.music = np.zeros((0, pipe.model.config.music_dim), np.float32)  # the history kept
+        self.music_start = 0  # frame index of music[0]
+        self.n_music = 0  # rows received
+        self.n_out = 0  # frames danced
+
+    def _append(self, rows: np.ndarray) -> None:
+        rows = self.pipe.stats.normalize_music(np.asarray(rows, np.float32)).astype(np.float32)
+        self.music = np.concatenate([self.music, rows])
+        self.n_music += len(rows)
+
+    def _trim(self, keep_from: int) -> None:
+        cut = keep_from - self.music_start
+        if cut > 0:
+            self.music = self.music[cut:]
+            self.music_start += cut
+
+    def _window(self, a: int, b: int) -> np.ndarray:
+        return self.music[a - self.music_start : b - self.music_start]
+
+    @torch.no_grad()
+    def push(self, rows: np.ndarray) -> np.ndarray:
+        """Feature rows ``(k, D)`` (unnormalised, the checkpoint's preset) in → poses ``(m, J, 3)`` float32 of the
+        frames whose lookahead has arrived."""
+        self._append(rows)
+        return self._dance(max(self.n_out, self.n_music - self.lookahead))
+
+    @torch.no_grad()
+    def finish(self) -> np.ndarray:
+        """The poses of the frames still waiting for their lookahead (the stream has ended)."""
+        return self._dance(self.n_music)
+
+    def _dance(self, upto: int) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+class RevolutionStepper(_Stepper):
+    """Dance Revolution stepped frame by frame (see the module's description).
+
+    Parameters
+    ----------
+    pipe : a :class:`~dancekit.pipelines.revolution.RevolutionPipeline` (``positions3d``)
+    lookahead, context : frames of music after / before a frame that its latent sees
+    seed : draws the initial decoder state (and the phrase noise)
+    variety : the checkpoint's per-phrase state noise (False: the paper's decoding)
+    """
+
+    def __init__(self, pipe, *, lookahead: int, context: int, seed: int = 0, variety: bool = True):
+        super().__init__(pipe, lookahead=lookahead, context=context)
+        if pipe.representation != "positions3d":
+            raise ParameterError(f"live dancing needs a positions3d model, {pipe.folder} is {pipe.representation}")
+        model = self.model = pipe.model.eval()
+        self.generator = torch.Generator().manual_seed(int(seed))
+        self.state = model.initial_state(1, generator=self.generator, device="cpu")
+        self.prev = model.bop.detach().expand(1, 1, -1)
+        v = pipe.variety if variety else None
+        self.phrase = v.phrase if v is not None and v.phrase > 0 and v.state_noise > 0 else 0
+        self.state_noise = v.state_noise if self.phrase else 0.0
+        self.root = np.zeros(2)  # the root's horizontal place (the integrated velocity)
+        #: True: the decoded positions as they are (the live stages set the bone lengths); False: rest bone
+        #: lengths, as the offline pipeline's ``postprocess`` without its floor
+        self.raw = False
+        J = self.skeleton.num_joints
+        self._vel = slice(3 * J, 3 * J + 2)
+
+    def _dance(self, upto: int) -> np.ndarray:
+        from dancekit.motion.representations import decode_positions
+
+        t0 = self.n_out
+        if upto <= t0:
+            return np.zeros((0, self.skeleton.num_joints, 3), np.float32)
+        a = max(self.music_start, t0 - self.context)
+        b = min(self.n_music, upto + self.lookahead)
+        x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
+        z = self.model._condition(self.model.encoder(x), None)[:, t0 - a : upto - a]  # (1, upto - t0, d)
+        ys = []
+        for p0, p1 in self._pieces(t0, upto):
+            if self.phrase and p0 > 0 and p0 % self.phrase == 0:  # a phrase starts: the state mixed with noise
+                eps = torch.randn((2,) + tuple(self.state[0].shape), generator=self.generator)
+                keep = math.sqrt(1.0 - self.state_noise**2)
+                self.state = (keep * self.state[0] + self.state_noise * eps[0],
+                              keep * self.state[1] + self.state_noise * eps[1])
+            y, self.prev, self.state = self.model._autoregress(z[:, p0 - t0 : p1 - t0], self.prev, self.state)
+            ys.append(y[0])
+        y = torch.cat(ys).numpy()
+        self.n_out = upto
+        self._trim(upto - self.context)
+        poses = self.pipe.stats.denormalize_dance(y).astype(np.float64)  # (k, P)
+        vel = poses[:, self._vel]
+        start = self.root.copy()
+        self.root = self.root + vel.sum(axis=0)
+        pos = decode_positions(poses, self.skeleton).astype(np.float64)  # root path from 0 in this piece
+        _, (h0, h1) = _axes(self.skeleton)
+        pos[..., h0] += start[0]
+        pos[..., h1] += start[1]
+        return np.asarray(pos if self.raw else normalize_bone_lengths(pos, self.skeleton), np.float32)
+
+    def _pieces(self, a: int, b: int) -> list[tuple[int, int]]:
+        if not self.phrase:
+            return [(a, b)]
+        cuts = [a, *range((a // self.phrase + 1) * self.phrase, b, self.phrase), b]
+        return [(x, y) for x, y in zip(cuts[:-1], cuts[1:]) if y > x]
+
+
+def _axes(skeleton):
+    from dancekit.motion.representations import _axes as axes
+
+    return axes(skeleton)
+
+
+class Music2DanceStepper(_Stepper):
+    """Music2Dance stepped frame by frame (see the module's description).
+
+    Parameters
+    ----------
+    pipe : a :class:`~dancekit.pipelines.music2dance.Music2DancePipeline`
+    lookahead, context : frames of music after / before a frame that its F_map condition sees
+    seed : seeds the mixture sampling
+    genre : a dance type of the model, or None / "none" (the model's "no type")
+    """
+
+    def __init__(self, pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None):
+        super().__init__(pipe, lookahead=lookahead, context=context)
+        model = self.model = pipe.model.eval()
+        if model.config.generator != "wavenet":
+            raise ParameterError("live dancing runs the Music2Dance WaveNet, not its LSTM baseline")
+        if genre in (None, "none", "auto"):
+            index = -1
+        elif genre in pipe.genres:
+            index = pipe.genres.index(genre)
+        else:
+            raise ParameterError(f"unknown genre {genre!r}; choose from {', '.join(pipe.genres)} or none")
+        steer = pipe.genre_sampling.get(genre, {}) if index >= 0 else {}
+        self.temperature = float(steer.get("temperature", pipe.temperature))
+        self.rho = float(steer.get("noise_correlation", pipe.noise_correlation))
+        scale = float(steer.get("genre_scale", pipe.genre_scale))
+        self.g = model.guided_genre_vector(torch.tensor([index]), 1, torch.device("cpu"), genre_scale=scale)
+        self.global_term = model.global_proj(self.g)  # (1, L * 2C)
+        self.generator = torch.Generator().manual_seed(int(seed))
+        self.queues = model.init_state(1)
+        self.weights = model._step_weights()
+        self.x = torch.zeros(1, model.config.pose_dim)
+        self.eps = None
+        self.prev_row: np.ndarray | None = None  # the last decoded feature row and where it left the root
+        self.origin = (0.0, 0.0, 0.0)
+
+    def _dance(self, upto: int) -> np.ndarray:
+        from dancekit.models.music2dance import standard_normal
+        from dancekit.motion.root_delta import decode_rootdelta
+
+        t0 = self.n_out
+        J = self.skeleton.num_joints
+        if upto <= t0:
+            return np.zeros((0, J, 3), np.float32)
+        model, c = self.model, self.model.config
+        a = max(self.music_start, t0 - self.context)
+        a -= a % 2  # F_map's stride 2: its windows start on even frames (the history is cut on even frames)
+        b = min(self.n_music, upto + self.lookahead)
+        x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]
+        h = model.music_condition(x)[:, t0 - a : upto - a]  # (1, k, H)
+        cond = (model.local_proj(h) + self.global_term[:, None]).reshape(1, upto - t0, c.n_layers, 2 * c.channels)
+        frames = []
+        for k in range(upto - t0):
+            if self.rho > 0 and self.temperature > 0:
+                eta = standard_normal((1, c.gmm_dim), generator=self.generator, dtype=torch.float32)
+                self.eps = eta if self.eps is None else self.rho * self.eps + math.sqrt(1 - self.rho**2) * eta
+            params = model.step(cond[:, k], self.g, self.x, self.queues, self.weights)
+            self.x = model.predict(params, temperature=self.temperature, generator=self.generator, noise=self.eps)
+            frames.append(self.x[0])
+        self.n_out = upto
+        self._trim((upto - self.context - 2) // 2 * 2)
+        poses = self.pipe.stats.denormalize_dance(torch.stack(frames).numpy().astype(np.float64))  # (k, P)
+        if self.prev_row is None:
+            motion = decode_rootdelta(poses, self.skeleton, self.fps, origin=self.origin)
+            new = slice(0, None)
+        else:
+            motion = decode_rootdelta(np.concatenate([self.prev_row[None], poses]), self.skeleton, self.fps,
+                                      origin=self.origin)
+            new = slice(1, None)
+        tr = motion.root_translation
+        heading = self.origin[2] + float(np.sum(poses[:, 3])) if self.prev_row is not None \
+            else self.origin[2] + float(np.sum(poses[1:, 3]))
+        up = self.skeleton.up_index
+        horiz = [i for i in range(3) if i != up]
+        self.origin = (float(tr[-1, horiz[0]]), float(tr[-1, horiz[1]]), heading)
+        self.prev_row = poses[-1].copy()
+        return np.asarray(motion.positions[new], np.float32)
+
+
+def make_stepper(pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None):
+    """The stepper of a loaded dance pipeline (Dance Revolution or Music2Dance)."""
+    from dancekit.models.music2dance import Music2DanceModel
+    from dancekit.models.revolution import RevolutionModel
+
+    if isinstance(pipe.model, RevolutionModel) or isinstance(getattr(pipe, "_fp32_model", None), RevolutionModel):
+        if genre not in (None, "none", "auto"):
+            raise ParameterError("live Dance Revolution dances the model alone (its genre models need the whole song)")
+        return RevolutionStepper(pipe, lookahead=lookahead, context=context, seed=seed)
+    if isinstance(pipe.model, Music2DanceModel):
+        return Music2DanceStepper(pipe, lookahead=lookahead, context=context, seed=seed, genre=genre)
+    raise ParameterError(f"live dancing runs Dance Revolution and Music2Dance models, not {type(pipe.model).__name__}")

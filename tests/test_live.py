@@ -1,0 +1,308 @@
+"""dancekit live (issue 43): online features, the causal beat tracker, the steppers, the online stages, the
+session, the pose stream and the CLI. Fast: a few seconds of audio each, fed faster than real time where the
+clock does not matter; the 10- and 60-minute runs are benchmarks/bench_live.py."""
+
+from __future__ import annotations
+
+import json
+import threading
+
+import mir_eval
+import numpy as np
+import pytest
+import torch
+
+from dancekit.audio.synth import ode_to_joy
+from dancekit.errors import ParameterError
+from dancekit.features import extract
+from dancekit.live import BeatTracker, LiveConfig, OnlineFeatures
+from dancekit.live.session import Block, LiveSession
+
+SR = 12800  # the feature rate of the embedded models: 25 fps x hop 512
+
+
+@pytest.fixture(scope="module")
+def song():
+    """12 s of a synthetic song with known beats (every 0.5 s: 120 BPM)."""
+    return ode_to_joy(sr=SR, bpm=120)[: 12 * SR].astype(np.float32)
+
+
+def _online(y, *, preset, lookahead_s, block=512):
+    f = OnlineFeatures(preset=preset, fps=25, lookahead_s=lookahead_s)
+    rows = [f.feed(y[a : a + block]) for a in range(0, len(y), block)] + [f.finish()]
+    return f, np.concatenate(rows)
+
+
+# ---------------------------------------------------------------------- config
+@pytest.mark.parametrize("field, value", [("block_s", 0.0), ("lookahead_s", -1.0), ("calm", 1.5),
+                                          ("rate_bound", 0.6), ("smooth_hz", 0.0), ("seed", 1.5),
+                                          ("context_s", 1.0), ("max_lag_s", float("nan"))])
+def test_config_rejects_bad_values(field, value):
+    with pytest.raises(ParameterError, match=f"LiveConfig.{field}"):
+        LiveConfig(**{field: value})
+
+
+def test_config_from_dict_names_an_unknown_key():
+    assert LiveConfig.from_dict({"calm": 0.5}).calm == 0.5
+    with pytest.raises(ParameterError, match="lookahed"):
+        LiveConfig.from_dict({"lookahed": 0.1})
+
+
+# ---------------------------------------------------------------------- features
+def test_online_features_equal_offline_with_full_lookahead(song):
+    """With a lookahead over the features' support the rows are the offline extractor's on the same samples:
+    every column once the loudest frame has been heard (the dB floor is 80 dB under the loudest frame so far),
+    the tempogram delayed by half its window (192 frames), not the beat column (its own tracker)."""
+    off = extract(song, sr=SR, fps=25, preset="revolution")
+    f, on = _online(song, preset="revolution", lookahead_s=1.0)
+    assert on.shape == off.features.shape == (1 + len(song) // 512, 438)
+    from dancekit.features import spectral
+
+    S = spectral.log_melspectrogram(y=song, sr=SR, hop_length=512)
+    loudest = int(np.argmax(S.max(axis=0)))
+    assert loudest < 150  # the loudest frame (4.1 s) comes in the first half: half the song is compared
+    after = slice(loudest + 1, None)
+    for name in ("mfcc", "mfcc_delta", "chroma_cqt", "onset_strength"):
+        a, b = on[after, f.cols[name]], off.features[after, f.cols[name]]
+        np.testing.assert_allclose(a, b, atol=2e-3, rtol=1e-4, err_msg=name)
+    # the tempogram: row f is the offline tempogram (librosa's, centred) of the envelope at frame f - 192
+    tg = f.cols["tempogram"]
+    env = on[:, f.cols["onset_strength"]][:, 0]
+    offline_tg = spectral.tempogram(onset_envelope=env, sr=SR, hop_length=512).T  # (T, 384)
+    np.testing.assert_allclose(on[192:, tg], offline_tg[:-192], atol=1e-4)
+    assert not on[:192, tg].any()  # no window has ended yet
+
+
+def test_online_features_short_lookahead_stays_close(song):
+    """At the default lookahead (0.08 s) the frames' right edge is zero-padded (the song "ends" there): the
+    MFCCs, the onset envelope and the tempogram are still exact; the delta and the chromagram move by a bounded
+    amount (measured here: median 2.0 and 0.02; the chroma is in [0, 1])."""
+    off = extract(song, sr=SR, fps=25, preset="revolution").features
+    f, on = _online(song, preset="revolution", lookahead_s=0.08)
+    from dancekit.features import spectral
+
+    S = spectral.log_melspectrogram(y=song, sr=SR, hop_length=512)
+    k = int(np.argmax(S.max(axis=0))) + 1
+    np.testing.assert_allclose(on[k:, f.cols["mfcc"]], off[k:, f.cols["mfcc"]], atol=2e-3, rtol=1e-4)
+    np.testing.assert_allclose(on[k:, f.cols["onset_strength"]], off[k:, f.cols["onset_strength"]], atol=2e-3)
+    chroma = np.abs(on[k:, f.cols["chroma_cqt"]] - off[k:, f.cols["chroma_cqt"]])
+    assert np.median(chroma) < 0.05 and chroma.max() < 0.6
+
+
+def test_online_features_reject_dual():
+    with pytest.raises(ParameterError, match="dual"):
+        OnlineFeatures(preset="dual", fps=25)
+
+
+# ---------------------------------------------------------------------- beats
+def test_beat_tracker_finds_the_beats_of_a_known_song(song):
+    """The synthetic song's beats are at k · 0.5 s: once settled (after 4 s) every tracked beat is within
+    ±70 ms of one, and the tempo is 120 BPM."""
+    f, _ = _online(song, preset="music2dance", lookahead_s=0.08)
+    times = np.array([b.time for b in f.tracker.beats])
+    truth = np.arange(0, 12, 0.5)
+    score = mir_eval.beat.f_measure(truth[truth > 4], times[times > 4], f_measure_threshold=0.07)
+    assert score >= 0.95
+    assert abs(f.tracker.bpm - 120) < 1.0
+
+
+def test_beat_tracker_click_track_at_another_tempo():
+    """A click track at 97 BPM from 1.3 s: the tempo and the phase follow it (each beat ±70 ms)."""
+    from dancekit.audio.synth import click_track
+
+    y = click_track(bpm=97, duration=14.0, sr=SR, offset=1.3).astype(np.float32)
+    f, _ = _online(y, preset="music2dance", lookahead_s=0.08)
+    times = np.array([b.time for b in f.tracker.beats])
+    truth = 1.3 + np.arange(0, 20) * 60 / 97
+    truth = truth[truth < 13.5]
+    assert mir_eval.beat.f_measure(truth[truth > 5], times[times > 5], f_measure_threshold=0.07) >= 0.95
+    assert abs(f.tracker.bpm - 97) < 1.5
+
+
+def test_beat_tracker_places_no_beat_in_silence():
+    t = BeatTracker(rate=100.0)
+    assert t.feed(np.zeros(1000)) == [] and t.bpm is None
+
+
+def test_beat_tracker_against_the_offline_beats_of_the_same_song():
+    """The live beats against the offline tracker's (:func:`dancekit.features.pulse.song_beats`) on the same
+    song (a synthetic song at 132 BPM: the offline beats are right there), F1 at ±70 ms once settled (after 6 s).
+    Real recordings: docs/results/live_beats.json (measured, not asserted)."""
+    from dancekit.features.pulse import song_beats
+
+    y = ode_to_joy(sr=SR, bpm=132)[: 18 * SR].astype(np.float32)
+    offline = song_beats(y=y, sr=SR).times
+    truth = np.arange(0, 18, 60 / 132)
+    assert mir_eval.beat.f_measure(truth[truth > 6], offline[offline > 6], f_measure_threshold=0.07) > 0.95
+    f, _ = _online(y, preset="music2dance", lookahead_s=0.08)
+    times = np.array([b.time for b in f.tracker.beats])
+    assert mir_eval.beat.f_measure(offline[offline > 6], times[times > 6], f_measure_threshold=0.07) >= 0.9
+
+
+# ---------------------------------------------------------------------- steppers
+@pytest.fixture(scope="module")
+def revolution():
+    from dancekit.pipelines import load_pipeline
+
+    return load_pipeline("revolution")
+
+
+def test_revolution_stepper_equals_one_offline_pass(revolution, rng):
+    """Lookahead and context at the encoder's receptive field (100 frames each side): the latents are the
+    offline ones, and the decoder stepped block by block with its state carried gives the offline dance."""
+    from dancekit.live.steppers import RevolutionStepper
+    from dancekit.motion.kinematics import normalize_bone_lengths
+    from dancekit.motion.representations import decode_positions
+
+    pipe = revolution
+    T = 240
+    raw = rng.standard_normal((T, 438)).astype(np.float32) * pipe.stats.music_std + pipe.stats.music_mean
+    st = RevolutionStepper(pipe, lookahead=100, context=100, seed=5, variety=False)
+    out = [st.push(raw[a : a + 7]) for a in range(0, T, 7)] + [st.finish()]
+    on = np.concatenate(out)
+    x = torch.from_numpy(pipe.stats.normalize_music(raw).astype(np.float32))[None]
+    y = pipe.model.generate(x, generator=torch.Generator().manual_seed(5), variety=None)[0].numpy()
+    off = normalize_bone_lengths(decode_positions(pipe.stats.denormalize_dance(y), pipe.skeleton).astype(np.float64),
+                                 pipe.skeleton)
+    assert on.shape == (T, pipe.skeleton.num_joints, 3)
+    np.testing.assert_allclose(on, off, atol=1e-2)  # cm, float rounding of two encoder chunkings
+
+
+def _tiny_music2dance():
+    """A small Music2Dance model whose music condition is the features themselves (no F_map): causal
+    end to end, so a stepped dance must equal one offline pass whatever the blocks."""
+    from dancekit.checkpoints import NormStats
+    from dancekit.models.music2dance import Music2DanceConfig, Music2DanceModel
+    from dancekit.motion import Skeleton
+    from dancekit.motion.root_delta import rootdelta_layout
+    from dancekit.pipelines import load_pipeline
+    from dancekit.pipelines.music2dance import Music2DancePipeline
+
+    ref = load_pipeline("music2dance")
+    sk = ref.skeleton
+    P = rootdelta_layout(sk).dim
+    torch.manual_seed(0)
+    model = Music2DanceModel(Music2DanceConfig(music_dim=15, pose_dim=P, n_layers=6, channels=8, skip_channels=8,
+                                               music_condition="raw", n_genres=2)).eval()
+    stats = NormStats(music_mean=np.zeros(15, np.float32), music_std=np.ones(15, np.float32),
+                      dance_mean=np.zeros(P, np.float32), dance_std=np.full(P, 0.1, np.float32))
+    meta = {"fps": 25.0, "skeleton": sk.to_dict(), "genres": ["a", "b"],
+            "sampling": {"temperature": 0.7, "noise_correlation": 0.5}}
+    assert isinstance(Skeleton.from_dict(meta["skeleton"]), Skeleton)
+    return Music2DancePipeline(model, meta=meta, stats=stats, folder="tiny")
+
+
+def test_music2dance_stepper_carries_its_state_across_blocks(rng):
+    from dancekit.live.steppers import Music2DanceStepper
+    from dancekit.motion.root_delta import decode_rootdelta
+
+    pipe = _tiny_music2dance()
+    T = 90
+    raw = rng.standard_normal((T, 15)).astype(np.float32)
+    st = Music2DanceStepper(pipe, lookahead=0, context=8, seed=2, genre="b")
+    on = np.concatenate([st.push(raw[a : a + 4]) for a in range(0, T, 4)] + [st.finish()])
+    y = pipe.model.generate(torch.from_numpy(raw)[None], torch.tensor([1]), temperature=0.7,
+                            generator=[torch.Generator().manual_seed(2)], noise_correlation=0.5, reference=True)[0]
+    off = decode_rootdelta(pipe.stats.denormalize_dance(y.numpy().astype(np.float64)), pipe.skeleton, 25.0).positions
+    assert on.shape == off.shape
+    np.testing.assert_allclose(on, off, atol=1e-3)
+
+
+def test_stepper_rejects_an_unknown_genre():
+    from dancekit.live.steppers import Music2DanceStepper
+
+    with pytest.raises(ParameterError, match="unknown genre 'salsa'"):
+        Music2DanceStepper(_tiny_music2dance(), lookahead=0, context=8, genre="salsa")
+
+
+# ---------------------------------------------------------------------- session
+def _blocks(y, n=512, gaps=()):
+    """The song as blocks (arrival: now); the block indices in ``gaps`` are dropped (None)."""
+    import time
+
+    return [Block(None if i in gaps else y[a : a + n], time.monotonic(), n=len(y[a : a + n]))
+            for i, a in enumerate(range(0, len(y), n))]
+
+
+def _speed(p, fps=25.0):
+    return np.linalg.norm(np.diff(p, axis=0), axis=-1).mean(axis=1) * fps  # (T - 1,) cm/s, mean over joints
+
+
+@pytest.mark.parametrize("model", ["revolution", "music2dance"])
+def test_session_dances_silence_and_the_music_coming_back(model, song):
+    """4 s of music, 4 s of silence, 4 s of music again (one block dropped in the middle of the music): every
+    frame comes out, finite, on the floor; in the silence the dancer calms (slower) without freezing, and the
+    music coming back brings the speed back."""
+    y = song.copy()
+    y[4 * SR : 8 * SR] = 0.0
+    s = LiveSession(model)
+    frames = []
+    for b in _blocks(y, gaps={40}):
+        frames.extend(s.feed([b]))
+    frames.extend(s.finish())
+    assert [f.index for f in frames] == list(range(1 + len(y) // 512))
+    p = np.stack([f.joints for f in frames]).astype(np.float64)
+    assert np.isfinite(p).all()
+    up = s.skeleton.up_index
+    assert abs(np.median(p[:, :, up].min(axis=1))) < 2.0  # the lowest joint on the floor (cm)
+    v = _speed(p)
+    music, silence, back = v[50:100].mean(), v[160:200].mean(), v[260:300].mean()
+    assert 0.05 * music < silence < 0.8 * music  # calmer, not frozen
+    assert back > 1.5 * silence
+    assert not any(f.music for f in frames[125:195]) and all(f.music for f in frames[60:95])
+    assert s.stats.dropped_blocks == 1
+
+
+def test_session_latency_is_logged_apart_from_the_lookahead(song):
+    s = LiveSession("revolution")
+    for b in _blocks(song[: 4 * SR], n=512):
+        s.feed([b])
+    lat, look = np.array(s.stats.latency), np.array(s.stats.lookahead)
+    assert len(lat) > 80 and (lat >= look - 1e-9).all() and (look >= 0).all()
+    # the lookahead is 0.08 s of features + 2 frames of the model: the block bringing it is 3-5 blocks of 0.04 s on
+    assert 0.1 < np.median(look) < 0.25
+
+
+# ---------------------------------------------------------------------- pose stream
+def test_pose_stream_client_reads_frames_with_increasing_timestamps(song):
+    """A client of the documented pose stream: the hello (skeleton), then pose frames in order."""
+    from websockets.sync.client import connect
+
+    from dancekit.live.server import PoseServer, hello_message
+
+    s = LiveSession("revolution")
+    server = PoseServer(hello_message(s.skeleton, fps=s.fps, model="revolution"), port=0).start()
+    s.sinks.append(server.send)
+    got: list[dict] = []
+    try:
+        with connect(f"ws://127.0.0.1:{server.port}/poses", open_timeout=10) as ws:
+            hello = json.loads(ws.recv(timeout=10))
+            feeder = threading.Thread(target=lambda: [s.feed([b]) for b in _blocks(song[: 3 * SR])])
+            feeder.start()
+            while len(got) < 40:
+                got.append(json.loads(ws.recv(timeout=20)))
+            feeder.join()
+    finally:
+        server.stop()
+    assert hello["type"] == "hello" and len(hello["parents"]) == len(hello["joint_names"]) == s.skeleton.num_joints
+    assert all(m["type"] == "pose" for m in got)
+    assert [m["frame"] for m in got] == list(range(40))
+    t = np.array([m["t"] for m in got])
+    sent = np.array([m["sent"] for m in got])
+    assert (np.diff(t) > 0).all() and (np.diff(sent) >= 0).all()
+    assert np.array(got[-1]["joints"]).shape == (s.skeleton.num_joints, 3)
+
+
+def test_live_page_is_served():
+    import urllib.request
+
+    from dancekit.live.server import PoseServer
+
+    server = PoseServer({"type": "hello"}, port=0).start()
+    try:
+        html = urllib.request.urlopen(server.url, timeout=10).read().decode()
+        with pytest.raises(urllib.error.HTTPError):
+            urllib.request.urlopen(server.url + "nothing", timeout=10)
+    finally:
+        server.stop()
+    assert "/poses" in html and "<canvas" in html
