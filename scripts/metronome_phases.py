@@ -42,7 +42,7 @@ def main() -> int:
     scores = []
     for k in range(args.draws):
         f1 = []
-        for i, (n, d, rb, bpm) in enumerate(refs):
+        for i, (_n, d, rb, bpm) in enumerate(refs):
             if not math.isfinite(bpm):
                 continue
             rng = np.random.default_rng([k, i])
