@@ -188,3 +188,11 @@ def test_compose_pipeline_follows_a_stepping_dance(tmp_path):
     arr = follow(Motion(skeleton=sk, fps=FPS, positions=pos), key=(2, True))
     assert arr.tempo == pytest.approx(100.0, rel=0.03) and arr.beats_per_bar == 4
     assert beat_f1(arr.beat_times, plants, tolerance=0.08) > 0.9
+
+
+def test_a_given_tempo_is_kept_exactly_and_phased_on_the_pulse():
+    p, truth = _pulse(100.0, seconds=20.0, phase=0.21)
+    arr = follow_dance(p, fps=FPS, key=(0, False), bpm=100.0)
+    assert arr.tempo == pytest.approx(100.0, rel=1e-9)
+    np.testing.assert_allclose(np.diff(arr.beat_times), 0.6, atol=1e-9)
+    assert abs(arr.beat_times[0] - 0.21) <= 0.5 / FPS  # phased on the pulse's bumps

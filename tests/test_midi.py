@@ -197,3 +197,27 @@ def test_a_very_slow_composition_writes_a_midi_file_with_its_beats_in_place(tmp_
     assert midi_file_tempo(500.0) == 250.0
     with pytest.raises(ParameterError):
         midi_file_tempo(0.0)
+
+
+def test_synthesis_cache_gives_the_same_samples():
+    """The per-piece cache of the voices' partials (one computation per pitch) writes the same samples as
+    computing every note on its own."""
+    import pretty_midi
+
+    from dancekit.audio import midi
+
+    pm = pretty_midi.PrettyMIDI()
+    inst, bass = pretty_midi.Instrument(program=0), pretty_midi.Instrument(program=33)
+    for k, t in enumerate(np.arange(0.0, 6.0, 0.45)):
+        inst.notes.append(pretty_midi.Note(velocity=60 + k, pitch=60 + (k % 3) * 4, start=t, end=t + 0.3 + 0.2 * (k % 4)))
+        bass.notes.append(pretty_midi.Note(velocity=90, pitch=36 + (k % 2) * 7, start=t, end=t + 0.4))
+    pm.instruments.extend([inst, bass])
+    y = synthesize(pm, sr=16000)
+    out = np.zeros_like(y, dtype=np.float64)
+    for ins, is_bass in ((inst, False), (bass, True)):
+        for n in ins.notes:
+            tone = midi._tone(n.pitch, n.velocity, n.end - n.start, 16000, bass=is_bass) * (1.4 if is_bass else 0.5)
+            a = int(n.start * 16000)
+            m = min(len(tone), len(out) - a)
+            out[a: a + m] += tone[:m]
+    np.testing.assert_array_equal(y, (out * (0.89 / np.abs(out).max())).astype(np.float32))

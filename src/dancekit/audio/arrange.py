@@ -89,6 +89,10 @@ class DanceArrangement:
         """One per beat, e.g. ``["C", "C", "C", "C", "Am", ...]``."""
         return [PITCH_CLASSES[r] + ("m" if m else "") for r, m in self.chords]
 
+    def bar_chord_names(self) -> list[str]:
+        """One per bar, e.g. ``["C", "F", "G", "C"]``."""
+        return [PITCH_CLASSES[r] + ("m" if m else "") for r, m in self.bar_chords]
+
     def key_name(self) -> str:
         """E.g. ``"A minor"``."""
         return f"{PITCH_CLASSES[self.key[0]]} {'minor' if self.key[1] else 'major'}"
@@ -280,7 +284,8 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
     key : (tonic 0..11, minor): the key every chord belongs to
     chroma : (T, 12) composed chroma (G_D→M) choosing each bar's chord, or None (tonic throughout)
     activation : (T,) composed beat activation (G_D→M) setting accents and piano density, or None (even)
-    bpm : the tempo, or None: :func:`pulse_tempo` with the prior
+    bpm : a tempo kept exactly (a regular grid phased on ``phase_pulse``), or None: :func:`pulse_tempo`'s
+        tempo and beats tracked at it
     beats_per_bar : 3 or 4, or None: :func:`pulse_metre`
     prior_bpm, prior_octaves, fold_from : the tempo rule (:func:`pulse_tempo`)
     phase_pulse : (T,) the curve the beats are tracked on (and the bars found on), or None: ``pulse``
@@ -311,11 +316,20 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
         raise ParameterError(f"phase_pulse must have the pulse's {T} frames, got {len(q)}")
     tonic, minor = int(key[0]) % 12, bool(key[1])
     duration = T / float(fps)
+    fixed = bpm is not None
     if bpm is None:
         bpm = pulse_tempo(p, fps=fps, prior_bpm=prior_bpm, prior_octaves=prior_octaves, fold_from=fold_from)
     elif not (np.isfinite(bpm) and 20.0 <= float(bpm) <= 400.0):
         raise ParameterError(f"tempo must be between 20 and 400 BPM, got {bpm}")
-    if not np.isfinite(bpm) or np.ptp(p) <= 1e-12:
+    if fixed:  # a given tempo is kept exactly: a grid, phased where the phase pulse is strongest on average
+        step = 60.0 / float(bpm)
+        t = np.arange(T) / float(fps)
+        phases = np.arange(0.0, step, 0.5 / fps)
+        score = [np.interp(np.arange(ph, duration, step), t, q).mean() if ph < duration else -1.0 for ph in phases]
+        times = np.arange(phases[int(np.argmax(score))], duration, step)
+        if len(times) == 0:
+            times = np.zeros(1)
+    elif not np.isfinite(bpm) or np.ptp(p) <= 1e-12:
         bpm = float(fallback_bpm)
         times = np.arange(0.0, duration, 60.0 / bpm)
     else:
@@ -324,7 +338,7 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
         times = times[(times >= 0) & (times < duration)]
         if len(times) < 2:
             times = np.arange(0.0, duration, 60.0 / float(bpm))
-    period = float(np.median(np.diff(times))) if len(times) >= 2 else 60.0 / float(bpm)
+    period = 60.0 / float(bpm) if fixed else (float(np.median(np.diff(times))) if len(times) >= 2 else 60.0 / float(bpm))
     bpb = beats_per_bar or pulse_metre(q, fps=fps, bpm=60.0 / period)
     ends = np.append(times[1:], min(duration, times[-1] + period))
     # bars: the first downbeat is the beat where the pulse is strongest over the bar phases

@@ -242,10 +242,8 @@ def _envelope(n: int, sr: int, *, attack: float, release_at: int, release: float
     return env
 
 
-def _tone(pitch: int, velocity: int, length: float, sr: int, *, bass: bool) -> np.ndarray:
-    """A plucked / struck voice: decaying, slightly inharmonic partials (piano-like, or bass-like)."""
-    tail = 0.3
-    n = int((length + tail) * sr)
+def _partials(pitch: int, n: int, sr: int, *, bass: bool) -> np.ndarray:
+    """The undamped-by-envelope sum of :func:`_tone`'s decaying partials over ``n`` samples."""
     t = np.arange(n) / sr
     f0 = _midi_hz(pitch)
     out = np.zeros(n)
@@ -257,6 +255,24 @@ def _tone(pitch: int, velocity: int, length: float, sr: int, *, bass: bool) -> n
         amp = (1.0 / k**2) if bass else (1.0 / k**1.3)
         decay = (1.2 + 1.5 * k) if bass else (0.8 + 0.9 * k)
         out += amp * np.exp(-decay * t) * np.sin(2 * np.pi * fk * t + 0.3 * k)
+    return out
+
+
+def _tone(pitch: int, velocity: int, length: float, sr: int, *, bass: bool,
+          cache: dict | None = None) -> np.ndarray:
+    """A plucked / struck voice: decaying, slightly inharmonic partials (piano-like, or bass-like).
+
+    ``cache``: a dict kept across the notes of one piece; the partials of a (pitch, voice) are computed once,
+    for the longest note asked so far, and sliced (the same samples as computing them for each note)."""
+    tail = 0.3
+    n = int((length + tail) * sr)
+    if cache is None:
+        out = _partials(pitch, n, sr, bass=bass)
+    else:
+        key = (int(pitch), bool(bass), int(sr))
+        if key not in cache or len(cache[key]) < n:
+            cache[key] = _partials(pitch, max(n, int(2.0 * sr)), sr, bass=bass)
+        out = cache[key][:n]
     env = _envelope(n, sr, attack=0.004 if not bass else 0.008, release_at=int(length * sr), release=0.06)
     return out * env * (velocity / 127.0)
 
@@ -283,13 +299,15 @@ def synthesize(midi, *, sr: int = 22050, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     end = float(midi.get_end_time()) + 0.5
     out = np.zeros(int(end * sr) + 1)
+    cache: dict = {}
     for inst in midi.instruments:
         bass = 32 <= inst.program <= 39
         for note in inst.notes:
             if inst.is_drum:
                 y = _drum(note.pitch, note.velocity, sr, rng)
             else:
-                y = _tone(note.pitch, note.velocity, note.end - note.start, sr, bass=bass) * (1.4 if bass else 0.5)
+                y = _tone(note.pitch, note.velocity, note.end - note.start, sr, bass=bass, cache=cache) * (
+                    1.4 if bass else 0.5)
             a = int(note.start * sr)
             m = min(len(y), len(out) - a)
             out[a: a + m] += y[:m]

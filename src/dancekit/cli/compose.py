@@ -1,6 +1,7 @@
 """``dancekit compose MOTION -o OUTDIR``: music for a dance with the dual-learning model's G_D→M.
 
-Writes ``STEM.mid`` (chords, bass, drums on the composed beats), ``STEM.wav`` (FluidSynth when installed, else
+Writes ``STEM.mid`` (by default music that follows the dance: its tempo, beats and metre; chords of the printed
+key changing on bars, chosen by G_D→M; bass and drums on the pulse), ``STEM.wav`` (FluidSynth when installed, else
 the built-in synthesiser) and, unless ``--no-video``, ``STEM.mp4`` and ``STEM.html``: the dance with its new
 music (:func:`dancekit.export.export_motion`). All files appear together or none do.
 """
@@ -99,10 +100,12 @@ def run(args: argparse.Namespace) -> int:
         shutil.rmtree(stage, ignore_errors=True)
     if not args.quiet:
         arr = result.arrangement
-        key = (f"in {arr.key_name()}, {arr.beats_per_bar} beats to a bar" if hasattr(arr, "key_name")
-               else f"from {result.start_chord}")
-        print(f"composed {arr.duration:.1f} s {key}: {len(arr.beat_times)} beats at "
-              f"{arr.tempo:.1f} BPM, chords {' '.join(arr.chord_names()[:8])}{' ...' if len(arr.chords) > 8 else ''} "
+        if hasattr(arr, "key_name"):  # the arranger that follows the dance: one chord per bar
+            what, names, unit = f"in {arr.key_name()}, {arr.beats_per_bar} beats to a bar", arr.bar_chord_names(), "bar"
+        else:
+            what, names, unit = f"from {result.start_chord}", arr.chord_names(), "beat"
+        print(f"composed {arr.duration:.1f} s {what}: {len(arr.beat_times)} beats at {arr.tempo:.1f} BPM, chords "
+              f"(one per {unit}) {' '.join(names[:8])}{' ...' if len(names) > 8 else ''} "
               f"in {time.perf_counter() - t0:.1f} s")
         for path in files:
             print(f"  {path}")

@@ -352,6 +352,48 @@ class Seq2Seq(nn.Module):
             frames.append(torch.sigmoid(y) if self.sigmoid else y)
         return torch.cat(frames, dim=1)
 
+    @torch.no_grad()
+    def rollout_cached(self, memory: torch.Tensor, start: torch.Tensor, n: int) -> torch.Tensor:
+        """:meth:`rollout` for inference (eval mode, no gradient), faster: the cross-attention keys and values
+        of ``memory`` are projected once per layer, and each new frame's self-attention key and value are
+        projected once and appended to a per-layer cache (:meth:`rollout` re-projects the whole prefix and the
+        whole memory at every frame). The same function to float rounding (tests/test_arrange.py); G_D→M's
+        composing uses it (:meth:`DualModel.generate_music`)."""
+        import torch.nn.functional as F
+
+        B, _, d = memory.shape
+        layers = list(self.decoder.layers)
+        H = layers[0].self_attn.num_heads
+        dh = d // H
+        pe = sinusoidal_encoding(n, d, device=memory.device, dtype=memory.dtype)
+
+        def heads(x: torch.Tensor) -> torch.Tensor:  # (B, L, d) -> (B, H, L, dh)
+            return x.view(B, -1, H, dh).transpose(1, 2)
+
+        cross = []
+        for layer in layers:
+            w, b = layer.multihead_attn.in_proj_weight, layer.multihead_attn.in_proj_bias
+            cross.append((heads(F.linear(memory, w[d:2 * d], b[d:2 * d])), heads(F.linear(memory, w[2 * d:], b[2 * d:]))))
+        keys = [memory.new_zeros(B, H, n, dh) for _ in layers]
+        values = [memory.new_zeros(B, H, n, dh) for _ in layers]
+        frames = [start[:, None, :]]
+        for t in range(n - 1):
+            h = self.tgt_embed(frames[-1]) + pe[t]  # (B, 1, d)
+            for i, layer in enumerate(layers):
+                sa = layer.self_attn
+                q, k, v = F.linear(layer.norm1(h), sa.in_proj_weight, sa.in_proj_bias).split(d, dim=-1)
+                keys[i][:, :, t: t + 1], values[i][:, :, t: t + 1] = heads(k), heads(v)
+                a = F.scaled_dot_product_attention(heads(q), keys[i][:, :, : t + 1], values[i][:, :, : t + 1])
+                h = h + sa.out_proj(a.transpose(1, 2).reshape(B, 1, d))
+                ca = layer.multihead_attn
+                qc = F.linear(layer.norm2(h), ca.in_proj_weight[:d], ca.in_proj_bias[:d])
+                a = F.scaled_dot_product_attention(heads(qc), *cross[i])
+                h = h + ca.out_proj(a.transpose(1, 2).reshape(B, 1, d))
+                h = h + layer._ff_block(layer.norm3(h))
+            y = self.head(self.decoder.norm(h))
+            frames.append(torch.sigmoid(y) if self.sigmoid else y)
+        return torch.cat(frames, dim=1)
+
     def generate_full(self, src: torch.Tensor, start: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
         """:meth:`generate` by re-decoding the whole prefix at every step (the reference for its tests)."""
         memory = self.encode(src)  # (B, T, d)
@@ -519,11 +561,12 @@ class DualModel(nn.Module):
     @torch.no_grad()
     def generate_music(self, dance: torch.Tensor, *, start: torch.Tensor) -> torch.Tensor:
         """Chroma + beat for a dance of any length: ``dance (B, n, P)``, ``start (B, 13)`` → (B, n, 13)."""
-        return self._generate(self.d2m, dance, start)
+        return self._generate(self.d2m, dance, start, cached=True)
 
-    def _generate(self, net: Seq2Seq, src: torch.Tensor, start: torch.Tensor, *,
+    def _generate(self, net: Seq2Seq, src: torch.Tensor, start: torch.Tensor, *, cached: bool = False,
                   generator: torch.Generator | None = None, latent: bool = False) -> torch.Tensor:
         """Windows of T frames overlapping by one; each starts from the last generated frame of the previous.
+        ``cached``: decode with :meth:`Seq2Seq.rollout_cached` (G_D→M) instead of :meth:`Seq2Seq.generate`.
 
         Runs on one torch thread (restored after): the incremental decoding's attention rounds differently
         with 2 threads than with 1 (1e-6 of a unit per window on the embedded model), and one thread is as fast
@@ -545,7 +588,8 @@ class DualModel(nn.Module):
                 if latent:
                     z = torch.randn(B, self.config.latent_dim, generator=generator)  # (B, Z) from the prior
                     cond = self.m2d_latent(z.to(src.device, src.dtype))  # (B, d)
-                y = net.generate(chunk, prev, cond)  # (B, ≤T, out)
+                y = (net.rollout_cached(net.encode(chunk), prev, chunk.shape[1]) if cached
+                     else net.generate(chunk, prev, cond))  # (B, ≤T, out)
                 out.append(y[:, 1:])
                 prev, s = y[:, -1], s + chunk.shape[1] - 1
             return torch.cat(out, dim=1)
