@@ -26,7 +26,7 @@ def pulse_of(motion: Motion) -> np.ndarray:
     """The dance's pulse curve ``(T,)`` at ``motion.fps``: :func:`~dancekit.audio.arrange.dance_pulse` of the
     summed speed of the ankles (the steps; every joint when the skeleton has no ankles), smoothed by a
     Gaussian of 0.04 s."""
-    from dancekit.motion._filters import gaussian_filter1d
+    from dancekit.motion.filters import gaussian_filter1d
 
     p = np.asarray(motion.to_positions(), np.float64)
     sk = motion.skeleton
