@@ -1,7 +1,8 @@
 """No document or test names a script or a figure that is not in the checkout.
 
-A script of benchmarks/ or scripts/ named in README.md, Makefile, docs/ (with docs/research/) or tests/ must exist;
-a deleted one is named with the commit that has it (``264b8a3:benchmarks/NAME.py``, as ``git show`` reads it).
+A script of benchmarks/ or scripts/ named in README.md, Makefile, .ci/, docs/ (with docs/research/) or tests/ must
+exist; a deleted one is named with the commit that has it (``264b8a3:benchmarks/NAME.py``, as ``git show`` reads
+it).
 An image a markdown file shows (``![...](path.png)``) must exist beside it."""
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ IMAGE = re.compile(r"!\[[^\]]*\]\(([^)\s]+\.png)\)")
 
 
 def _documents() -> list[Path]:
-    files = [ROOT / "README.md", ROOT / "Makefile", *sorted((ROOT / "docs").rglob("*.md")),
+    files = [ROOT / "README.md", ROOT / "Makefile", *sorted((ROOT / ".ci").glob("*")),
+             *sorted((ROOT / "docs").rglob("*.md")),
              *sorted(f for f in (ROOT / "tests").glob("*.py") if f.name != Path(__file__).name)]
     return [f for f in files if f.is_file()]
 
