@@ -66,6 +66,16 @@ def _timed(name: str, argv: list[str], env: dict, repeats: int, per_minute: floa
     return row
 
 
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--song", type=Path, default=DEFAULT_SONG)
@@ -111,8 +121,8 @@ def main() -> None:
         "command": "python benchmarks/bench_doors.py --song ../shared/music/Kevin_MacLeod_-_Vibe_Ace.ogg "
                    f"--seconds {args.seconds:g} --repeats {args.repeats}" + (f" --only {args.only}" if only != {
                        "dance", "seeds", "render", "tools"} else ""),
-        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores (shared with other jobs: see "
-                   "load1_before), Python {platform.python_version()}",
+        "machine": f"{_cpu_model()}, {os.cpu_count()} cores (shared with other jobs: see "
+                   f"load1_before), Python {platform.python_version()}",
         "date": datetime.date.today().isoformat(),
         "columns": cols,
         "rows": [[r[c] for c in cols] for r in rows],

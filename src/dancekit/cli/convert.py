@@ -30,7 +30,7 @@ def add_parser(subparsers) -> None:
                    help="motion file or folder (npz, bvh, glb, pkl, OpenPose or tang2018 folder)")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output .npz, .bvh, .glb, .pkl, or a folder (keypoint JSON files)")
-    p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first (slerp)")
+    p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first (slerp; at most 240)")
     p.add_argument("--bvh-rig", choices=("exact", "humanoid"), default="exact",
                    help="BVH rig: the skeleton's own joints (default) or a standard humanoid (Mixamo-like names)")
     p.add_argument("--keypoints", choices=("body25", "coco17", "coco18"), default="body25",

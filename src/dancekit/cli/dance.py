@@ -71,7 +71,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="BVH and FBX rig: the skeleton's own joints (exact, default) or a standard humanoid "
                         "(Hips/Spine/Neck/Head, Mixamo-like names, for retargeting in Blender or Unity)")
     p.add_argument("--fps", type=float, default=None,
-                   help="frame rate of the outputs (resampled with slerp; default: the model's)")
+                   help="frame rate of the outputs (resampled with slerp; at most 240; default: the model's)")
     p.add_argument("--figure", choices=("stick", "body"), default="stick",
                    help="how the mp4 and the html player draw the dancer: stick (default) or body "
                         "(shaded volumetric mannequin)")

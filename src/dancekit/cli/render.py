@@ -45,7 +45,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--width", type=int, help="video width in pixels (mp4 only; default 640)")
     p.add_argument("--height", type=int, help="video height in pixels (mp4 only; default 480)")
     p.add_argument("--title", help="page title (html only; default: the output's file name)")
-    p.add_argument("--fps", type=float, help="frame rate of the render (the motion resampled with slerp)")
+    p.add_argument("--fps", type=float, help="frame rate of the render (the motion resampled with slerp; at most 240)")
     p.add_argument("--figure", choices=("stick", "body"), default=None,
                    help="mp4 and html player: stick figure (default) or body (shaded volumetric mannequin)")
     p.add_argument("--format", choices=("mp4", "html", "glb-html"), default=None, dest="kind",
