@@ -27,14 +27,8 @@ from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_rot6d, encode_motion
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
-from dancekit.pipelines.stages import (
-    energy_options,
-    finish,
-    jitter_cap_setting,
-    plausible_jitter_cap,
-    seed_trace,
-    song_beats_for,
-)
+from dancekit.pipelines.config import CheckpointSettings, DualSampling, StageConfig, checkpoint_settings
+from dancekit.pipelines.stages import Song, finish, seed_trace
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -60,8 +54,11 @@ class DualPipeline:
     """Music → dance with G_M→D: a song → :class:`~dancekit.pipelines.DanceResult`."""
 
     def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
-                 genre_reader=None):
+                 genre_reader=None, settings: CheckpointSettings | None = None):
         self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
+        #: the checkpoint's stage settings and sampling (:func:`~dancekit.pipelines.config.checkpoint_settings`)
+        self.settings = settings if settings is not None else checkpoint_settings(meta, folder=folder,
+                                                                                  sampling=DualSampling)
         #: a :class:`~dancekit.pipelines.music_attributes.MusicAttributePipeline` (the checkpoint's
         #: ``"genre_reader"`` component) or None: the model has no genre input, but the energy stage's floor
         #: follows the genre the music calls for (``stages.energy_floor``)
@@ -70,17 +67,13 @@ class DualPipeline:
         self.hop_length = int(meta.get("hop_length", 512))
         self.preset = str(meta.get("preset", "dual"))
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
-        self.smooth_frames = int(meta.get("smooth_frames", 1))  # the checkpoint's sampling setting
-        lp = meta.get("lowpass_hz")  # the checkpoint's low-pass cut-off (Hz); when set, used instead of smooth_frames
-        self.lowpass_hz = None if lp is None else float(lp)
+        sampling = self.settings.sampling
+        self.smooth_frames = sampling.smooth_frames  # the checkpoint's sampling setting
+        #: the checkpoint's low-pass cut-off (Hz); when set, used instead of smooth_frames
+        self.lowpass_hz = sampling.lowpass_hz
         #: how the root's 6D is decoded: "gram_schmidt" (as in training) or "procrustes" (chosen on the validation
         #: songs for the shipped model: its root heading column is short and noisy, docs/DUAL.md)
-        self.root_decode = str(meta.get("root_6d_decode", "gram_schmidt"))
-        #: the per-dance jitter cap (issue 15), as music2dance's: the checkpoint's ``"jitter_cap"`` entry
-        #: (:func:`~dancekit.pipelines.stages.jitter_cap_from_entry`) over the genres the ``genre_reader`` reads
-        #: from the song; None: no cap
-        self.jitter_cap, self.jitter_after_lock, self.jitter_to_end = jitter_cap_setting(meta.get("jitter_cap"),
-                                                                                         folder=folder)
+        self.root_decode = sampling.root_6d_decode
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu", precision: str = "fp32") -> DualPipeline:
@@ -98,7 +91,9 @@ class DualPipeline:
             from dancekit.pipelines.music_attributes import MusicAttributePipeline
 
             reader = MusicAttributePipeline.from_pretrained(parts["genre_reader"], device=device)
-        pipe = cls(to_precision(model, precision), meta=meta, stats=stats, folder=str(folder), genre_reader=reader)
+        settings = checkpoint_settings(meta, folder=folder, sampling=DualSampling)
+        pipe = cls(to_precision(model, precision), meta=meta, stats=stats, folder=str(folder), genre_reader=reader,
+                   settings=settings)
         pipe.precision = precision
         return pipe
 
@@ -164,10 +159,13 @@ class DualPipeline:
         # (and row), so a batch would not give bit for bit the dance of the seed alone
         y = np.stack([self.model.generate_dance(feats, start=s[k : k + 1])[0].cpu().numpy()
                       for k in range(len(seeds))])  # (B, T, P)
-        results, beats = [], None
+        results = []
+        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
+        config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
+        stages = config
         probs = {}  # the genres the music calls for, read only where the energy floor or the jitter cap needs them
-        if cleanup and self.genre_reader is not None and (energy_options(self.folder).get("genre_energy")
-                                                          or self.jitter_cap is not None):
+        if cleanup and self.genre_reader is not None and ((stages.lift_energy is not None and stages.genre_stats.energy)
+                                                          or stages.jitter_cap is not None):
             probs = self.genre_reader(audio_path, start=start, end=end)
         for k, seed in enumerate(seeds):
             motion = decode_rot6d(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
@@ -176,23 +174,13 @@ class DualPipeline:
                                  genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
             result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
                                        hop_length=self.hop_length, start=start, end=end)
-            if beat_sync and result.looks_like_music and beats is None:
-                beats = song_beats_for(audio_path, start=start, end=end)
-            results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
-                                  cleanup_on=cleanup, beats=beats, trace=seed_trace(stage_trace, k),
-                                  **self.stage_options(result)))
+            results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
         return results
 
-    def stage_options(self, result: DanceResult) -> dict[str, Any]:
-        """What :func:`~dancekit.pipelines.stages.finish` needs to know of this checkpoint for one of its dances
-        beside the stage switches: the ``"jitter_cap"`` entry's cap for a song whose genre posterior (read by the
-        ``genre_reader``) is ``result.genre_probs`` (none without the entry, a posterior, or for a song that does
-        not look like music), where it runs and whether it holds to the end; ``dancekit dance`` asks every
-        pipeline the same."""
-        if self.jitter_cap is None or not result.genre_probs or not result.looks_like_music:
-            return {}
-        return {"max_jitter": plausible_jitter_cap(result.genre_probs, **self.jitter_cap),
-                "jitter_after_lock": self.jitter_after_lock, "jitter_to_end": self.jitter_to_end}
+    def stage_options(self, **switches) -> StageConfig:
+        """The checkpoint's stage configuration switched as given (:meth:`StageConfig.switched
+        <dancekit.pipelines.config.StageConfig.switched>`), what :func:`~dancekit.pipelines.stages.finish` runs."""
+        return self.settings.stages.switched(**switches)
 
     def output_filter(self, y: np.ndarray, smooth_frames: int | None = None,
                       lowpass_hz: float | None = None) -> np.ndarray:
@@ -244,9 +232,10 @@ class ComposePipeline:
         self.fps = float(meta["fps"])
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         # beat picking, the checkpoint's composing settings (chosen on the validation dances, docs/DUAL.md)
-        self.beat_threshold = float(meta.get("beat_threshold", 0.5))
-        self.beat_min_gap = float(meta.get("beat_min_gap", 0.25))
-        self.beat_tempo = meta.get("beat_tempo", "auto")  # "auto" (thresholded peaks) or "periodic"
+        sampling = checkpoint_settings(meta, folder=folder, sampling=DualSampling).sampling
+        self.beat_threshold = sampling.beat_threshold
+        self.beat_min_gap = sampling.beat_min_gap
+        self.beat_tempo = sampling.beat_tempo  # "auto" (thresholded peaks) or "periodic"
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> ComposePipeline:
