@@ -20,38 +20,48 @@ from typing import Any
 import numpy as np
 import torch
 
-from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
+from dancekit.checkpoints import NormStats, load_pretrained, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
-from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_rot6d, encode_motion
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
-from dancekit.pipelines.config import CheckpointSettings, DualSampling, StageConfig, checkpoint_settings
+from dancekit.pipelines.config import CheckpointSettings, DualSampling, checkpoint_settings
+from dancekit.pipelines.dance import DancePipeline
 from dancekit.pipelines.stages import Song, finish, seed_trace
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
     folder = resolve_model(folder)
     model, meta, arrays = load_pretrained(folder, device=device)
+    stats = NormStats.from_arrays(arrays, source=str(folder))  # a copy: the raw columns are set below
+    model, meta, stats = _checked(model, meta, stats, folder)
+    return model, meta, stats, Path(folder)
+
+
+def _checked(model, meta: dict[str, Any], stats: NormStats, folder) -> tuple[DualModel, dict[str, Any], NormStats]:
+    """A loaded dual checkpoint checked (the family, fps and skeleton, the statistics' sizes, rot6d), with the
+    raw columns of its statistics (chroma + beat, the 6D) set to mean 0 and std 1, as in training."""
     if not isinstance(model, DualModel):
         raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a dual-learning model")
     missing = [k for k in ("skeleton", "fps") if k not in meta]
     if missing:
         raise CheckpointError(f"checkpoint {folder}: config.json lacks {missing}")
     c = model.config
-    stats = NormStats.from_arrays(arrays, source=str(folder))  # a copy: the raw columns are set below
     if len(stats.music_mean) != c.music_dim or len(stats.dance_mean) != c.pose_dim:
         raise CheckpointError(f"checkpoint {folder}: statistics do not match the model's music_dim / pose_dim")
     stats.music_mean[c.music_raw_from:], stats.music_std[c.music_raw_from:] = 0.0, 1.0
     stats.dance_mean[c.dance_raw_from:], stats.dance_std[c.dance_raw_from:] = 0.0, 1.0
     if meta.get("representation", "rot6d") != "rot6d":
         raise CheckpointError(f"checkpoint {folder}: a dual model works on rot6d, not {meta['representation']!r}")
-    return model.eval(), meta, stats, Path(folder)
+    return model.eval(), meta, stats
 
 
-class DualPipeline:
+class DualPipeline(DancePipeline):
     """Music → dance with G_M→D: a song → :class:`~dancekit.pipelines.DanceResult`."""
+
+    family = "dual"
+    sampling_config = DualSampling
 
     def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
                  genre_reader=None, settings: CheckpointSettings | None = None):
@@ -76,26 +86,17 @@ class DualPipeline:
         self.root_decode = sampling.root_6d_decode
 
     @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu", precision: str = "fp32") -> DualPipeline:
-        """A ``dual`` checkpoint folder or model name (:func:`dancekit.checkpoints.resolve_model`); ``precision``:
-        ``"fp32"``, ``"bf16"`` or ``"int8"`` for G_M→D (:func:`dancekit.models.precision.to_precision`)."""
-        check_precision(precision)
-        model, meta, stats, folder = _load(folder, device)
-        parts = components(folder, meta)
-        unknown = sorted(set(parts) - {"genre_reader"})
-        if unknown:
-            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a dual-learning model "
-                                  "(it understands 'genre_reader')")
+    def from_parts(cls, model, *, meta, stats, folder, settings, parts, device) -> DualPipeline:
+        """The dual checkpoint's checks (:func:`_checked`: the family, the raw statistics columns, rot6d) and its
+        ``"genre_reader"``; the rest is :meth:`DancePipeline.from_pretrained
+        <dancekit.pipelines.dance.DancePipeline.from_pretrained>`'s."""
+        model, meta, stats = _checked(model, meta, stats, folder)
         reader = None
         if "genre_reader" in parts:
             from dancekit.pipelines.music_attributes import MusicAttributePipeline
 
             reader = MusicAttributePipeline.from_pretrained(parts["genre_reader"], device=device)
-        settings = checkpoint_settings(meta, folder=folder, sampling=DualSampling)
-        pipe = cls(to_precision(model, precision), meta=meta, stats=stats, folder=str(folder), genre_reader=reader,
-                   settings=settings)
-        pipe.precision = precision
-        return pipe
+        return cls(model, meta=meta, stats=stats, folder=str(folder), genre_reader=reader, settings=settings)
 
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:
@@ -176,11 +177,6 @@ class DualPipeline:
                                        hop_length=self.hop_length, start=start, end=end)
             results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
         return results
-
-    def stage_options(self, **switches) -> StageConfig:
-        """The checkpoint's stage configuration switched as given (:meth:`StageConfig.switched
-        <dancekit.pipelines.config.StageConfig.switched>`), what :func:`~dancekit.pipelines.stages.finish` runs."""
-        return self.settings.stages.switched(**switches)
 
     def output_filter(self, y: np.ndarray, smooth_frames: int | None = None,
                       lowpass_hz: float | None = None) -> np.ndarray:

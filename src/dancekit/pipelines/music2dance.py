@@ -22,31 +22,25 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
+from dancekit.checkpoints import NormStats
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.music2dance import Music2DanceModel
-from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
-from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
-from dancekit.pipelines.config import (
-    CheckpointSettings,
-    Music2DanceSampling,
-    StageConfig,
-    checkpoint_settings,
-)
+from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds
+from dancekit.pipelines.config import CheckpointSettings, Music2DanceSampling, checkpoint_settings
+from dancekit.pipelines.dance import DancePipeline
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 from dancekit.pipelines.stages import Song, finish, seed_trace
 
 
-class Music2DancePipeline:
+class Music2DancePipeline(DancePipeline):
     """Generate a dance for a whole song with a trained :class:`Music2DanceModel`.
 
     Parameters
@@ -56,6 +50,10 @@ class Music2DancePipeline:
     stats : the normalisation statistics
     genre_reader : a music attribute classifier for ``genre="auto"`` (or None)
     """
+
+    family = "music2dance"
+    sampling_config = Music2DanceSampling
+    component_names = ("genre_reader", "foot_constraint")  # the foot model: dancekit dance --foot-constraint
 
     def __init__(self, model: Music2DanceModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
                  genre_reader: MusicAttributePipeline | None = None, settings: CheckpointSettings | None = None):
@@ -73,7 +71,7 @@ class Music2DancePipeline:
         self.preset = str(meta.get("preset", "music2dance"))
         self.hop_length = int(meta.get("hop_length", 512))
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
-        self.genres = tuple(meta.get("genres", ()))[: model.config.n_genres]
+        self._genres = tuple(meta.get("genres", ()))[: model.config.n_genres]
         self.genre_reader = genre_reader
         #: the checkpoint's stage settings and sampling (:func:`~dancekit.pipelines.config.checkpoint_settings`)
         self.settings = settings if settings is not None else checkpoint_settings(meta, folder=folder,
@@ -106,39 +104,10 @@ class Music2DancePipeline:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
 
-    @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu",
-                        precision: str = "fp32") -> Music2DancePipeline:
-        """Load a checkpoint folder (``dancekit train music2dance``) or a model name (:func:`resolve_model`);
-        ``precision``: ``"fp32"``, ``"bf16"`` or ``"int8"`` decoding (:func:`dancekit.models.precision.to_precision`).
-
-        Raises
-        ------
-        CheckpointError
-            For a missing or corrupt folder, or one that holds another model family.
-        """
-        check_precision(precision)
-        folder = resolve_model(folder)
-        model, meta, arrays = load_pretrained(folder, device=device)
-        stats = NormStats.from_arrays(arrays, source=str(folder))
-        parts = components(folder, meta)
-        unknown = sorted(set(parts) - {"genre_reader", "foot_constraint"})  # the foot model: dancekit dance --foot-constraint
-        if unknown:
-            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a Music2Dance model")
-        reader = parts.get("genre_reader")
-        reader = None if reader is None else MusicAttributePipeline.from_pretrained(reader, device=device)
-        settings = checkpoint_settings(meta, folder=Path(folder), sampling=Music2DanceSampling)
-        pipe = cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_reader=reader, settings=settings)
-        pipe.model = to_precision(pipe.model, precision)
-        pipe.precision = precision
-        return pipe
-
-    def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
-                 end: float | None = None) -> np.ndarray:
-        """Normalised music features (T, music_dim) of the song (excerpt) at the checkpoint's fps."""
-        feats = song_features(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
-                              music_dim=self.model.config.music_dim, start=start, end=end)
-        return self.stats.normalize_music(feats)
+    @property
+    def genres(self) -> tuple[str, ...]:
+        """The dance types of the model's genre condition (in its order)."""
+        return self._genres
 
     def _genre(self, genre: str | None, audio_path, start, end) -> tuple[str, str | None, dict[str, float]]:
         requested = "auto" if genre is None else str(genre)
@@ -270,11 +239,6 @@ class Music2DancePipeline:
                                         hop_length=self.hop_length, start=start, end=end)
             out[-1] = finish(out[-1], song, config, trace=seed_trace(stage_trace, k))
         return out
-
-    def stage_options(self, **switches) -> StageConfig:
-        """The checkpoint's stage configuration switched as given (:meth:`StageConfig.switched
-        <dancekit.pipelines.config.StageConfig.switched>`), what :func:`~dancekit.pipelines.stages.finish` runs."""
-        return self.settings.stages.switched(**switches)
 
 
 def on_the_floor(motion: Motion) -> Motion:

@@ -48,9 +48,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
+from dancekit.checkpoints import NormStats
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.models.precision import check_precision, to_precision
+from dancekit.models.precision import to_precision
 from dancekit.models.revolution import RevolutionModel, SeedVariety
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, get_representation
@@ -60,14 +60,14 @@ from dancekit.pipelines.base import (
     check_seeds,
     clean_motion,
     song_feature_set,
-    song_features,
 )
-from dancekit.pipelines.config import CheckpointSettings, RevolutionSampling, StageConfig, checkpoint_settings
+from dancekit.pipelines.config import CheckpointSettings, RevolutionSampling, checkpoint_settings
+from dancekit.pipelines.dance import DancePipeline
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
 from dancekit.pipelines.stages import Song, finish, genre_jitter_table, seed_trace
 
 
-class RevolutionPipeline:
+class RevolutionPipeline(DancePipeline):
     """Generate a dance for a whole song with a trained :class:`RevolutionModel`.
 
     Parameters
@@ -77,6 +77,10 @@ class RevolutionPipeline:
         ``representation`` and ``hop_length`` default to ``revolution``, ``positions3d`` and 512)
     stats : the normalisation statistics (``music_mean``, ``music_std``, ``dance_mean``, ``dance_std``)
     """
+
+    family = "revolution"
+    sampling_config = RevolutionSampling
+    component_names = ("genres", "genre_reader")
 
     def __init__(self, model: RevolutionModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
                  genre_models: dict[str, Path] | None = None, genre_reader: MusicAttributePipeline | None = None,
@@ -125,29 +129,10 @@ class RevolutionPipeline:
             )
 
     @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu",
-                        precision: str = "fp32") -> RevolutionPipeline:
-        """Load a model: a checkpoint folder written by ``dancekit train revolution`` (or ``save_pretrained``),
-        or a model name (:func:`dancekit.checkpoints.resolve_model`). ``precision``: ``"fp32"``, ``"bf16"``
-        or ``"int8"`` decoding (:func:`dancekit.models.precision.to_precision`; genre models too).
-
-        The components its ``config.json`` declares are found here: genre models (``"genres"``, loaded when
-        first asked for) and a music attribute classifier (``"genre_reader"``, loaded here).
-
-        Raises
-        ------
-        CheckpointError
-            For a missing or corrupt folder, or one that holds another model family.
-        """
-        check_precision(precision)
-        folder = resolve_model(folder)
-        model, meta, arrays = load_pretrained(folder, device=device)
-        stats = NormStats.from_arrays(arrays, source=str(folder))
-        parts = components(folder, meta)
-        unknown_parts = sorted(set(parts) - {"genres", "genre_reader"})
-        if unknown_parts:
-            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown_parts} for a Dance Revolution "
-                                  "model (it understands 'genres' and 'genre_reader')")
+    def from_parts(cls, model, *, meta, stats, folder, settings, parts, device) -> RevolutionPipeline:
+        """The components its ``config.json`` declares: genre models (``"genres"``, loaded when first asked for)
+        and a music attribute classifier (``"genre_reader"``, loaded here); the rest is
+        :meth:`DancePipeline.from_pretrained <dancekit.pipelines.dance.DancePipeline.from_pretrained>`'s."""
         genre_models = dict(parts.get("genres", {}))
         known = set(meta.get("genres", ()))
         unknown = sorted(set(genre_models) - known) if known else []
@@ -155,11 +140,8 @@ class RevolutionPipeline:
             raise CheckpointError(f"checkpoint {folder}: genre models {unknown} are not genres of its data {sorted(known)}")
         reader_folder = parts.get("genre_reader")
         reader = None if reader_folder is None else MusicAttributePipeline.from_pretrained(reader_folder, device=device)
-        settings = checkpoint_settings(meta, folder=Path(folder), sampling=RevolutionSampling)
-        pipe = cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
+        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
                    genre_reader=reader, settings=settings)
-        pipe.set_precision(precision)
-        return pipe
 
     def set_precision(self, precision: str) -> None:
         """Decode at ``precision`` from now on (``"fp32"``, ``"bf16"`` or ``"int8"``; genre models too)."""
@@ -169,13 +151,6 @@ class RevolutionPipeline:
         self.precision = precision
         for pipe in self._genre_pipelines.values():
             pipe.set_precision(precision)
-
-    def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
-                 end: float | None = None) -> np.ndarray:
-        """Normalised music features (T, music_dim) of the song (excerpt) at the checkpoint's fps."""
-        feats = song_features(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
-                              music_dim=self.model.config.music_dim, start=start, end=end)
-        return self.stats.normalize_music(feats)
 
     @torch.no_grad()
     def __call__(
@@ -310,13 +285,6 @@ class RevolutionPipeline:
                                  beat_strength=float(strength), looks_like_music=music, genre_drawn_p=drawn_p)
             results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
         return results
-
-    def stage_options(self, **switches) -> StageConfig:
-        """The checkpoint's stage configuration switched as given (:meth:`StageConfig.switched
-        <dancekit.pipelines.config.StageConfig.switched>`: ``beat_sync``, ``cleanup``, ``foot_lock``, ``smooth``,
-        ``energy``), what :func:`~dancekit.pipelines.stages.finish` runs; :meth:`dances` passes it, and so
-        does ``dancekit dance`` when it runs the stages itself (a foot model, ``--smooth`` / ``--foot-lock``)."""
-        return self.settings.stages.switched(**switches)
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
