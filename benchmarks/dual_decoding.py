@@ -27,6 +27,7 @@ reader's probabilities, to separate what the energy stage does from how well the
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import json
 import time
@@ -141,7 +142,8 @@ def main() -> None:
                                for seed in args.seeds])
         gen_cpu = time.process_time() - t0
         probs = {n: {} for n in names}  # the genres the music calls for, where the energy entry's floor needs them
-        if pipe.genre_reader is not None and stages.energy_options(pipe.folder).get("genre_energy"):
+        config = pipe.stage_options(beat_sync=not args.no_beat_sync)  # the folder's stage settings
+        if pipe.genre_reader is not None and config.lift_energy is not None and config.genre_stats.energy:
             reader = digest(*sorted(Path(components(folder)["genre_reader"]).glob("*.*")))
             for n in names:
                 if args.genre_labels:
@@ -157,8 +159,7 @@ def main() -> None:
                     motion = decode_motion(pipe.stats.denormalize_dance(y), sk, fps, "rot6d")
                     res = DanceResult(motion=motion, model=pipe.folder, seed=seed,  # the folder: its stage settings
                                       genre_probs=probs[n])
-                    res = stages.finish(res, audio[n][0], start=audio[n][1], end=audio[n][2],
-                                        beat_sync_on=not args.no_beat_sync, beats=beats[n])
+                    res = stages.finish(res, stages.Song(audio[n][0], audio[n][1], audio[n][2], beats[n]), config)
                     p = np.asarray(res.motion.to_positions(), np.float64)
                     finished.append(p)
                     row = {"song": n, "seed": seed,
@@ -183,7 +184,7 @@ def main() -> None:
                 "energy_mean": float(np.mean([v["energy_ratio"] for v in per_song.values()])),
                 "jitter_max": max(v["jitter_ratio"] for v in per_song.values()),
                 "jitter_mean": float(np.mean([v["jitter_ratio"] for v in per_song.values()])),
-                "energy_entry": stages.energy_options(pipe.folder) or None,
+                "energy_entry": None if config.lift_energy is None else dataclasses.asdict(config.lift_energy),
                 "planted": float(np.mean([r["planted_foot_share"] for r in rows])),
                 "skating": float(np.mean([r["foot_skating"] for r in rows])),
                 "jerk": float(np.mean([r["jerk"] for r in rows])),

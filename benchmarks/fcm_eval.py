@@ -28,6 +28,7 @@ from dancekit.data import PreparedData
 from dancekit.metrics import foot_skating
 from dancekit.motion import get_skeleton
 from dancekit.pipelines.base import DanceResult
+from dancekit.pipelines.config import read_stage_config
 from dancekit.pipelines.foot_constraint import load_foot_constraint
 from dancekit.pipelines.stages import finish
 
@@ -71,8 +72,8 @@ def main() -> None:
                 positions, skating, legs = [], [], []
                 for motion in raw:
                     m = motion if fix is None else fix(motion)
-                    res = finish(DanceResult(motion=m, model=model, seed=0), "", beat_sync_on=False, cleanup_on=True,
-                                 foot_lock_on=lock == "on")
+                    config = read_stage_config(model).switched(beat_sync=False, foot_lock=lock == "on")
+                    res = finish(DanceResult(motion=m, model=model, seed=0), "", config)
                     p = np.asarray(res.motion.to_positions(), np.float64)
                     positions.append(p)
                     skating.append(foot_skating(p, fps=res.motion.fps, skeleton=sk)["ratio"])

@@ -9,7 +9,7 @@ Each song of the split is danced with ``--seeds`` seeds by the pipeline with eve
 :func:`dancekit.pipelines.stages.finish` with every stage on, exactly as ``dancekit dance`` and ``dancekit
 evaluate`` do, its ``trace`` keeping the dance after each stage (:data:`~dancekit.pipelines.stages.STAGE_NAMES`;
 a stage that does not apply to a dance, e.g. the jitter cap of a dance under its cap, passes it on unchanged).
-The per-dance settings (a jitter cap) are the pipeline's own (``pipe.stage_options``): the genre draw's cap for
+The stage settings (a jitter cap) are the pipeline's own (``pipe.stage_options()``): the genre draw's cap for
 Dance Revolution, the ``"jitter_cap"`` entry's for music2dance, none for dual. FID as ``dancekit evaluate`` computes it (AIST++ features of 10-s segments, z-scored
 with the training dances' statistics, against the training dances): the last column is evaluate's number.
 Printed: one row per feature kind, the FID after each stage; with ``--json``, also the mean and covariance terms.
@@ -40,7 +40,7 @@ def stage_dances(model: str, data: PreparedData, split: str, seeds: int) -> dict
         for r in pipe.dances(ref.path, seeds=list(range(seeds)), start=ref.start, end=ref.end, beat_sync=False,
                              cleanup=False):
             seen: dict[str, object] = {}
-            S.finish(r, ref.path, start=ref.start, end=ref.end, beats=beats, **pipe.stage_options(r),
+            S.finish(r, S.Song(ref.path, ref.start, ref.end, beats), pipe.stage_options(),
                      trace=lambda stage, res, _seen=seen: _seen.__setitem__("raw" if stage == "input" else stage, res))
             last = r
             for stage in ROWS:  # a stage that did not run passes the dance before it on

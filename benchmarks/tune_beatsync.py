@@ -70,7 +70,9 @@ def main() -> None:
         if song not in beats:
             beats[song] = stages.song_beats_for(a[0], start=a[1], end=a[2])
         res = DanceResult(motion=bench_feet.load(f, SK), model=folder, seed=0)
-        pre[f] = stages.finish(res, a[0], start=a[1], end=a[2], beat_sync_on=False)
+        from dancekit.pipelines.config import read_stage_config
+
+        pre[f] = stages.finish(res, stages.Song(a[0], a[1], a[2]), read_stage_config(folder).switched(beat_sync=False))
     print(f"{model} {split}: {len(files)} dances, stages before the warp {time.process_time() - t0:.0f} s CPU", flush=True)
     diag = [where_beats(kinematic_beats(np.asarray(r.motion.to_positions(), np.float64), fps=FPS),
                         beats[f.stem.rsplit("__", 1)[0]].times) for f, r in pre.items()]

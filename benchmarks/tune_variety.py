@@ -36,7 +36,7 @@ from dancekit.motion.representations import decode_motion
 from dancekit.pipelines import load_pipeline
 from dancekit.pipelines.base import DanceResult, clean_motion
 from dancekit.pipelines.revolution import GenreDraw
-from dancekit.pipelines.stages import finish
+from dancekit.pipelines.stages import Song, finish
 
 
 def dance_batch(pipe, path, *, seeds, start, end, variety, stages=True):
@@ -53,7 +53,8 @@ def dance_batch(pipe, path, *, seeds, start, end, variety, stages=True):
                                             p.representation))
         res = DanceResult(motion=motion, model=pipe.folder, seed=int(seed), genre_requested="auto", genre=genre,
                           genre_probs=probs, danced_by=p.folder)
-        out.append(finish(res, path, start=start, end=end, beat_sync_on=stages, cleanup_on=stages))
+        config = pipe.stage_options(beat_sync=stages, cleanup=stages)
+        out.append(finish(res, Song(path, start, end), config))
     return out
 
 
