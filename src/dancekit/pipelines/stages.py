@@ -9,18 +9,18 @@ model's own output):
   song) is left unwarped, with a note. Otherwise the dance is time-warped so that its kinematic beats
   (speed minima) land on the song's beats: :func:`dancekit.motion.timewarp.beat_warp` (dynamic
   programming over candidate pairings, the local speed kept within ±15 %, a smooth rate; a checkpoint's
-  ``"beat_sync"`` entry may set other bounds, :func:`beat_sync_options`).
+  ``"stages": {"beat_sync": ...}`` entry may set other bounds, :class:`~dancekit.pipelines.config.BeatSyncConfig`).
 * **clean-up** (:func:`clean_up`): the figure's root path is kept within a dance floor (turned back
   toward its start beyond 4 m, never farther than 12 m) and its lowest joint put on the floor
   (:mod:`dancekit.motion.cleanup`).
 * **smoothing** (:func:`smooth`): a jittery dance gets a Savitzky-Golay filter whose window is chosen per
   dance (:mod:`dancekit.motion.footlock`); a smooth one is left alone. A dance whose genre was asked for by
   name is brought to that genre's own jitter-to-energy ratio when the model's checkpoint carries one
-  (:func:`genre_smoothing_targets`: real cha-chas and tangos have 2-4x the high-frequency motion of waltzes).
+  (:func:`smoothing_target`: real cha-chas and tangos have 2-4x the high-frequency motion of waltzes).
 * **foot lock** (:func:`foot_lock`): planted feet held where they were planted, the legs solved by two-bone
   IK, the body lowered where a held foot is out of reach, blended in and out (:mod:`dancekit.motion.footlock`).
 * **energy** (:func:`lift_energy`): for a model whose checkpoint asks for it (an ``"energy"`` entry,
-  :func:`energy_options`), a dance whose smoothed energy is under the entry's floor (m/s) has the slow
+  :class:`~dancekit.pipelines.config.EnergyConfig`), a dance whose smoothed energy is under the entry's floor (m/s) has the slow
   band of its deviation from its moving-mean pose scaled up until it reaches it (:mod:`dancekit.motion.energy`:
   one gain per dance, at most ``max_gain``; the flicker band untouched), then put back on the floor.
 * **settle** (:func:`settle`): for a model whose checkpoint asks for it, a light zero-phase windowed-sinc
@@ -151,7 +151,7 @@ REGROUND_SHORTER = (0.6, 0.4, 0.25)
 def reground(result: DanceResult, *, window_s: float, max_float_cm: float | None = None) -> DanceResult:
     """The result with its lowest joint put back on the floor (:func:`dancekit.motion.cleanup.ground_contact`
     over a centred ``window_s`` window, s): a vertical shift per frame, run after the foot lock and its settle
-    when the model's checkpoint asks for it (:func:`ground_options`). The stages after the clean-up (the
+    when the model's checkpoint asks for it (:class:`~dancekit.pipelines.config.RegroundConfig`). The stages after the clean-up (the
     low-passes, the lock's IK) can lift a lively model's dance off the floor again; this one lets it touch
     the floor at least once in every window, while a rise shorter than ``window_s / 2`` stays.
 
@@ -435,7 +435,7 @@ def lift_energy(result: DanceResult, *, floor: float | None = None, fraction: fl
     root translation kept, bone lengths exact; ``root`` 0: the root's orientation not lifted (rotation
     motions); ``legs`` 0: the legs not lifted), then the change the lift made to the clean-up's ground offset
     (:func:`~dancekit.motion.cleanup.ground_offset`) taken off, so the lowest joint stays on the floor. No
-    floor (no ``"energy"`` entry in the checkpoint, :func:`energy_options`, or no genre known for a
+    floor (no ``lift_energy`` settings in the checkpoint, :class:`~dancekit.pipelines.config.EnergyConfig`, or no genre known for a
     genre-only entry), a 2D dance, a dance already at the floor or one calmed because its input does not look
     like music (``result.looks_like_music`` False): the result itself, unchanged. A motion with
     rotations has its local rotations lifted and its positions recomputed by forward kinematics. A note gives
