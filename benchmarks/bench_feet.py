@@ -92,7 +92,9 @@ def variant(motion: Motion, name: str, audio, beats, model: str = "cached", **op
             else:
                 res = stages.foot_lock(res)
             if opts.get("settle", True):
-                res = stages.settle(res, **stages.settle_options(res.model))
+                from dancekit.pipelines.config import read_stage_config
+
+                res = stages.settle(res, **read_stage_config(res.model).settle.settle_options())
     if name != "grid" and beats is not None:
         res = stages.beat_sync(res, audio[0], start=audio[1], end=audio[2], beats=beats)
     return res.motion

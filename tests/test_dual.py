@@ -687,7 +687,7 @@ def test_dance_pipeline_lowpass_setting(tiny_checkpoint, tmp_path):
     folder = tmp_path / "lowpassed"
     shutil.copytree(tiny_checkpoint, folder)
     meta = json.loads((folder / "config.json").read_text())
-    (folder / "config.json").write_text(json.dumps({**meta, "smooth_frames": 5, "lowpass_hz": 2.0}))
+    (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"smooth_frames": 5, "lowpass_hz": 2.0}}))
     pipe = DualPipeline.from_pretrained(folder)
     assert pipe.lowpass_hz == 2.0 and DualPipeline.from_pretrained(tiny_checkpoint).lowpass_hz is None
     y = np.random.default_rng(0).normal(size=(60, 4))
@@ -703,14 +703,21 @@ def test_dance_pipeline_smoothing_setting(tiny_checkpoint, tmp_path):
     import json
     import shutil
 
+    from dancekit.errors import CheckpointError
     from dancekit.pipelines.dual import DualPipeline
 
     folder = tmp_path / "smoothed"
     shutil.copytree(tiny_checkpoint, folder)
     meta = json.loads((folder / "config.json").read_text())
-    (folder / "config.json").write_text(json.dumps({**meta, "smooth_frames": 5}))
+    (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"smooth_frames": 5}}))
     assert DualPipeline.from_pretrained(folder).smooth_frames == 5
     assert DualPipeline.from_pretrained(tiny_checkpoint).smooth_frames == 1
+    (folder / "config.json").write_text(json.dumps({**meta, "smooth_frames": 7}))  # the old layout: converted
+    assert DualPipeline.from_pretrained(folder).smooth_frames == 7
+    for bad in (0, 2.5, "5", True):
+        (folder / "config.json").write_text(json.dumps({**meta, "sampling": {"smooth_frames": bad}}))
+        with pytest.raises(CheckpointError, match=f"{folder}: config.json: sampling.smooth_frames must be an integer"):
+            DualPipeline.from_pretrained(folder)
 
 
 def test_embedded_dual_model_is_small_float16_and_loads_as_float32():
@@ -774,12 +781,15 @@ def test_embedded_dual_dances_upright_with_its_jitter_cap(tmp_path):
     song = tmp_path / "ode.wav"
     save_wav(song, ode_to_joy(sr=22050, bpm=120)[: 12 * 22050], sr=22050)
     pipe = DualPipeline.from_pretrained("dual")
-    assert pipe.root_decode == "procrustes" and pipe.jitter_cap is not None
+    from dancekit.pipelines.stages import jitter_cap_for
+
+    config = pipe.stage_options()
+    assert pipe.root_decode == "procrustes" and config.jitter_cap is not None and config.jitter_cap.to_end
     result = pipe(song, seed=0)
     lean = torso_lean(result.motion.to_positions(), skeleton=result.motion.skeleton)["median_deg"]
     assert lean < 28.0
-    options = pipe.stage_options(result)
-    assert options["max_jitter"] > 0 and options["jitter_to_end"] is True
+    assert jitter_cap_for(result, config.jitter_cap, config.genre_stats) > 0
+
 
 
 # ---------------------------------------------------------------------------------------------- the latent

@@ -149,17 +149,18 @@ def _checkpoint(tmp_path, entry, name="m"):
 
 def test_finish_without_an_entry_is_bit_identical_and_with_one_lifts(tmp_path):
     from dancekit.pipelines import stages
+    from dancekit.pipelines.config import read_stage_config
 
     motion = _swing(0.1, seconds=12.0)
     plain = _checkpoint(tmp_path, None, "plain")
-    args = {"beat_sync_on": False}
-    a = stages.finish(_result(motion, plain), "unused.wav", **args)
-    b = stages.finish(_result(motion, plain), "unused.wav", energy_on=False, **args)
+    config = read_stage_config(plain)
+    a = stages.finish(_result(motion, plain), "unused.wav", config.switched(beat_sync=False))
+    b = stages.finish(_result(motion, plain), "unused.wav", config.switched(beat_sync=False, energy=False))
     for x, y in ((a.motion.positions, b.motion.positions), (a.motion.rotations, b.motion.rotations)):
         np.testing.assert_array_equal(x, y)
     assert not any("energy" in n for n in a.notes)
-    lifted = stages.finish(_result(motion, _checkpoint(tmp_path, {"floor": 2 * _energy(motion), "max_gain": 1.5},
-                                                       "lift")), "unused.wav", **args)
+    lift = _checkpoint(tmp_path, {"floor": 2 * _energy(motion), "max_gain": 1.5}, "lift")
+    lifted = stages.finish(_result(motion, lift), "unused.wav", read_stage_config(lift).switched(beat_sync=False))
     assert any(n.startswith("energy lifted (gain 1.50") for n in lifted.notes)
     assert _energy(lifted.motion) > 1.3 * _energy(a.motion)
 
@@ -168,12 +169,15 @@ def test_the_embedded_models_entries():
     from pathlib import Path
 
     from dancekit.pipelines import stages
+    from dancekit.pipelines.config import read_stage_config
 
     folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
-    for name in ("revolution", "music2dance", "dual", "style"):
-        spec = stages.energy_options(str(folder / name))
-        assert spec == {} or ("fraction" in spec and spec["genre_energy"]) or "floor" in spec
-    assert stages.energy_options(None) == {} and stages.energy_options("/somewhere/else") == {}
+    for name in ("revolution", "music2dance", "dual"):  # the dance models (style is a classifier)
+        config = read_stage_config(folder / name)
+        spec = config.lift_energy
+        assert spec is None or (spec.fraction is not None and config.genre_stats.energy) or spec.floor is not None
+    assert read_stage_config(folder / "music2dance").lift_energy is None
+    assert read_stage_config(folder / "dual").lift_energy.fraction == 0.8
 
 
 @pytest.mark.parametrize("entry", [{"max_gain": 2.0}, {"floor": 0.0}, {"floor": -0.3}, {"floor": "high"},
@@ -184,19 +188,27 @@ def test_the_embedded_models_entries():
                                    {"floor": True}])
 def test_a_bad_energy_entry_is_a_checkpoint_error(tmp_path, entry):
     from dancekit.errors import CheckpointError
-    from dancekit.pipelines import stages
+    from dancekit.pipelines.config import read_stage_config
 
-    with pytest.raises(CheckpointError, match="config.json.*'energy'"):
-        stages.energy_options(_checkpoint(tmp_path, entry))
+    with pytest.raises(CheckpointError, match=f"{tmp_path / 'm'}: config.json.*energy"):
+        read_stage_config(_checkpoint(tmp_path, entry))
 
 
 def test_a_band_above_nyquist_is_a_checkpoint_error(tmp_path):
+    from pathlib import Path
+
     from dancekit.errors import CheckpointError
     from dancekit.pipelines import stages
+    from dancekit.pipelines.config import read_stage_config
 
     folder = _checkpoint(tmp_path, {"floor": 10.0, "band_hz": 13.0})
+    spec = read_stage_config(folder).lift_energy
     with pytest.raises(CheckpointError, match="config.json.*band_hz"):
-        stages.lift_energy(_result(_swing(0.1), folder), **stages.energy_options(folder))
+        stages.lift_energy(_result(_swing(0.1), folder), floor=spec.floor, band_hz=spec.band_hz)
+    meta = json.loads((Path(folder) / "config.json").read_text())
+    (Path(folder) / "config.json").write_text(json.dumps({**meta, "fps": 25.0}))  # known when the checkpoint loads
+    with pytest.raises(CheckpointError, match=r"config.json: stages.lift_energy.band_hz must be below 12.5 Hz"):
+        read_stage_config(folder)
 
 
 def _leg_swing(seconds: float = 20.0) -> Motion:
@@ -322,15 +334,15 @@ def test_a_per_dance_settle_filters_only_a_jittery_dance_down_to_its_target():
                                    {"cutoff_hz": 3.0, "ratio_target": 0.07}, {"ratio_target": "low"}])
 def test_a_bad_settle_entry_is_a_checkpoint_error(tmp_path, entry):
     from dancekit.errors import CheckpointError
-    from dancekit.pipelines import stages
+    from dancekit.pipelines.config import read_stage_config
 
     folder = tmp_path / "m"
     folder.mkdir()
-    (folder / "config.json").write_text(json.dumps({"model": "music2dance", "settle": entry}))
-    with pytest.raises(CheckpointError, match="config.json.*'settle'"):
-        stages.settle_options(str(folder))
-    (folder / "config.json").write_text(json.dumps({"model": "music2dance", "settle": {"ratio_target": 0.07}}))
-    assert stages.settle_options(str(folder)) == {"ratio_target": 0.07}
+    (folder / "config.json").write_text(json.dumps({"model": "music2dance", "stages": {"settle": entry}}))
+    with pytest.raises(CheckpointError, match="config.json.*stages.settle"):
+        read_stage_config(folder)
+    (folder / "config.json").write_text(json.dumps({"model": "music2dance", "stages": {"settle": {"ratio_target": 0.07}}}))
+    assert read_stage_config(folder).settle.settle_options() == {"ratio_target": 0.07}
 
 
 

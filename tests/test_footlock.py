@@ -320,18 +320,17 @@ def test_the_revolution_stage_uses_its_own_minimum_hold():
     from pathlib import Path
 
     import dancekit.pipelines.stages as stages
+    from dancekit.pipelines.config import read_stage_config
 
     folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
-    assert stages.foot_lock_options(str(folder / "revolution")) == {"min_hold_s": 0.4}
-    assert stages.foot_lock_options(str(folder / "music2dance")) == {}
-    assert stages.foot_lock_options("/somewhere/else/revolution") == {}  # a user's model: the defaults
-    assert stages.foot_lock_options(None) == {}
+    assert read_stage_config(folder / "revolution").foot_lock.lock_options() == {"min_hold_s": 0.4}
+    assert read_stage_config(folder / "music2dance").foot_lock.lock_options() == {}
 
 
 def test_the_smoothing_stage_takes_a_named_genres_target_from_the_checkpoint(tmp_path):
     """A dance whose genre was asked for by name is smoothed to the checkpoint's target for that genre
-    (``"smoothing": {"genre_targets": ...}``); "auto", "none", another genre or a folder without the entry
-    keep the stage's own targets."""
+    (``"stages": {"smooth": {"genre_targets": [...]}}`` with ``"genre_stats": {"smoothing": ...}``); "auto",
+    "none", another genre or a checkpoint without the entry keep the stage's own targets."""
     import dataclasses
     import json
 
@@ -339,6 +338,7 @@ def test_the_smoothing_stage_takes_a_named_genres_target_from_the_checkpoint(tmp
     from dancekit.motion.jitter import jitter_ratio as _jitter_ratio
     from dancekit.pipelines import stages
     from dancekit.pipelines.base import DanceResult
+    from dancekit.pipelines.config import SmoothConfig, read_stage_config
 
     T = 200
     t = np.arange(T) / FPS
@@ -348,26 +348,29 @@ def test_the_smoothing_stage_takes_a_named_genres_target_from_the_checkpoint(tmp
     folder = tmp_path / "m"
     folder.mkdir()
     (folder / "config.json").write_text(json.dumps({"model": "music2dance",
-                                                    "smoothing": {"genre_targets": {"chacha": 0.25}}}))
+                                                    "stages": {"smooth": {"genre_targets": ["chacha"]}},
+                                                    "genre_stats": {"smoothing": {"chacha": 0.25, "waltz": 0.1}}}))
+    config = read_stage_config(folder)
     named = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32)), model=str(folder),
                         seed=0, genre_requested="chacha", genre="chacha")
     assert _jitter_ratio(p, SK, FPS) > 0.4  # jittery: the stage filters it either way
-    assert stages.smoothing_target(named) == 0.25
+    assert stages.smoothing_target(named, config.smooth, config.genre_stats) == 0.25
     others = [dataclasses.replace(named, genre_requested="auto"), dataclasses.replace(named, genre_requested="none"),
-              dataclasses.replace(named, genre_requested="waltz", genre="waltz"),
-              dataclasses.replace(named, model=str(tmp_path / "nowhere"))]
-    assert [stages.smoothing_target(r) for r in others] == [None] * 4
-    mine = stages.smooth(named)
+              dataclasses.replace(named, genre_requested="waltz", genre="waltz")]
+    assert [stages.smoothing_target(r, config.smooth, config.genre_stats) for r in others] == [None] * 3
+    assert stages.smoothing_target(named, SmoothConfig(), config.genre_stats) is None  # no entry
+    mine = stages.smooth(named, config=config.smooth, genre_stats=config.genre_stats)
     np.testing.assert_array_equal(mine.motion.positions, stages.smooth(others[0], target=0.25).motion.positions)
-    plain = stages.smooth(others[0])  # the stage's own target (0.065 for a dance this jittery): a longer filter
+    plain = stages.smooth(others[0], config=config.smooth, genre_stats=config.genre_stats)  # the stage's own
+    # target (0.065 for a dance this jittery): a longer filter
 
     def window(r):
         return int(r.notes[-1].split("(")[1].split("-")[0])
 
     assert 1 < window(mine) < window(plain)
     (folder / "config.json").write_text(json.dumps({"model": "x", "smoothing": {"genre_targets": {"chacha": "a"}}}))
-    with pytest.raises(CheckpointError, match="smoothing"):
-        stages.smooth(named)
+    with pytest.raises(CheckpointError, match="genre_stats.smoothing.chacha must be"):  # the old layout, checked
+        read_stage_config(folder)
 
 
 def test_a_drawn_genre_takes_the_scaled_target_when_the_entry_says_drawn(tmp_path):
@@ -382,32 +385,37 @@ def test_a_drawn_genre_takes_the_scaled_target_when_the_entry_says_drawn(tmp_pat
     from dancekit.errors import CheckpointError
     from dancekit.pipelines import stages
     from dancekit.pipelines.base import DanceResult
+    from dancekit.pipelines.config import read_stage_config
 
     folder = tmp_path / "m"
     folder.mkdir()
     cfg = folder / "config.json"
 
-    def write(entry):
+    def write(entry):  # the old layout's entry (converted on reading)
         cfg.write_text(json.dumps({"model": "revolution", "smoothing": entry}))
+
+    def target(result):
+        config = read_stage_config(folder)
+        return stages.smoothing_target(result, config.smooth, config.genre_stats)
 
     write({"genre_targets": {"chacha": 0.2, "waltz": 0.06}, "drawn": True, "scale": 1.5})
     p = np.zeros((10, SK.num_joints, 3), np.float32)
     drawn = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=str(folder), seed=1,
                         genre_requested="auto", genre="chacha")
-    assert stages.smoothing_target(drawn) == pytest.approx(0.3)
-    assert stages.smoothing_target(dataclasses.replace(drawn, genre_requested=None)) == pytest.approx(0.3)
-    assert stages.smoothing_target(dataclasses.replace(drawn, genre="waltz")) == pytest.approx(0.09)
+    assert target(drawn) == pytest.approx(0.3)
+    assert target(dataclasses.replace(drawn, genre_requested=None)) == pytest.approx(0.3)
+    assert target(dataclasses.replace(drawn, genre="waltz")) == pytest.approx(0.09)
     for other in (dataclasses.replace(drawn, genre=None), dataclasses.replace(drawn, genre="tango"),
                   dataclasses.replace(drawn, genre_requested="none", genre=None)):
-        assert stages.smoothing_target(other) is None
+        assert target(other) is None
     write({"genre_targets": {"chacha": 0.2}, "scale": 1.5})  # not drawn: a named genre only
-    assert stages.smoothing_target(drawn) is None
-    assert stages.smoothing_target(dataclasses.replace(drawn, genre_requested="chacha")) == pytest.approx(0.3)
+    assert target(drawn) is None
+    assert target(dataclasses.replace(drawn, genre_requested="chacha")) == pytest.approx(0.3)
     for bad in ({"genre_targets": {"chacha": 0.2}, "drawn": "yes"}, {"genre_targets": {"chacha": 0.2}, "scale": 0},
                 {"genre_targets": {"chacha": 0.2}, "speed": 1}):
         write(bad)
-        with pytest.raises(CheckpointError, match=r"config\.json.*smoothing"):
-            stages.smoothing_target(drawn)
+        with pytest.raises(CheckpointError, match=r"config\.json.*stages\.smooth\.(drawn|scale|speed)"):
+            target(drawn)
 
 
 @pytest.mark.parametrize(("speed_cm", "planted"), [(3.8, True), (4.2, False)])
@@ -438,27 +446,29 @@ def test_the_stage_reads_contact_thresholds_from_the_checkpoint(tmp_path):
 
     from dancekit.pipelines import stages
     from dancekit.pipelines.base import DanceResult
+    from dancekit.pipelines.config import read_stage_config
 
     _, _, p = _sliding_figure(T=60, speed_cm=3.8)
     motion = Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32))
-    plain = stages.foot_lock(DanceResult(motion=motion, model=_checkpoint(tmp_path, None), seed=0))
+    plain = stages.foot_lock(DanceResult(motion=motion, model="m", seed=0),
+                             read_stage_config(_checkpoint(tmp_path, None)).foot_lock)
     np.testing.assert_array_equal(plain.motion.positions, motion.positions)
-    fast = _checkpoint(tmp_path, {"speed_on": 1.0, "speed_off": 1.4})
-    assert stages.foot_lock_options(fast) == {"speed_on": 1.0, "speed_off": 1.4}
-    locked = stages.foot_lock(DanceResult(motion=motion, model=fast, seed=0)).motion.positions
+    fast = read_stage_config(_checkpoint(tmp_path, {"speed_on": 1.0, "speed_off": 1.4})).foot_lock
+    assert fast.lock_options() == {"speed_on": 1.0, "speed_off": 1.4}
+    locked = stages.foot_lock(DanceResult(motion=motion, model="m", seed=0), fast).motion.positions
     ankle = leg_chains(SK)[0][2]
     step = np.linalg.norm(np.diff(locked[:, ankle], axis=0), axis=-1)
     assert (step < 1e-3).sum() >= 3  # held: frames in which the ankle does not move (it slid 3.8 cm a frame)
     folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
-    assert set(stages.foot_lock_options(str(folder / "dual"))) & {"speed_on", "height_on", "max_drift_m"}
+    assert set(read_stage_config(folder / "dual").foot_lock.lock_options()) & {"speed_on", "height_on", "max_drift_m"}
 
 
 @pytest.mark.parametrize("entry", [{"speed_on": 1.5}, {"speed_on": 1.0, "speed_off": 0.9}, {"height_on": -0.01},
                                    {"height_off": 0.02}, {"speed_on": "fast"}, {"contact": 1.0}, [1.0]])
 def test_a_bad_foot_lock_entry_is_a_checkpoint_error(tmp_path, entry):
     from dancekit.errors import CheckpointError
-    from dancekit.pipelines import stages
+    from dancekit.pipelines.config import read_stage_config
 
     folder = _checkpoint(tmp_path, entry)
     with pytest.raises(CheckpointError, match="config.json.*foot_lock"):
-        stages.foot_lock_options(folder)
+        read_stage_config(folder)

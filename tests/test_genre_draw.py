@@ -5,6 +5,7 @@ attempt's ``genre_min_ratio`` ρ (only genres with p ≥ ρ · max p are drawn; 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -18,14 +19,27 @@ from dancekit.checkpoints import declare_components, read_config, save_pretraine
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.revolution import RevolutionConfig, RevolutionModel
 from dancekit.motion import get_skeleton
+from dancekit.pipelines.config import (
+    GenreStats,
+    JitterCapConfig,
+    RevolutionSampling,
+    StageConfig,
+    checkpoint_settings,
+)
 from dancekit.pipelines.revolution import (
     GenreDraw,
     RevolutionPipeline,
     draw_genre,
-    genre_draw_from_meta,
+    genre_draw_from_sampling,
     genre_options,
-    jitter_cap,
 )
+from dancekit.pipelines.stages import jitter_cap_for
+
+
+def genre_draw_from_meta(meta: dict, folder: str = "?") -> GenreDraw:
+    """The genre draw a checkpoint's config.json gives (parsed as the pipeline parses it)."""
+    settings = checkpoint_settings({"model": "revolution", **meta}, folder=folder, sampling=RevolutionSampling)
+    return genre_draw_from_sampling(settings.sampling, settings.stages.genre_stats.table("jitter"), folder=folder)
 
 PROBS = {"waltz": 0.6, "rumba": 0.3, "chacha": 0.1}
 
@@ -79,7 +93,7 @@ def test_bad_settings_are_named_errors():
                                               "genre_draw_seed0": True}}) == GenreDraw(2.0, 0.1, True)
     for bad in ({"genre_temperature": "hot"}, {"genre_temperature": float("nan")}, {"genre_alone": 1.5},
                 {"genre_draw_seed0": "yes"}):
-        with pytest.raises(CheckpointError, match="ckpt: bad 'sampling' entry in config.json"):
+        with pytest.raises(CheckpointError, match="ckpt: config.json: sampling.genre_"):
             genre_draw_from_meta({"sampling": bad}, folder="ckpt")
 
 
@@ -120,9 +134,12 @@ def song(tmp_path_factory):
     return path
 
 
-def pipeline(parent, monkeypatch, draw: GenreDraw) -> RevolutionPipeline:
+def pipeline(parent, monkeypatch, draw: GenreDraw, cap: JitterCapConfig | None = None) -> RevolutionPipeline:
     pipe = RevolutionPipeline.from_pretrained(parent)
     pipe.genre_draw = draw
+    if cap is not None:  # the jitter cap of the stages, over the real jitters of TABLE
+        stages = dataclasses.replace(pipe.settings.stages, jitter_cap=cap, genre_stats=GenreStats(jitter=TABLE))
+        pipe.settings = dataclasses.replace(pipe.settings, stages=stages)
     # the classifier's reading (a tiny folder has none): a song between waltz and rumba
     monkeypatch.setattr(pipe, "read_genre", lambda *a, **k: {"waltz": 0.55, "rumba": 0.45})
     return pipe
@@ -233,10 +250,11 @@ def test_a_bad_min_ratio_is_a_named_error(parent, tmp_path):
     folder = tmp_path / "p"
     shutil.copytree(parent, folder)
     meta = read_config(folder)
-    for bad, says in ((1.2, "genre_min_ratio must be in"), ("most", "genre_min_ratio must be a number, got 'most'")):
+    for bad, says in ((1.2, r"sampling.genre_min_ratio must be a number in \[0, 1\], got 1.2"),
+                      ("most", "sampling.genre_min_ratio must be a number in .*, got 'most'")):
         meta["sampling"] = {"genre_temperature": 1.0, "genre_min_ratio": bad}
         (folder / "config.json").write_text(json.dumps(meta))
-        with pytest.raises(CheckpointError, match=f"bad 'sampling' entry in config.json: .*{says}"):
+        with pytest.raises(CheckpointError, match=f"{folder}: config.json: {says}"):
             RevolutionPipeline.from_pretrained(folder)
 
 
@@ -258,21 +276,31 @@ def test_an_implausible_genre_is_never_danced(parent, song, monkeypatch):
 TABLE = (("waltz", 0.026), ("rumba", 0.05), ("chacha", 0.14), ("tango", 0.22))
 
 
+def jitter_cap(probs, *, genre, cap: JitterCapConfig | None):
+    """The stages' cap (m/s) of a dance of ``genre`` for a song read as ``probs``, over TABLE."""
+    from dancekit.motion import Motion
+    from dancekit.pipelines.base import DanceResult
+
+    m = Motion(skeleton=get_skeleton("tang2018"), fps=25.0, positions=np.zeros((3, 23, 3), np.float32))
+    res = DanceResult(motion=m, model="m", seed=1, genre=genre, genre_probs=probs)
+    return jitter_cap_for(res, cap, GenreStats(jitter=TABLE))
+
+
 def test_the_jitter_cap_is_the_smallest_real_jitter_of_the_plausible_genres_worked_by_hand():
-    draw = GenreDraw(temperature=2.0, genre_jitter=TABLE, jitter_cap=0.8)
+    cap = JitterCapConfig(scale=0.8)
     # FOUR: max 0.40, plausible (≥ 0.20): waltz, rumba, chacha; the smallest real jitter is waltz's 0.026
-    assert jitter_cap(FOUR, genre="tango", draw=draw) == pytest.approx(0.8 * 0.026)
-    assert jitter_cap(FOUR, genre=None, draw=draw) == pytest.approx(0.8 * 0.026)  # the model alone too
-    assert jitter_cap(FOUR, genre="waltz", draw=draw) is None  # the most likely genre is left as it is
-    assert jitter_cap(FOUR, genre="waltz", draw=GenreDraw(genre_jitter=TABLE, jitter_cap=0.8, cap_all=True)) == \
-        pytest.approx(0.8 * 0.026)
+    assert jitter_cap(FOUR, genre="tango", cap=cap) == pytest.approx(0.8 * 0.026)
+    assert jitter_cap(FOUR, genre=None, cap=cap) == pytest.approx(0.8 * 0.026)  # the model alone too
+    assert jitter_cap(FOUR, genre="waltz", cap=cap) is None  # the most likely genre is left as it is
+    assert jitter_cap(FOUR, genre="waltz", cap=JitterCapConfig(scale=0.8, all=True)) == pytest.approx(0.8 * 0.026)
     # a song read as cha-cha / tango: waltz (0.10 < 0.5 · 0.45) is not plausible, the cap is cha-cha's 0.14
     chacha = {"waltz": 0.10, "rumba": 0.10, "chacha": 0.45, "tango": 0.35}
-    assert jitter_cap(chacha, genre="tango", draw=draw) == pytest.approx(0.8 * 0.14)
-    assert jitter_cap(chacha, genre="tango", draw=GenreDraw(genre_jitter=TABLE, jitter_cap=1.0,
-                                                           cap_min_ratio=0.2)) == pytest.approx(0.026)
-    assert jitter_cap({}, genre=None, draw=draw) is None
-    assert jitter_cap(FOUR, genre="tango", draw=GenreDraw(temperature=2.0, genre_jitter=TABLE)) is None  # no cap
+    assert jitter_cap(chacha, genre="tango", cap=cap) == pytest.approx(0.8 * 0.14)
+    assert jitter_cap(chacha, genre="tango", cap=JitterCapConfig(scale=1.0, min_ratio=0.2)) == pytest.approx(0.026)
+    assert jitter_cap({}, genre=None, cap=cap) is None
+    assert jitter_cap({}, genre="tango", cap=cap) is None  # a genre asked for by name: only with "named"
+    assert jitter_cap({}, genre="tango", cap=JitterCapConfig(scale=0.8, named=True)) == pytest.approx(0.8 * 0.22)
+    assert jitter_cap(FOUR, genre="tango", cap=None) is None  # no cap
 
 
 def test_a_genre_far_jerkier_than_the_most_likely_one_is_not_drawn_worked_by_hand():
@@ -290,21 +318,26 @@ def test_a_genre_far_jerkier_than_the_most_likely_one_is_not_drawn_worked_by_han
 
 
 def test_bad_jitter_entries_are_named_errors():
-    for kwargs, says in (({"jitter_cap": 1.0}, "jitter_cap needs a genre_jitter table"),
-                         ({"max_jitter": 2.0}, "genre_max_jitter needs a genre_jitter table"),
-                         ({"genre_jitter": (("waltz", -0.1),)}, "genre_jitter must map"),
-                         ({"genre_jitter": TABLE, "jitter_cap": -1.0}, "jitter_cap must be"),
-                         ({"genre_jitter": TABLE, "cap_min_ratio": 1.5}, "jitter_cap_min_ratio"),
-                         ({"genre_jitter": TABLE, "cap_all": "yes"}, "jitter_cap_all")):
+    for kwargs, says in (({"max_jitter": 2.0}, "genre_max_jitter needs a genre_stats.jitter table"),
+                         ({"genre_jitter": (("waltz", -0.1),)}, "genre_jitter must map")):
         with pytest.raises(ParameterError, match=says):
             GenreDraw(**kwargs)
+    for kwargs, says in (({"scale": -1.0}, "stages.jitter_cap.scale must be"),
+                         ({"min_ratio": 1.5}, "stages.jitter_cap.min_ratio"),
+                         ({"all": "yes"}, "stages.jitter_cap.all")):
+        with pytest.raises(ParameterError, match=says):
+            JitterCapConfig(**kwargs)
+    with pytest.raises(ParameterError, match="stages.jitter_cap needs a genre_stats.jitter table"):
+        StageConfig(jitter_cap=JitterCapConfig())
+    # the old layout (the cap inside "sampling") converted: the draw keeps its limit, the stages get the cap
     spec = {"genre_temperature": 2, "genre_jitter": dict(TABLE), "jitter_cap": 0.9, "genre_max_jitter": 2,
             "jitter_cap_min_ratio": 0.4, "jitter_cap_all": True}
-    assert genre_draw_from_meta({"sampling": spec}) == GenreDraw(2.0, genre_jitter=TABLE, jitter_cap=0.9,
-                                                                 max_jitter=2.0, cap_min_ratio=0.4, cap_all=True)
+    assert genre_draw_from_meta({"sampling": spec}) == GenreDraw(2.0, genre_jitter=TABLE, max_jitter=2.0)
+    settings = checkpoint_settings({"model": "revolution", "sampling": spec}, sampling=RevolutionSampling)
+    assert settings.stages.jitter_cap == JitterCapConfig(scale=0.9, min_ratio=0.4, all=True)
     for bad in ({"jitter_cap": 1.0}, {"genre_jitter": [0.1]}, {"genre_jitter": {"waltz": "calm"}},
                 {"genre_jitter": dict(TABLE), "jitter_cap": "low"}):
-        with pytest.raises(CheckpointError, match="ckpt: bad 'sampling' entry in config.json"):
+        with pytest.raises(CheckpointError, match="ckpt: config.json: .*jitter"):
             genre_draw_from_meta({"sampling": bad}, folder="ckpt")
 
 
@@ -318,9 +351,8 @@ def jitter_m_s(motion) -> float:
 def test_a_drawn_dance_is_capped_and_the_most_likely_one_left_alone(parent, song, monkeypatch):
     free = GenreDraw(temperature=1.0, alone=0.2, genre_jitter=TABLE)
     # a cap of 0.1 × 0.026 m/s is under every tiny model's dance (0.007-0.03 m/s after the smoothing stage)
-    capped = GenreDraw(temperature=1.0, alone=0.2, genre_jitter=TABLE, jitter_cap=0.1)
     before = pipeline(parent, monkeypatch, free).dances(song, seeds=SEEDS, beat_sync=False)
-    after = pipeline(parent, monkeypatch, capped).dances(song, seeds=SEEDS, beat_sync=False)
+    after = pipeline(parent, monkeypatch, free, JitterCapConfig(scale=0.1)).dances(song, seeds=SEEDS, beat_sync=False)
     drawn = 0
     for a, b in zip(before, after):
         assert a.genre == b.genre
@@ -340,8 +372,8 @@ def test_a_drawn_dance_is_capped_and_the_most_likely_one_left_alone(parent, song
                 length = np.linalg.norm(p[:, j] - p[:, sk.parents[j]], axis=-1)
                 np.testing.assert_allclose(length, length[0], rtol=1e-4)
     assert drawn >= 2
-    every = pipeline(parent, monkeypatch, GenreDraw(temperature=1.0, alone=0.2, genre_jitter=TABLE, jitter_cap=0.1,
-                                                    cap_all=True)).dances(song, seeds=[0], beat_sync=False)
+    every = pipeline(parent, monkeypatch, free, JitterCapConfig(scale=0.1, all=True)).dances(song, seeds=[0],
+                                                                                           beat_sync=False)
     assert jitter_m_s(every[0].motion) < jitter_m_s(before[0].motion)
 
 
@@ -381,8 +413,8 @@ def test_the_cutoff_brings_the_jitter_under_the_cap():
         jitter_cutoff(p, skeleton=skel, fps=25.0, max_jitter=0.0)
 
 
-def test_the_draw_and_a_jitter_cap_entry_judge_a_genre_jitter_table_alike():
-    from dancekit.pipelines.stages import genre_jitter_table, jitter_cap_from_entry
+def test_the_draw_and_the_genre_stats_judge_a_genre_jitter_table_alike():
+    from dancekit.pipelines.stages import genre_jitter_table
 
     assert genre_jitter_table({"waltz": 0.026, "tango": 1}) == {"waltz": 0.026, "tango": 1.0}
     assert genre_jitter_table((("rumba", 0.05),)) == {"rumba": 0.05}
@@ -394,10 +426,10 @@ def test_the_draw_and_a_jitter_cap_entry_judge_a_genre_jitter_table_alike():
         if table:  # an empty table is "no table" for the draw (its caps then say they need one)
             with pytest.raises(ParameterError, match="genre_jitter must map"):
                 GenreDraw(genre_jitter=tuple(table.items()))
-        with pytest.raises(CheckpointError, match="m2d: bad 'jitter_cap' entry in config.json: genre_jitter must map"):
-            jitter_cap_from_entry({"genre_jitter": table, "jitter_cap": 1.0}, folder="m2d")
-    good = {"genre_jitter": {"waltz": 0.026, "rumba": 0.05}, "jitter_cap": 1.2}
-    assert jitter_cap_from_entry(good)["genre_jitter"] == {"waltz": 0.026, "rumba": 0.05}
+        if table:  # the genre statistics refuse it too (an empty table is no table)
+            with pytest.raises(ParameterError, match="genre_stats.jitter"):
+                GenreStats(jitter=table)
+    assert GenreStats(jitter={"waltz": 0.026, "rumba": 0.05}).table("jitter") == {"waltz": 0.026, "rumba": 0.05}
 
 
 def test_a_spread_draw_is_the_golden_ratio_sequence_worked_independently():
@@ -444,5 +476,5 @@ def test_the_spread_key_is_read_from_the_checkpoint_and_checked():
     assert genre_draw_from_meta({"sampling": {"genre_temperature": 2, "genre_draw_spread": True}}) == \
         GenreDraw(temperature=2.0, spread=True)
     assert genre_draw_from_meta({"sampling": {"genre_temperature": 2}}).spread is False
-    with pytest.raises(CheckpointError, match="ckpt: bad 'sampling' entry in config.json: genre_draw_spread"):
+    with pytest.raises(CheckpointError, match="ckpt: config.json: sampling.genre_draw_spread must be true or false"):
         genre_draw_from_meta({"sampling": {"genre_temperature": 2, "genre_draw_spread": "yes"}}, folder="ckpt")

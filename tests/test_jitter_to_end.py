@@ -1,9 +1,10 @@
-"""The jitter cap held to the end of the stages (stages.finish(jitter_to_end=True); revolution's
-"jitter_cap_to_end", a "jitter_cap" entry's "to_end") and the pipelines' stage trace that `dancekit evaluate`
-keeps the dance before the warp from (issue 15)."""
+"""The jitter cap held to the end of the stages (a checkpoint's "stages": {"jitter_cap": {"to_end": true}},
+stages.finish) and the pipelines' stage trace that `dancekit evaluate` keeps the dance before the warp from
+(issue 15)."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -14,11 +15,18 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion, get_skeleton
 from dancekit.motion.jitter import jitter_speed
 from dancekit.pipelines.base import DanceResult
-from dancekit.pipelines.revolution import GenreDraw, genre_draw_from_meta
+from dancekit.pipelines.config import JitterCapConfig, read_stage_config
 
 FPS = 25.0
 SK = get_skeleton("tang2018")
 REVOLUTION = str(Path(stages.__file__).resolve().parent.parent / "assets" / "models" / "revolution")
+DEFAULT = read_stage_config(REVOLUTION)
+
+
+def _capped(max_jitter: float, to_end: bool = False):
+    """The default's stages (no warp) with a fixed jitter cap (m/s)."""
+    cap = JitterCapConfig(max_jitter=max_jitter, to_end=to_end)
+    return dataclasses.replace(DEFAULT, jitter_cap=cap).switched(beat_sync=False)
 
 
 @pytest.fixture(scope="module")
@@ -33,19 +41,22 @@ def _jitter(result: DanceResult) -> float:
 
 def _by_hand(res: DanceResult, cutoff: float) -> DanceResult:
     """The default stages spelt out (no warp), the cap's low-pass at ``cutoff`` Hz before the lock."""
-    r = stages.lift_energy(stages.smooth(stages.clean_up(res)), **stages.energy_options(REVOLUTION))
+    e, stats = DEFAULT.lift_energy, DEFAULT.genre_stats
+    r = stages.smooth(stages.clean_up(res), config=DEFAULT.smooth, genre_stats=stats)
+    r = stages.lift_energy(r, fraction=e.fraction, genre_energy=stats.table("energy"), max_gain=e.max_gain,
+                           band_hz=e.band_hz)
     r = stages.settle(r, cutoff=cutoff)
-    r = stages.settle(stages.foot_lock(r), **stages.settle_options(REVOLUTION))
-    return stages.reground(r, **stages.ground_options(REVOLUTION))
+    r = stages.settle(stages.foot_lock(r, DEFAULT.foot_lock, stats), cutoff=3.0)
+    return stages.reground(r, window_s=1.0)
 
 
 def test_a_dance_the_lock_brings_back_over_the_cap_is_filtered_again_to_end_under_it(dance):
     # this clip's jitter is 0.0211 m/s after every stage; before the lock it is under 0.02, so the cap
     # before the lock leaves it alone and the lock brings it back over (measured once, 2026-11-24)
-    plain = stages.finish(dance, "unused.wav", beat_sync_on=False, max_jitter=0.02)
+    plain = stages.finish(dance, "unused.wav", _capped(0.02))
     assert _jitter(plain) > 0.02
     assert not any("calmed" in n for n in plain.notes)
-    held = stages.finish(dance, "unused.wav", beat_sync_on=False, max_jitter=0.02, jitter_to_end=True)
+    held = stages.finish(dance, "unused.wav", _capped(0.02, to_end=True))
     assert _jitter(held) <= 0.02
     # from the highest cut-off down: 4 and 3 Hz were not enough, 2.5 Hz neither, 2 Hz is
     assert held.notes[-1] == "calmed to the song's genres (2-Hz low-pass)"
@@ -55,14 +66,14 @@ def test_a_dance_the_lock_brings_back_over_the_cap_is_filtered_again_to_end_unde
 
 
 def test_a_dance_already_under_the_cap_at_the_end_is_the_same_bit_for_bit(dance):
-    a = stages.finish(dance, "unused.wav", beat_sync_on=False, max_jitter=0.03)
-    b = stages.finish(dance, "unused.wav", beat_sync_on=False, max_jitter=0.03, jitter_to_end=True)
+    a = stages.finish(dance, "unused.wav", _capped(0.03))
+    b = stages.finish(dance, "unused.wav", _capped(0.03, to_end=True))
     np.testing.assert_array_equal(a.motion.positions, b.motion.positions)
     assert a.notes == b.notes
 
 
 def test_the_lowest_cut_off_is_the_last_try_when_none_reaches_the_cap(dance):
-    out = stages.finish(dance, "unused.wav", beat_sync_on=False, max_jitter=0.005, jitter_to_end=True)
+    out = stages.finish(dance, "unused.wav", _capped(0.005, to_end=True))
     assert out.notes[-1] == "calmed to the song's genres (1-Hz low-pass)"
     np.testing.assert_array_equal(out.motion.positions, _by_hand(dance, 1.0).motion.positions)
     assert _jitter(out) > 0.005  # as close as the cap's filters get
@@ -70,27 +81,40 @@ def test_the_lowest_cut_off_is_the_last_try_when_none_reaches_the_cap(dance):
 
 def test_the_trace_shows_only_the_stages_as_last_run(dance):
     seen = []
-    out = stages.finish(dance, "unused.wav", beat_sync_on=False, max_jitter=0.02, jitter_to_end=True,
-                        trace=lambda name, r: seen.append((name, r)))
+    out = stages.finish(dance, "unused.wav", _capped(0.02, to_end=True), trace=lambda name, r: seen.append((name, r)))
     assert [n for n, _ in seen] == ["input", "clean_up", "smooth", "lift_energy", "jitter_cap", "foot_lock",
                                     "settle", "reground"]
     assert seen[-1][1] is out and seen[4][1].notes[-1].endswith("(2-Hz low-pass)")
 
 
-def test_the_flags_are_read_from_the_checkpoint_entries_and_bad_ones_named():
+def test_the_flags_are_read_from_the_checkpoint_entries_and_bad_ones_named(tmp_path):
+    """Both old layouts (revolution's cap in its "sampling", the others' "jitter_cap" entry) become one
+    "stages": {"jitter_cap": ...}; a flag that is not true / false is named with the folder."""
+    import json
+
+    from dancekit.pipelines.config import checkpoint_settings
+
     table = {"waltz": 0.026, "rumba": 0.05}
-    draw = genre_draw_from_meta({"sampling": {"genre_jitter": table, "jitter_cap": 1.1, "jitter_cap_to_end": True}})
-    assert draw.cap_to_end is True and GenreDraw().cap_to_end is False
-    with pytest.raises(CheckpointError, match="ck: bad 'sampling' entry in config.json: jitter_cap_to_end must be"):
-        genre_draw_from_meta({"sampling": {"genre_jitter": table, "jitter_cap": 1.0, "jitter_cap_to_end": "yes"}},
-                             folder="ck")
-    with pytest.raises(ParameterError, match="jitter_cap_to_end must be true or false"):
-        GenreDraw(cap_to_end=1)
+    old_rev = {"model": "revolution", "sampling": {"genre_jitter": table, "jitter_cap": 1.1, "jitter_cap_to_end": True}}
+    cap = checkpoint_settings(old_rev, folder="ck").stages.jitter_cap
+    assert (cap.scale, cap.to_end, cap.all, cap.named) == (1.1, True, False, False)
+    assert JitterCapConfig().to_end is False
+    with pytest.raises(CheckpointError, match="ck: config.json: stages.jitter_cap.to_end must be true or false"):
+        checkpoint_settings({**old_rev, "sampling": {"genre_jitter": table, "jitter_cap": 1.0,
+                                                     "jitter_cap_to_end": "yes"}}, folder="ck")
+    with pytest.raises(ParameterError, match="stages.jitter_cap.to_end must be true or false"):
+        JitterCapConfig(to_end=1)
     entry = {"genre_jitter": table, "jitter_cap": 1.0}
-    assert stages.jitter_cap_from_entry(entry)["to_end"] is False
-    assert stages.jitter_cap_from_entry({**entry, "to_end": True})["to_end"] is True
-    with pytest.raises(CheckpointError, match="m2d: bad 'jitter_cap' entry in config.json: to_end must be true or"):
-        stages.jitter_cap_from_entry({**entry, "to_end": 1}, folder="m2d")
+    old = {"model": "music2dance", "jitter_cap": entry}
+    assert checkpoint_settings(old, folder="m2d").stages.jitter_cap.to_end is False
+    assert checkpoint_settings({**old, "jitter_cap": {**entry, "to_end": True}}, folder="m2d").stages.jitter_cap.to_end
+    with pytest.raises(CheckpointError, match="m2d: config.json: stages.jitter_cap.to_end must be true or"):
+        checkpoint_settings({**old, "jitter_cap": {**entry, "to_end": 1}}, folder="m2d")
+    new = tmp_path / "new"
+    new.mkdir()
+    (new / "config.json").write_text(json.dumps({"model": "music2dance", "stages": {"jitter_cap": {"to_end": True}},
+                                                 "genre_stats": {"jitter": table}}))
+    assert read_stage_config(new).jitter_cap == JitterCapConfig(to_end=True)
 
 
 def test_a_pipelines_stage_trace_gives_each_seeds_dance_before_its_warp(tmp_path):

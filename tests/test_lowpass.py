@@ -5,6 +5,8 @@ stage after the foot lock (:func:`dancekit.pipelines.stages.settle`) keeps bone 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -177,30 +179,29 @@ def _ancestors(j: int) -> set[int]:
     return out
 
 
-def test_settle_options_come_from_the_checkpoint(tmp_path):
+def test_the_settle_settings_come_from_the_checkpoint(tmp_path):
     import json
     from pathlib import Path
 
     import dancekit.pipelines.stages as stages
     from dancekit.errors import CheckpointError
+    from dancekit.pipelines.config import read_stage_config
 
     folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
-    assert stages.settle_options(str(folder / "revolution")) == {"cutoff": 3.0}
-    assert stages.settle_options(str(folder / "music2dance")) == {}
-    assert stages.settle_options(str(folder / "dual")) == {}
-    assert stages.settle_options("/somewhere/else/revolution") == {}
-    assert stages.settle_options(None) == {}
+    assert read_stage_config(folder / "revolution").settle.settle_options() == {"cutoff": 3.0}
+    assert read_stage_config(folder / "music2dance").settle.settle_options() == {}
+    assert read_stage_config(folder / "dual").settle.settle_options() == {}
     bad = tmp_path / "m"
     bad.mkdir()
     cfg = json.loads((folder / "revolution" / "config.json").read_text())
-    cfg["settle"] = {"cutoff": 3}
+    cfg["stages"]["settle"] = {"cutoff": 3}
     (bad / "config.json").write_text(json.dumps(cfg))
-    with pytest.raises(CheckpointError, match="config.json"):
-        stages.settle_options(str(bad))
-    cfg["settle"] = {"cutoff_hz": "3"}  # a string where a number goes
+    with pytest.raises(CheckpointError, match=f"{bad}: config.json: unknown key stages.settle.cutoff "):
+        read_stage_config(bad)
+    cfg["stages"]["settle"] = {"cutoff_hz": "3"}  # a string where a number goes
     (bad / "config.json").write_text(json.dumps(cfg))
-    with pytest.raises(CheckpointError, match="'settle' takes numbers"):
-        stages.settle_options(str(bad))
+    with pytest.raises(CheckpointError, match=r"stages.settle.cutoff_hz must be a number in \[0, inf\) \(Hz\), got '3'"):
+        read_stage_config(bad)
 
 
 def test_finish_settles_after_the_lock_for_the_model_that_asks(monkeypatch):
@@ -213,14 +214,19 @@ def test_finish_settles_after_the_lock_for_the_model_that_asks(monkeypatch):
     calls = []
     real = stages.settle
     monkeypatch.setattr(stages, "settle", lambda r, **kw: calls.append(kw) or real(r, **kw))
+    from dancekit.pipelines.config import read_stage_config
+
     for model, want in ((str(folder / "revolution"), {"cutoff": 3.0}), (str(folder / "music2dance"), {})):
         res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=model, seed=0)
-        out = stages.finish(res, "unused.wav", beat_sync_on=False)
+        config = read_stage_config(model)
+        config = dataclasses.replace(config, jitter_cap=None, lift_energy=None, reground=None)  # the lock's block only
+        out = stages.finish(res, "unused.wav", config.switched(beat_sync=False))
         assert calls[-1] == want
-        locked = stages.foot_lock(stages.smooth(stages.clean_up(res)))
+        cleaned = stages.smooth(stages.clean_up(res), config=config.smooth, genre_stats=config.genre_stats)
+        locked = stages.foot_lock(cleaned, config.foot_lock, config.genre_stats)
         same = np.array_equal(out.motion.positions, locked.motion.positions)
         assert same == (not want)  # only the model that asks is low-passed
-    stages.finish(res, "unused.wav", beat_sync_on=False, foot_lock_on=False)
+    stages.finish(res, "unused.wav", config.switched(beat_sync=False, foot_lock=False))
     assert len(calls) == 2  # no lock: no settle
 
 
@@ -269,8 +275,12 @@ def test_the_jitter_cap_comes_before_the_lock_so_planted_feet_stay_planted():
     p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
     model = str(Path(stages.__file__).resolve().parent.parent / "assets" / "models" / "revolution")
     res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=model, seed=0)
-    plain = stages.finish(res, "unused.wav", beat_sync_on=False).motion.positions.astype(np.float64)
-    capped = stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9).motion.positions.astype(np.float64)
+    from dancekit.pipelines.config import JitterCapConfig, read_stage_config
+
+    config = read_stage_config(model).switched(beat_sync=False)
+    plain = stages.finish(res, "unused.wav", config).motion.positions.astype(np.float64)
+    config = dataclasses.replace(config, jitter_cap=JitterCapConfig(max_jitter=1e-9))
+    capped = stages.finish(res, "unused.wav", config).motion.positions.astype(np.float64)
 
     def jitter(x):
         return stability.jitter(x, fps=FPS, skeleton=SK)["speed_residual"]

@@ -430,9 +430,9 @@ def test_the_embedded_model_loads_in_float32_with_its_parts_and_dances(song8):
     # --genre chacha / tango: their own sampling and smoothing targets (docs/MUSIC2DANCE.md); waltz, rumba,
     # auto and none: the plain sampling above
     assert set(pipe.genre_sampling) == {"chacha", "tango"}
-    from dancekit.pipelines.stages import genre_smoothing_targets
+    from dancekit.pipelines.config import read_stage_config
 
-    assert set(genre_smoothing_targets(folder)) == {"chacha", "tango"}
+    assert set(read_stage_config(folder).smooth.genre_targets) == {"chacha", "tango"}
     assert foot_constraint_folder() == folder / "foot_constraint"
     fix = load_foot_constraint()
     assert {p.dtype for p in fix.model.parameters()} == {torch.float32}
@@ -533,7 +533,7 @@ def test_genre_sampling_applies_when_a_genre_is_named_and_not_otherwise(m2d_fold
         np.testing.assert_array_equal(r.motion.to_positions(), a)
     for bad in ({"tango": steer}, {"rumba": {"speed": 2}}, {"rumba": {"noise_correlation": 1.0}}, ["rumba"]):
         (folder / "config.json").write_text(json.dumps({**meta, "genre_sampling": bad}))
-        with pytest.raises(CheckpointError, match="genre_sampling"):
+        with pytest.raises(CheckpointError, match="genre_sampling|sampling.genres"):
             Music2DancePipeline.from_pretrained(folder)
 
 
@@ -565,11 +565,13 @@ def test_the_jitter_cap_entry_calms_a_dance_to_its_genres_before_the_foot_lock(m
     (issue 15, the Dance Revolution cap given to music2dance): a dance of a named genre G is finished with
     ``max_jitter = s × genre_jitter[G]`` (worked by hand: 1.5 × 0.002 m/s), i.e. bit for bit the model's own dance
     run through :func:`stages.finish` with that cap; "none" (no genre) is not capped; a bad entry names config.json."""
+    import dataclasses
     import json
     import shutil
 
     from dancekit.errors import CheckpointError
     from dancekit.pipelines import stages
+    from dancekit.pipelines.config import JitterCapConfig
     from dancekit.pipelines.music2dance import Music2DancePipeline
 
     folder = tmp_path / "capped"
@@ -578,14 +580,21 @@ def test_the_jitter_cap_entry_calms_a_dance_to_its_genres_before_the_foot_lock(m
     entry = {"genre_jitter": {"waltz": 0.001, "rumba": 0.002}, "jitter_cap": 1.5, "jitter_cap_min_ratio": 0.7}
     (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": entry}))
     plain, capped = Music2DancePipeline.from_pretrained(m2d_folder), Music2DancePipeline.from_pretrained(folder)
-    assert plain.jitter_cap is None
-    assert capped.max_jitter("rumba", {}) == pytest.approx(1.5 * 0.002)
-    assert capped.max_jitter("rumba", {"rumba": 0.6, "waltz": 0.4}) == pytest.approx(1.5 * 0.002)  # 0.4 < 0.7 · 0.6
-    assert capped.max_jitter("rumba", {"rumba": 0.5, "waltz": 0.4}) == pytest.approx(1.5 * 0.001)  # 0.4 ≥ 0.7 · 0.5
-    assert capped.max_jitter(None, {}) is None and plain.max_jitter("rumba", {}) is None
-
+    assert plain.stage_options().jitter_cap is None
     raw = plain(song8, seed=0, genre="rumba", end=3.0, beat_sync=False, cleanup=False)
-    by_hand = stages.finish(raw, song8, end=3.0, beat_sync_on=False, max_jitter=1.5 * 0.002).motion.to_positions()
+
+    def cap(pipe, genre, probs):
+        config = pipe.stage_options()
+        return stages.jitter_cap_for(dataclasses.replace(raw, genre=genre, genre_probs=probs), config.jitter_cap,
+                                     config.genre_stats)
+
+    assert cap(capped, "rumba", {}) == pytest.approx(1.5 * 0.002)
+    assert cap(capped, "rumba", {"rumba": 0.6, "waltz": 0.4}) == pytest.approx(1.5 * 0.002)  # 0.4 < 0.7 · 0.6
+    assert cap(capped, "rumba", {"rumba": 0.5, "waltz": 0.4}) == pytest.approx(1.5 * 0.001)  # 0.4 ≥ 0.7 · 0.5
+    assert cap(capped, None, {}) is None and cap(plain, "rumba", {}) is None
+
+    fixed = dataclasses.replace(plain.stage_options(beat_sync=False), jitter_cap=JitterCapConfig(max_jitter=1.5 * 0.002))
+    by_hand = stages.finish(raw, stages.Song(song8, end=3.0), fixed).motion.to_positions()
     got = capped(song8, seed=0, genre="rumba", end=3.0, beat_sync=False)
     np.testing.assert_array_equal(got.motion.to_positions(), by_hand)
     assert any(n.startswith("calmed to the song's genres") for n in got.notes)
@@ -596,7 +605,7 @@ def test_the_jitter_cap_entry_calms_a_dance_to_its_genres_before_the_foot_lock(m
     for bad in ([1.5], {"jitter_cap": 1.5}, {**entry, "jitter_cap": 0}, {**entry, "jitter_cap_min_ratio": 2},
                 {**entry, "genre_jitter": {"waltz": -1}}, {**entry, "cap": 1}):
         (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": bad}))
-        with pytest.raises(CheckpointError, match=r"bad 'jitter_cap' entry in config\.json"):
+        with pytest.raises(CheckpointError, match=r"config\.json: .*(jitter_cap|genre_stats\.jitter)"):
             Music2DancePipeline.from_pretrained(folder)
 
 
@@ -619,23 +628,23 @@ def test_the_jitter_cap_entry_after_lock_calms_the_locked_dance(m2d_folder, song
     entry = {"genre_jitter": {"waltz": 0.001, "rumba": 0.002}, "jitter_cap": 1.5, "jitter_cap_min_ratio": 0.7}
     plain = Music2DancePipeline.from_pretrained(m2d_folder)
     raw = plain(song8, seed=0, genre="rumba", end=3.0, beat_sync=False, cleanup=False)
+    config = plain.stage_options()
+    assert config.lift_energy is None and config.settle.settle_options() == {}  # the tiny model's: no lift, no settle
     r = stages.smooth(stages.clean_up(raw))
-    r = stages.lift_energy(r, **stages.energy_options(r.model))
-    locked = stages.settle(stages.foot_lock(r), **stages.settle_options(r.model))
+    locked = stages.settle(stages.foot_lock(r))
     by_hand_after = stages.settle(locked, max_jitter=1.5 * 0.002)
-    by_hand_before = stages.settle(stages.settle(stages.foot_lock(stages.settle(r, max_jitter=1.5 * 0.002)),
-                                                 **stages.settle_options(r.model)))
+    by_hand_before = stages.settle(stages.settle(stages.foot_lock(stages.settle(r, max_jitter=1.5 * 0.002))))
     assert any(n.startswith("calmed to the song's genres") for n in by_hand_after.notes)
     got = {}
     for after in (True, False):
         (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": {**entry, "after_lock": after}}))
         capped = Music2DancePipeline.from_pretrained(folder)
-        assert capped.jitter_after_lock is after and "after_lock" not in capped.jitter_cap
+        assert capped.stage_options().jitter_cap.after_lock is after
         got[after] = capped(song8, seed=0, genre="rumba", end=3.0, beat_sync=False).motion.to_positions()
     np.testing.assert_array_equal(got[True], by_hand_after.motion.to_positions())
     np.testing.assert_array_equal(got[False], by_hand_before.motion.to_positions())
     assert np.abs(got[True] - got[False]).max() > 1e-3  # the placement matters for this dance
     for bad in ("yes", 1, None):
         (folder / "config.json").write_text(json.dumps({**meta, "jitter_cap": {**entry, "after_lock": bad}}))
-        with pytest.raises(CheckpointError, match=r"bad 'jitter_cap' entry in config\.json: after_lock"):
+        with pytest.raises(CheckpointError, match=r"config\.json: stages\.jitter_cap\.after_lock must be true or false"):
             Music2DancePipeline.from_pretrained(folder)

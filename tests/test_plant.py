@@ -125,20 +125,22 @@ def test_the_target_is_the_drawn_genres_share_or_the_posterior_mean(tmp_path):
     assert stages.plant_target(alone, genre_share=table) == pytest.approx((0.5 * 0.2 + 0.25 * 0.4) / 0.75)
     assert stages.plant_target(DanceResult(motion=m, model="x", seed=0), genre_share=table) is None
     assert stages.plant_target(r) is None
-    folder = _folder(tmp_path, {"genre_share": table})
-    assert stages.plant_options(folder) == {"genre_share": table}
+    from dancekit.pipelines.config import read_stage_config
+
+    config = read_stage_config(_folder(tmp_path, {"genre_share": table}))  # the old layout, converted
+    assert config.foot_lock.plant and config.genre_stats.table("planted_share") == table
     (tmp_path / "plain").mkdir()
-    assert stages.plant_options(_folder(tmp_path / "plain", None)) == {}  # no entry: the lock as set
+    assert not read_stage_config(_folder(tmp_path / "plain", None)).foot_lock.plant  # no entry: the lock as set
 
 
 @pytest.mark.parametrize("entry", [{"genre_share": {"waltz": 0.0}}, {"genre_share": {"waltz": 1.2}},
                                    {"genre_share": {}}, {"genre_share": {"waltz": "a lot"}},
                                    {"genre_share": {"waltz": 0.3}, "scale": 1}, {"share": 0.3}, [0.3]])
 def test_a_bad_plant_entry_is_a_checkpoint_error(tmp_path, entry):
-    from dancekit.pipelines import stages
+    from dancekit.pipelines.config import read_stage_config
 
-    with pytest.raises(CheckpointError, match=r"config\.json.*'plant'"):
-        stages.plant_options(_folder(tmp_path, entry))
+    with pytest.raises(CheckpointError, match=r"config\.json.*plant"):
+        read_stage_config(_folder(tmp_path, entry))
 
 
 def test_the_stage_holds_the_feet_only_as_long_as_the_genre_plants_them(tmp_path):
@@ -147,19 +149,23 @@ def test_the_stage_holds_the_feet_only_as_long_as_the_genre_plants_them(tmp_path
     without the entry as well."""
     from dancekit.pipelines import stages
     from dancekit.pipelines.base import DanceResult
+    from dancekit.pipelines.config import read_stage_config
 
     p = _figure(1.4 * np.arange(80)).astype(np.float32)
     motion = Motion(skeleton=SK, fps=FPS, positions=p)
-    free = stages.foot_lock(DanceResult(motion=motion, model=_folder(tmp_path, {"genre_share": {"waltz": 0.01}}),
-                                        seed=0, genre="waltz")).motion.positions
+    res = DanceResult(motion=motion, model="m", seed=0, genre="waltz")
+
+    def lock(folder):
+        config = read_stage_config(folder)
+        return stages.foot_lock(res, config.foot_lock, config.genre_stats).motion.positions
+
+    free = lock(_folder(tmp_path, {"genre_share": {"waltz": 0.01}}))
     np.testing.assert_allclose(free, p, atol=1e-4)
-    held = stages.foot_lock(DanceResult(motion=motion, model=_folder(tmp_path, {"genre_share": {"waltz": 1.0}}),
-                                        seed=0, genre="waltz")).motion.positions
+    held = lock(_folder(tmp_path, {"genre_share": {"waltz": 1.0}}))
     np.testing.assert_allclose(held, lock_feet(p, skeleton=SK, fps=FPS), atol=1e-4)
     assert np.abs(held - p).max() > 1.0
     (tmp_path / "plain").mkdir()
-    plain = stages.foot_lock(DanceResult(motion=motion, model=_folder(tmp_path / "plain", None), seed=0,
-                                         genre="waltz")).motion.positions
+    plain = lock(_folder(tmp_path / "plain", None))
     np.testing.assert_array_equal(plain, held)
 
 

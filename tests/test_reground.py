@@ -1,4 +1,4 @@
-"""The second grounding after the foot lock (stages.reground / ground_options, a checkpoint's "ground" entry)."""
+"""The second grounding after the foot lock (stages.reground, a checkpoint's "stages": {"reground": ...} entry)."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from dancekit.errors import CheckpointError
 from dancekit.motion import Motion, get_skeleton
 from dancekit.motion.analysis import rest_pose
 from dancekit.pipelines.base import DanceResult
+from dancekit.pipelines.config import JitterCapConfig, RegroundConfig, read_stage_config
 
 FPS = 25.0
 SK = get_skeleton("tang2018")
@@ -45,42 +46,44 @@ def test_a_lift_longer_than_half_the_window_is_taken_down_and_a_short_one_stays(
     np.testing.assert_allclose(out - out[:, :1], p - p[:, :1], atol=1e-4)
 
 
-def test_ground_options_come_from_the_checkpoint(tmp_path):
-    assert stages.ground_options(str(ASSETS / "revolution")) == {"window_s": 1.0}  # the embedded default asks
-    assert stages.ground_options(str(ASSETS / "music2dance")) == {}
-    assert stages.ground_options(str(ASSETS / "dual")) == {}
-    assert stages.ground_options(None) == {}
-    folder = tmp_path / "m"
-    folder.mkdir()
+def _with_reground(folder: Path, entry) -> str:
+    """The embedded default's config.json with ``"stages": {"reground": entry}`` (None: without one) in ``folder``."""
+    folder.mkdir(exist_ok=True)
     cfg = json.loads((ASSETS / "revolution" / "config.json").read_text())
-    for good, want in (({"after_lock_s": 0.6}, {"window_s": 0.6}), ({}, {})):
-        (folder / "config.json").write_text(json.dumps({**cfg, "ground": good}))
-        assert stages.ground_options(str(folder)) == want
-    for bad in ({"after_lock_s": 0}, {"after_lock_s": "0.6"}, {"window": 0.6}):
-        (folder / "config.json").write_text(json.dumps({**cfg, "ground": bad}))
-        with pytest.raises(CheckpointError, match="config.json"):
-            stages.ground_options(str(folder))
+    cfg["stages"] = {k: v for k, v in cfg["stages"].items() if k != "reground"}
+    if entry is not None:
+        cfg["stages"]["reground"] = entry
+    (folder / "config.json").write_text(json.dumps(cfg))
+    return str(folder)
+
+
+def test_the_reground_settings_come_from_the_checkpoint(tmp_path):
+    assert read_stage_config(ASSETS / "revolution").reground == RegroundConfig(window_s=1.0)  # the default asks
+    assert read_stage_config(ASSETS / "music2dance").reground is None
+    assert read_stage_config(ASSETS / "dual").reground is None
+    folder = tmp_path / "m"
+    assert read_stage_config(_with_reground(folder, {"window_s": 0.6})).reground.reground_options() == {"window_s": 0.6}
+    assert read_stage_config(_with_reground(folder, None)).reground is None
+    assert "reground" not in read_stage_config(_with_reground(folder, None)).order()
+    for bad in ({"window_s": 0}, {"window_s": "0.6"}, {"window": 0.6}):
+        with pytest.raises(CheckpointError, match=f"{folder}: config.json: .*stages.reground.{next(iter(bad))}"):
+            read_stage_config(_with_reground(folder, bad))
 
 
 def test_finish_regrounds_last_in_the_lock_block_for_the_model_that_asks(tmp_path, monkeypatch):
     p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
-    folder = tmp_path / "m"
-    folder.mkdir()
-    cfg = json.loads((ASSETS / "revolution" / "config.json").read_text())
-    (folder / "config.json").write_text(json.dumps({**cfg, "ground": {"after_lock_s": 0.6}}))
+    folder = _with_reground(tmp_path / "m", {"window_s": 0.6})
     order = []
     for name in ("foot_lock", "settle", "reground"):
         real = getattr(stages, name)
-        monkeypatch.setattr(stages, name, lambda r, _real=real, _n=name, **kw: order.append(_n) or _real(r, **kw))
+        monkeypatch.setattr(stages, name, lambda r, *a, _real=real, _n=name, **kw: order.append(_n) or _real(r, *a, **kw))
     res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=str(folder), seed=0)
-    out = stages.finish(res, "unused.wav", beat_sync_on=False)
+    out = stages.finish(res, "unused.wav", read_stage_config(folder).switched(beat_sync=False))
     assert order == ["foot_lock", "settle", "reground"]
     order.clear()
-    without = tmp_path / "without"
-    without.mkdir()
-    (without / "config.json").write_text(json.dumps({k: v for k, v in cfg.items() if k != "ground"}))
-    plain = stages.finish(DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p),
-                                      model=str(without), seed=0), "unused.wav", beat_sync_on=False)
+    without = _with_reground(tmp_path / "without", None)
+    plain = stages.finish(DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=without, seed=0),
+                          "unused.wav", read_stage_config(without).switched(beat_sync=False))
     assert "reground" not in order
     # the grounded dance touches the floor in every 0.6-s window; the lowest joint is never under it
     low = out.motion.positions[..., 1].min(axis=1)
@@ -109,9 +112,12 @@ def test_a_motion_with_rotations_keeps_them_and_its_root_translation_follows():
 def test_finish_traces_every_stage_it_runs_in_order_and_each_traced_dance_is_that_stage_applied():
     p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
     res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=str(ASSETS / "revolution"), seed=0)
+    import dataclasses
+
+    default = read_stage_config(ASSETS / "revolution")
+    config = dataclasses.replace(default, jitter_cap=JitterCapConfig(max_jitter=1e-9)).switched(beat_sync=False)
     seen = []
-    out = stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9,
-                        trace=lambda name, r: seen.append((name, r)))
+    out = stages.finish(res, "unused.wav", config, trace=lambda name, r: seen.append((name, r)))
     assert seen[0] == ("input", res)
     names = [n for n, _ in seen[1:]]
     seen = seen[1:]
@@ -119,17 +125,19 @@ def test_finish_traces_every_stage_it_runs_in_order_and_each_traced_dance_is_tha
     assert names == [n for n in stages.STAGE_NAMES if n != "beat_sync"]  # the default has a "ground" entry
     assert seen[-1][1] is out
     before, locked = seen[names.index("foot_lock") - 1][1], seen[names.index("foot_lock")][1]
-    assert np.array_equal(locked.motion.positions, stages.foot_lock(before).motion.positions)
+    assert np.array_equal(locked.motion.positions,
+                          stages.foot_lock(before, default.foot_lock, default.genre_stats).motion.positions)
     capped = seen[names.index("jitter_cap")][1]
     assert capped.notes[-1].startswith("calmed to the song's genres")
-    plain = stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9)
+    plain = stages.finish(res, "unused.wav", config)
     assert np.array_equal(plain.motion.positions, out.motion.positions)  # the trace changes nothing
     after = []
-    stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9, jitter_after_lock=True,
-                  trace=lambda name, r: after.append(name))
+    late = dataclasses.replace(config, jitter_cap=JitterCapConfig(max_jitter=1e-9, after_lock=True))
+    stages.finish(res, "unused.wav", late, trace=lambda name, r: after.append(name))
     assert after == ["input", "clean_up", "smooth", "lift_energy", "foot_lock", "settle", "jitter_cap", "reground"]
     none = []
-    stages.finish(res, "unused.wav", beat_sync_on=False, cleanup_on=False, trace=lambda name, r: none.append(name))
+    stages.finish(res, "unused.wav", default.switched(beat_sync=False, cleanup=False),
+                  trace=lambda name, r: none.append(name))
     assert none == ["input"]
 
 
@@ -188,13 +196,9 @@ def test_reground_tries_shorter_windows_only_while_the_dance_floats_over_the_bou
                                   stages.reground(floating, window_s=0.25).motion.positions)
 
 
-def test_ground_options_read_the_float_bound(tmp_path):
+def test_the_reground_settings_read_the_float_bound(tmp_path):
     folder = tmp_path / "m"
-    folder.mkdir()
-    cfg = json.loads((ASSETS / "revolution" / "config.json").read_text())
-    (folder / "config.json").write_text(json.dumps({**cfg, "ground": {"after_lock_s": 1.0, "max_float_cm": 2}}))
-    assert stages.ground_options(str(folder)) == {"window_s": 1.0, "max_float_cm": 2.0}
-    for bad in ({"max_float_cm": 2.0}, {"after_lock_s": 1.0, "max_float_cm": 0}, {"after_lock_s": 1.0, "max_float_cm": "2"}):
-        (folder / "config.json").write_text(json.dumps({**cfg, "ground": bad}))
-        with pytest.raises(CheckpointError, match="config.json"):
-            stages.ground_options(str(folder))
+    assert read_stage_config(_with_reground(folder, {"window_s": 1.0, "max_float_cm": 2})).reground.reground_options() == {"window_s": 1.0, "max_float_cm": 2.0}
+    for bad in ({"window_s": 1.0, "max_float_cm": 0}, {"window_s": 1.0, "max_float_cm": "2"}):
+        with pytest.raises(CheckpointError, match="stages.reground.max_float_cm"):
+            read_stage_config(_with_reground(folder, bad))

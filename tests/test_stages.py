@@ -239,9 +239,11 @@ def test_stage_warps_on_a_beat_and_leaves_a_beatless_song_alone(tmp_path):
     after = beat_metrics(warped.motion.positions, beats, fps=FPS)
     assert after["bas_bailando"] > before["bas_bailando"] + 0.1
     # switched off, nothing changes; the clean-up alone is deterministic and keeps the frame count
-    same = finish(result, clicks, beat_sync_on=False, cleanup_on=False)
+    from dancekit.pipelines.config import StageConfig
+
+    same = finish(result, clicks, StageConfig().switched(beat_sync=False, cleanup=False))
     np.testing.assert_array_equal(same.motion.positions, result.motion.positions)
-    cleaned = finish(result, clicks, beat_sync_on=False)
+    cleaned = finish(result, clicks, StageConfig().switched(beat_sync=False))
     assert cleaned.motion.num_frames == result.motion.num_frames and cleaned.notes == []
 
 
@@ -364,24 +366,24 @@ def test_the_beat_sync_stage_reads_its_settings_from_the_checkpoint(tmp_path):
     from dancekit.audio import save_wav
     from dancekit.audio.synth import click_track
     from dancekit.pipelines import stages
+    from dancekit.pipelines.config import BeatSyncConfig, read_stage_config
 
     sr = 22050
     result = _dance_result(12.0, np.random.default_rng(3))
     clicks = tmp_path / "clicks.wav"
     save_wav(clicks, click_track(bpm=100.0, duration=12.04, sr=sr), sr=sr)
-    plain = stages.beat_sync(dataclasses.replace(result, model=_beat_checkpoint(tmp_path, None)), clicks)
+    config = read_stage_config(_beat_checkpoint(tmp_path, None)).switched(cleanup=False)
+    plain = stages.finish(result, clicks, config)
     assert plain.summary().startswith("beat-synced (")
-    near = _beat_checkpoint(tmp_path, {"max_shift": 0.001, "max_rate_change": 0.2})
-    assert stages.beat_sync_options(near) == {"max_shift": 0.001, "max_rate_change": 0.2}
-    kept = stages.beat_sync(dataclasses.replace(result, model=near), clicks)
+    near = read_stage_config(_beat_checkpoint(tmp_path, {"max_shift": 0.001, "max_rate_change": 0.2}))
+    assert near.beat_sync.warp_options() == {"max_shift": 0.001, "max_rate_change": 0.2}
+    kept = stages.finish(result, clicks, near.switched(cleanup=False))
     assert "not beat-synced: no movement beat" in kept.summary()
     np.testing.assert_array_equal(kept.motion.positions, result.motion.positions)
     folder = Path(stages.__file__).resolve().parent.parent / "assets" / "models"
-    for name in ("revolution", "style"):
-        assert stages.beat_sync_options(str(folder / name)) == {}
-    assert stages.beat_sync_options(None) == {} and stages.beat_sync_options("/somewhere/else") == {}
-    flag = _beat_checkpoint(tmp_path, {"step_pairing": False, "max_rate_step": 0.03})
-    assert stages.beat_sync_options(flag) == {"step_pairing": False, "max_rate_step": 0.03}
+    assert read_stage_config(folder / "revolution").beat_sync == BeatSyncConfig()
+    flag = read_stage_config(_beat_checkpoint(tmp_path, {"step_pairing": False, "max_rate_step": 0.03}))
+    assert flag.beat_sync.warp_options() == {"step_pairing": False, "max_rate_step": 0.03}
 
 
 @pytest.mark.parametrize("entry", [{"max_rate_change": 1.2}, {"pair_rate_change": 0.0}, {"pair_rate_change": 0.2},
@@ -391,22 +393,22 @@ def test_the_beat_sync_stage_reads_its_settings_from_the_checkpoint(tmp_path):
                                    {"max_rate_change": True}, {"speed": 1.0}, [0.2]])
 def test_a_bad_beat_sync_entry_is_a_checkpoint_error(tmp_path, entry):
     from dancekit.errors import CheckpointError
-    from dancekit.pipelines import stages
+    from dancekit.pipelines.config import read_stage_config
 
     with pytest.raises(CheckpointError, match="config.json.*beat_sync"):
-        stages.beat_sync_options(_beat_checkpoint(tmp_path, entry))
+        read_stage_config(_beat_checkpoint(tmp_path, entry))
 
 
 @pytest.mark.parametrize("name", ["dual", "music2dance"])
 def test_the_embedded_dual_and_music2dance_beat_sync_entries_are_read(name):
     """The embedded dual and music2dance carry a ``"beat_sync"`` entry (chosen on validation, docs/STAGES.md):
-    it is read from the folder the loaded pipeline stamps on its dances (what ``stages.beat_sync`` reads), its
+    it is in the stage configuration the loaded pipeline gives ``stages.finish``, its
     rates are in (0, 1) with the pair bound at most the speed bound, and it widens the default ±15 % bound."""
     from dancekit.motion import timewarp
-    from dancekit.pipelines import load_pipeline, stages
+    from dancekit.pipelines import load_pipeline
 
-    spec = stages.beat_sync_options(load_pipeline(name).folder)
-    assert set(spec) <= set(stages.BEAT_SYNC_KEYS) and {"max_rate_change", "pair_rate_change"} <= set(spec)
+    spec = load_pipeline(name).stage_options().beat_sync.warp_options()
+    assert {"max_rate_change", "pair_rate_change"} <= set(spec)
     assert 0 < spec["pair_rate_change"] <= spec["max_rate_change"] < 1
     assert spec["max_rate_change"] > timewarp.DEFAULT_MAX_RATE_CHANGE
     assert spec.get("between_tolerance", 0.0) >= 0
@@ -416,8 +418,9 @@ def test_plausible_jitter_cap_is_the_scale_times_the_smallest_real_jitter_of_the
     """Worked by hand: p = (0.5, 0.4, 0.1) over (chacha, rumba, waltz), ρ = 0.7 → plausible {chacha (0.5 ≥ 0.35),
     rumba (0.4 ≥ 0.35)} → 1.5 × min(0.14, 0.05); ρ = 0.1 adds waltz → 1.5 × 0.026; a genre not in the table is
     skipped; no posterior, no plausible genre in the table: None."""
-    from dancekit.errors import CheckpointError
-    from dancekit.pipelines.stages import jitter_cap_from_entry, plausible_jitter_cap
+    from dancekit.errors import ParameterError
+    from dancekit.pipelines.config import GenreStats, JitterCapConfig, StageConfig
+    from dancekit.pipelines.stages import plausible_jitter_cap
 
     table = {"waltz": 0.026, "rumba": 0.05, "chacha": 0.14}
     probs = {"chacha": 0.5, "rumba": 0.4, "waltz": 0.1}
@@ -426,12 +429,12 @@ def test_plausible_jitter_cap_is_the_scale_times_the_smallest_real_jitter_of_the
     assert plausible_jitter_cap({"tango": 0.9, "chacha": 0.1}, genre_jitter=table, scale=1.0,
                                 min_ratio=0.5) is None
     assert plausible_jitter_cap({}, genre_jitter=table, scale=1.0, min_ratio=0.5) is None
-    entry = jitter_cap_from_entry({"genre_jitter": table, "jitter_cap": 2})
-    assert entry == {"genre_jitter": table, "scale": 2.0, "min_ratio": 0.5, "after_lock": False, "to_end": False}
-    assert jitter_cap_from_entry({"genre_jitter": table, "jitter_cap": 2, "after_lock": True})["after_lock"] is True
-    assert jitter_cap_from_entry(None) is None
-    for bad in ({"genre_jitter": {}, "jitter_cap": 1}, {"genre_jitter": table}, {"genre_jitter": table, "jitter_cap": True},
-                {"genre_jitter": table, "jitter_cap": 1, "jitter_cap_min_ratio": -0.1}, "1.5",
-                {"genre_jitter": table, "jitter_cap": 1, "after_lock": "true"}):
-        with pytest.raises(CheckpointError, match=r"ckpt: bad 'jitter_cap' entry in config\.json"):
-            jitter_cap_from_entry(bad, folder="ckpt")
+    entry = JitterCapConfig(scale=2)
+    assert (entry.scale, entry.min_ratio, entry.after_lock, entry.to_end) == (2.0, 0.5, False, False)
+    for bad in ({"scale": True}, {"scale": 0}, {"min_ratio": -0.1}, {"after_lock": "true"}, {"scale": "1.5"}):
+        with pytest.raises(ParameterError, match=r"stages\.jitter_cap\." + next(iter(bad))):
+            JitterCapConfig(**bad)
+    with pytest.raises(ParameterError, match="genre_stats.jitter"):  # a cap needs the real jitters
+        StageConfig(jitter_cap=JitterCapConfig(), genre_stats=GenreStats())
+    with pytest.raises(ParameterError, match="genre_stats.jitter"):
+        GenreStats(jitter={"waltz": 0.0})

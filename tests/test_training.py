@@ -344,6 +344,14 @@ def test_train_cli_end_to_end_and_resume(fake_prepared, tmp_path, capsys):
     assert model.config.music_dim == 438 and model.config.pose_dim == 72 and model.config.d_model == 16
     assert meta["preset"] == "revolution" and meta["representation"] == "positions3d" and meta["fps"] == 25.0
     assert meta["train"]["seq_len"] == 40 and stats["dance_std"].shape == (72,)
+    # the real dances' per-genre tables the stages compare with (dancekit.training.genre_stats), from the train split
+    from dancekit.data import PreparedData
+    from dancekit.pipelines import load_pipeline
+    from dancekit.training.genre_stats import prepared_genre_stats
+
+    tables = prepared_genre_stats(PreparedData(fake_prepared), "train")
+    assert meta["genre_stats"]["jitter"] == tables["jitter"] and meta["genre_stats"]["energy"] == tables["energy"]
+    assert load_pipeline(out / "model").settings.stages.genre_stats.table("jitter") == tables["jitter"]
     # resume reads the configuration back from the checkpoint; only the new length is given
     assert main(["train", "revolution", "--data", str(fake_prepared), "--out", str(out), "--quiet", "--resume",
                  "--set", "steps=5"]) == 0

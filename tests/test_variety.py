@@ -8,7 +8,14 @@ import torch
 
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.revolution import RevolutionConfig, RevolutionModel, SeedVariety, _phrases
-from dancekit.pipelines.revolution import variety_from_meta
+from dancekit.pipelines.config import RevolutionSampling, checkpoint_settings
+from dancekit.pipelines.revolution import variety_from_sampling
+
+
+def variety_from_meta(meta: dict, fps: float, folder: str = "?") -> SeedVariety:
+    """The seed variety a checkpoint's config.json gives (parsed as the pipeline parses it)."""
+    settings = checkpoint_settings({"model": "revolution", **meta}, folder=folder, sampling=RevolutionSampling)
+    return variety_from_sampling(settings.sampling, fps, folder=folder)
 
 D, P = 8, 6
 N = 120  # frames
@@ -119,7 +126,7 @@ def test_checkpoint_setting_is_read_and_checked():
     assert variety_from_meta({}, 25.0) == SeedVariety()
     v = variety_from_meta({"sampling": {"phrase_s": 3.0, "state_noise": 0.5, "latent_noise": 0.2}}, 25.0)
     assert v == SeedVariety(phrase=75, state_noise=0.5, latent_noise=0.2) and v.active
-    with pytest.raises(CheckpointError, match="ckpt: bad 'sampling'.*state_noise"):
+    with pytest.raises(CheckpointError, match="ckpt: config.json: sampling: .*state_noise"):
         variety_from_meta({"sampling": {"phrase_s": 3.0, "state_noise": 2.0}}, 25.0, folder="ckpt")
     with pytest.raises(CheckpointError, match="must be an object"):
         variety_from_meta({"sampling": 3}, 25.0, folder="ckpt")

@@ -88,6 +88,14 @@ def register(family: Family) -> Family:
     return family
 
 
+def unregister(name: str) -> Family:
+    """Remove the family ``name`` from the table (a family registered for a while, e.g. by a test or a plugin);
+    :class:`ParameterError` for a name that is not registered."""
+    family = get(name)
+    del _FAMILIES[name]
+    return family
+
+
 def families(kind: str | None = None) -> tuple[str, ...]:
     """Names of the registered families (of one ``kind`` when given), sorted."""
     return tuple(sorted(n for n, f in _FAMILIES.items() if kind is None or f.kind == kind))

@@ -132,8 +132,7 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
 
         fix = load_foot_constraint(args.foot_constraint)  # before the dance: a bad name fails fast
     stages_on = {"beat_sync": args.beat_sync == "on", "cleanup": args.cleanup == "on"}
-    extra = {k: None if v is None else v == "on" for k, v in (("foot_lock_on", args.foot_lock),
-                                                              ("smooth_on", args.smooth))}
+    extra = {k: None if v is None else v == "on" for k, v in (("foot_lock", args.foot_lock), ("smooth", args.smooth))}
     own = fix is None and all(v is None for v in extra.values())  # the pipeline runs the stages itself
     seeds = [args.seed] if args.seeds is None else args.seeds
     prefetch.wait()
@@ -143,13 +142,12 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
     if not own:  # the foot model sees the model's own dance; the stages come after it
         import dataclasses
 
-        from dancekit.pipelines.stages import finish, song_beats_for
+        from dancekit.pipelines.stages import Song, finish
 
-        beats = song_beats_for(str(audio), start=args.start, end=args.end) if stages_on["beat_sync"] else None
-        results = [finish(dataclasses.replace(r, motion=r.motion if fix is None else fix(r.motion)), str(audio),
-                          start=args.start, end=args.end, beat_sync_on=stages_on["beat_sync"],
-                          cleanup_on=stages_on["cleanup"], beats=beats, **extra, **pipe.stage_options(r))
-                   for r in results]  # the checkpoint's own per-dance settings (a jitter cap) as in pipe.dances
+        song = Song(str(audio), args.start, args.end)  # its beats tracked once
+        config = pipe.stage_options(**stages_on, **extra)  # the checkpoint's stage settings, as in pipe.dances
+        results = [finish(dataclasses.replace(r, motion=r.motion if fix is None else fix(r.motion)), song, config)
+                   for r in results]
     t_made = time.perf_counter()
     for result in results:
         motion = result.motion

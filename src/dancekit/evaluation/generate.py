@@ -118,7 +118,8 @@ def dance_split(pipe: Any, data: Any, split: str, out_dir: str | os.PathLike, *,
                 write_motion(Path(unwarped_dir) / f"{stem}.npz", result.motion)
                 if beats is None:
                     beats = stages.song_beats_for(ref.path, start=ref.start, end=ref.end)
-                result = stages.beat_sync(result, ref.path, start=ref.start, end=ref.end, beats=beats)
+                options = pipe.stage_options().beat_sync.warp_options() if hasattr(pipe, "stage_options") else None
+                result = stages.beat_sync(result, ref.path, start=ref.start, end=ref.end, beats=beats, options=options)
             motion = result.motion
             write_motion(out / f"{stem}.npz", motion)
             seconds += motion.duration

@@ -17,6 +17,8 @@ _LAZY = {
     "MusicAttributePipeline": "dancekit.pipelines.music_attributes",
     "StylePipeline": "dancekit.pipelines.style",
     "DanceResult": "dancekit.pipelines.base",
+    "DancePipeline": "dancekit.pipelines.dance",
+    "StageConfig": "dancekit.pipelines.config",
     "DualPipeline": "dancekit.pipelines.dual",
     "ComposePipeline": "dancekit.pipelines.dual",
     "Music2DancePipeline": "dancekit.pipelines.music2dance",
@@ -25,7 +27,7 @@ _LAZY = {
     "parse_seeds": "dancekit.pipelines.base",
 }
 
-__all__ = ["ComposePipeline", "DanceResult", "DualPipeline", "FootConstraintPipeline", "Music2DancePipeline",
+__all__ = ["ComposePipeline", "DancePipeline", "DanceResult", "StageConfig", "DualPipeline", "FootConstraintPipeline", "Music2DancePipeline",
            "MusicAttributePipeline", "RevolutionPipeline", "StylePipeline", "load_pipeline", "parse_seeds"]
 
 

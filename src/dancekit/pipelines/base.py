@@ -10,7 +10,6 @@ Inference only: nothing here (or in any pipeline) imports the training or datase
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -173,7 +172,7 @@ def load_pipeline(model: str | os.PathLike | None = None, checkpoint: str | os.P
         raise CheckpointError(f"{folder} holds a {family!r} model, which has no pipeline: {exc}") from exc
     if precision == "fp32":
         return cls.from_pretrained(Path(folder), device=device)
-    if "precision" not in inspect.signature(cls.from_pretrained).parameters:
+    if not getattr(cls, "supports_precision", False):  # the dance pipelines (dancekit.pipelines.dance) do
         raise ParameterError(f"precision {precision!r} is not available for {family!r} models (only fp32)")
     return cls.from_pretrained(Path(folder), device=device, precision=precision)
 

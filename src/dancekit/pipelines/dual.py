@@ -20,48 +20,55 @@ from typing import Any
 import numpy as np
 import torch
 
-from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
+from dancekit.checkpoints import NormStats, load_pretrained, resolve_model
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
-from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_rot6d, encode_motion
 from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
-from dancekit.pipelines.stages import (
-    energy_options,
-    finish,
-    jitter_cap_setting,
-    plausible_jitter_cap,
-    seed_trace,
-    song_beats_for,
-)
+from dancekit.pipelines.config import CheckpointSettings, DualSampling, checkpoint_settings
+from dancekit.pipelines.dance import DancePipeline
+from dancekit.pipelines.stages import Song, finish, seed_trace
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
     folder = resolve_model(folder)
     model, meta, arrays = load_pretrained(folder, device=device)
+    stats = NormStats.from_arrays(arrays, source=str(folder))  # a copy: the raw columns are set below
+    model, meta, stats = _checked(model, meta, stats, folder)
+    return model, meta, stats, Path(folder)
+
+
+def _checked(model, meta: dict[str, Any], stats: NormStats, folder) -> tuple[DualModel, dict[str, Any], NormStats]:
+    """A loaded dual checkpoint checked (the family, fps and skeleton, the statistics' sizes, rot6d), with the
+    raw columns of its statistics (chroma + beat, the 6D) set to mean 0 and std 1, as in training."""
     if not isinstance(model, DualModel):
         raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a dual-learning model")
     missing = [k for k in ("skeleton", "fps") if k not in meta]
     if missing:
         raise CheckpointError(f"checkpoint {folder}: config.json lacks {missing}")
     c = model.config
-    stats = NormStats.from_arrays(arrays, source=str(folder))  # a copy: the raw columns are set below
     if len(stats.music_mean) != c.music_dim or len(stats.dance_mean) != c.pose_dim:
         raise CheckpointError(f"checkpoint {folder}: statistics do not match the model's music_dim / pose_dim")
     stats.music_mean[c.music_raw_from:], stats.music_std[c.music_raw_from:] = 0.0, 1.0
     stats.dance_mean[c.dance_raw_from:], stats.dance_std[c.dance_raw_from:] = 0.0, 1.0
     if meta.get("representation", "rot6d") != "rot6d":
         raise CheckpointError(f"checkpoint {folder}: a dual model works on rot6d, not {meta['representation']!r}")
-    return model.eval(), meta, stats, Path(folder)
+    return model.eval(), meta, stats
 
 
-class DualPipeline:
+class DualPipeline(DancePipeline):
     """Music → dance with G_M→D: a song → :class:`~dancekit.pipelines.DanceResult`."""
 
+    family = "dual"
+    sampling_config = DualSampling
+
     def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
-                 genre_reader=None):
+                 genre_reader=None, settings: CheckpointSettings | None = None):
         self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
+        #: the checkpoint's stage settings and sampling (:func:`~dancekit.pipelines.config.checkpoint_settings`)
+        self.settings = settings if settings is not None else checkpoint_settings(meta, folder=folder,
+                                                                                  sampling=DualSampling)
         #: a :class:`~dancekit.pipelines.music_attributes.MusicAttributePipeline` (the checkpoint's
         #: ``"genre_reader"`` component) or None: the model has no genre input, but the energy stage's floor
         #: follows the genre the music calls for (``stages.energy_floor``)
@@ -70,37 +77,26 @@ class DualPipeline:
         self.hop_length = int(meta.get("hop_length", 512))
         self.preset = str(meta.get("preset", "dual"))
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
-        self.smooth_frames = int(meta.get("smooth_frames", 1))  # the checkpoint's sampling setting
-        lp = meta.get("lowpass_hz")  # the checkpoint's low-pass cut-off (Hz); when set, used instead of smooth_frames
-        self.lowpass_hz = None if lp is None else float(lp)
+        sampling = self.settings.sampling
+        self.smooth_frames = sampling.smooth_frames  # the checkpoint's sampling setting
+        #: the checkpoint's low-pass cut-off (Hz); when set, used instead of smooth_frames
+        self.lowpass_hz = sampling.lowpass_hz
         #: how the root's 6D is decoded: "gram_schmidt" (as in training) or "procrustes" (chosen on the validation
         #: songs for the shipped model: its root heading column is short and noisy, docs/DUAL.md)
-        self.root_decode = str(meta.get("root_6d_decode", "gram_schmidt"))
-        #: the per-dance jitter cap (issue 15), as music2dance's: the checkpoint's ``"jitter_cap"`` entry
-        #: (:func:`~dancekit.pipelines.stages.jitter_cap_from_entry`) over the genres the ``genre_reader`` reads
-        #: from the song; None: no cap
-        self.jitter_cap, self.jitter_after_lock, self.jitter_to_end = jitter_cap_setting(meta.get("jitter_cap"),
-                                                                                         folder=folder)
+        self.root_decode = sampling.root_6d_decode
 
     @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu", precision: str = "fp32") -> DualPipeline:
-        """A ``dual`` checkpoint folder or model name (:func:`dancekit.checkpoints.resolve_model`); ``precision``:
-        ``"fp32"``, ``"bf16"`` or ``"int8"`` for G_M→D (:func:`dancekit.models.precision.to_precision`)."""
-        check_precision(precision)
-        model, meta, stats, folder = _load(folder, device)
-        parts = components(folder, meta)
-        unknown = sorted(set(parts) - {"genre_reader"})
-        if unknown:
-            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a dual-learning model "
-                                  "(it understands 'genre_reader')")
+    def from_parts(cls, model, *, meta, stats, folder, settings, parts, device) -> DualPipeline:
+        """The dual checkpoint's checks (:func:`_checked`: the family, the raw statistics columns, rot6d) and its
+        ``"genre_reader"``; the rest is :meth:`DancePipeline.from_pretrained
+        <dancekit.pipelines.dance.DancePipeline.from_pretrained>`'s."""
+        model, meta, stats = _checked(model, meta, stats, folder)
         reader = None
         if "genre_reader" in parts:
             from dancekit.pipelines.music_attributes import MusicAttributePipeline
 
             reader = MusicAttributePipeline.from_pretrained(parts["genre_reader"], device=device)
-        pipe = cls(to_precision(model, precision), meta=meta, stats=stats, folder=str(folder), genre_reader=reader)
-        pipe.precision = precision
-        return pipe
+        return cls(model, meta=meta, stats=stats, folder=str(folder), genre_reader=reader, settings=settings)
 
     def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
                  end: float | None = None) -> np.ndarray:
@@ -165,10 +161,13 @@ class DualPipeline:
         y = np.stack([self.model.generate_dance(feats, start=s[k : k + 1],
                                                 generator=torch.Generator().manual_seed(int(seed)))[0].cpu().numpy()
                       for k, seed in enumerate(seeds)])  # (B, T, P)
-        results, beats = [], None
+        results = []
+        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
+        config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
+        stages = config
         probs = {}  # the genres the music calls for, read only where the energy floor or the jitter cap needs them
-        if cleanup and self.genre_reader is not None and (energy_options(self.folder).get("genre_energy")
-                                                          or self.jitter_cap is not None):
+        if cleanup and self.genre_reader is not None and ((stages.lift_energy is not None and stages.genre_stats.energy)
+                                                          or stages.jitter_cap is not None):
             probs = self.genre_reader(audio_path, start=start, end=end)
         for k, seed in enumerate(seeds):
             motion = decode_rot6d(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
@@ -177,23 +176,8 @@ class DualPipeline:
                                  genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
             result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
                                        hop_length=self.hop_length, start=start, end=end)
-            if beat_sync and result.looks_like_music and beats is None:
-                beats = song_beats_for(audio_path, start=start, end=end)
-            results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
-                                  cleanup_on=cleanup, beats=beats, trace=seed_trace(stage_trace, k),
-                                  **self.stage_options(result)))
+            results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
         return results
-
-    def stage_options(self, result: DanceResult) -> dict[str, Any]:
-        """What :func:`~dancekit.pipelines.stages.finish` needs to know of this checkpoint for one of its dances
-        beside the stage switches: the ``"jitter_cap"`` entry's cap for a song whose genre posterior (read by the
-        ``genre_reader``) is ``result.genre_probs`` (none without the entry, a posterior, or for a song that does
-        not look like music), where it runs and whether it holds to the end; ``dancekit dance`` asks every
-        pipeline the same."""
-        if self.jitter_cap is None or not result.genre_probs or not result.looks_like_music:
-            return {}
-        return {"max_jitter": plausible_jitter_cap(result.genre_probs, **self.jitter_cap),
-                "jitter_after_lock": self.jitter_after_lock, "jitter_to_end": self.jitter_to_end}
 
     def output_filter(self, y: np.ndarray, smooth_frames: int | None = None,
                       lowpass_hz: float | None = None) -> np.ndarray:
@@ -245,11 +229,12 @@ class ComposePipeline:
         self.fps = float(meta["fps"])
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
         # beat picking, the checkpoint's composing settings (chosen on the validation dances, docs/DUAL.md)
-        self.beat_threshold = float(meta.get("beat_threshold", 0.5))
-        self.beat_min_gap = float(meta.get("beat_min_gap", 0.25))
+        sampling = checkpoint_settings(meta, folder=folder, sampling=DualSampling).sampling
+        self.beat_threshold = sampling.beat_threshold
+        self.beat_min_gap = sampling.beat_min_gap
         # "dance" (the arranger that follows the dance, pipelines/compose.py), or G_D→M's own beats: "auto"
         # (thresholded peaks) or "periodic"
-        self.beat_tempo = meta.get("beat_tempo", "dance")
+        self.beat_tempo = sampling.beat_tempo
 
     @classmethod
     def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu") -> ComposePipeline:

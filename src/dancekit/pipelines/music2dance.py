@@ -22,31 +22,25 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
+from dancekit.checkpoints import NormStats
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.music2dance import Music2DanceModel
-from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
-from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
+from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds
+from dancekit.pipelines.config import CheckpointSettings, Music2DanceSampling, checkpoint_settings
+from dancekit.pipelines.dance import DancePipeline
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import (
-    finish,
-    jitter_cap_setting,
-    plausible_jitter_cap,
-    seed_trace,
-    song_beats_for,
-)
+from dancekit.pipelines.stages import Song, finish, seed_trace
 
 
-class Music2DancePipeline:
+class Music2DancePipeline(DancePipeline):
     """Generate a dance for a whole song with a trained :class:`Music2DanceModel`.
 
     Parameters
@@ -57,8 +51,12 @@ class Music2DancePipeline:
     genre_reader : a music attribute classifier for ``genre="auto"`` (or None)
     """
 
+    family = "music2dance"
+    sampling_config = Music2DanceSampling
+    component_names = ("genre_reader", "foot_constraint")  # the foot model: dancekit dance --foot-constraint
+
     def __init__(self, model: Music2DanceModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
-                 genre_reader: MusicAttributePipeline | None = None):
+                 genre_reader: MusicAttributePipeline | None = None, settings: CheckpointSettings | None = None):
         if not isinstance(model, Music2DanceModel):
             raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a Music2Dance model")
         for key in ("fps", "skeleton"):
@@ -73,104 +71,43 @@ class Music2DancePipeline:
         self.preset = str(meta.get("preset", "music2dance"))
         self.hop_length = int(meta.get("hop_length", 512))
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
-        self.genres = tuple(meta.get("genres", ()))[: model.config.n_genres]
+        self._genres = tuple(meta.get("genres", ()))[: model.config.n_genres]
         self.genre_reader = genre_reader
+        #: the checkpoint's stage settings and sampling (:func:`~dancekit.pipelines.config.checkpoint_settings`)
+        self.settings = settings if settings is not None else checkpoint_settings(meta, folder=folder,
+                                                                                  sampling=Music2DanceSampling)
+        sampling = self.settings.sampling
         #: sampling temperature when a call names none: the checkpoint's ``"sampling": {"temperature": t}``
         #: (chosen on the validation songs for the embedded model), else 1 (the mixture as trained)
-        self.temperature = float(meta.get("sampling", {}).get("temperature", 1.0))
+        self.temperature = sampling.temperature
         #: correlation of the sampling noise from frame to frame (:meth:`Music2DanceModel.generate`), the
         #: checkpoint's ``"sampling": {"noise_correlation": ρ}`` (default 0: independent, the paper's)
-        self.noise_correlation = float(meta.get("sampling", {}).get("noise_correlation", 0.0))
-        if not 0.0 <= self.noise_correlation < 1.0:
-            raise CheckpointError(f"checkpoint {folder}: sampling noise_correlation must be in [0, 1), "
-                                  f"got {self.noise_correlation!r}")
+        self.noise_correlation = sampling.noise_correlation
         #: Gaussian smoothing (frames) of the sampled features before decoding, contacts excepted (the
         #: checkpoint's ``"sampling": {"smooth_sigma": s}``; default 0: none)
-        self.smooth_sigma = float(meta.get("sampling", {}).get("smooth_sigma", 0.0))
-        if not self.smooth_sigma >= 0:
-            raise CheckpointError(f"checkpoint {folder}: sampling smooth_sigma must be >= 0, got {self.smooth_sigma!r}")
-        if not self.temperature >= 0:
-            raise CheckpointError(f"checkpoint {folder}: sampling temperature must be >= 0, got {self.temperature!r}")
+        self.smooth_sigma = sampling.smooth_sigma
         #: guidance of the dance type when a call names none (:meth:`Music2DanceModel.guided_genre_vector`):
         #: the checkpoint's ``"sampling": {"genre_scale": α}`` (chosen on the validation songs for the
         #: embedded model), else 1 (the model as trained)
-        self.genre_scale = float(meta.get("sampling", {}).get("genre_scale", 1.0))
-        if not (np.isfinite(self.genre_scale) and self.genre_scale >= 0):
-            raise CheckpointError(f"checkpoint {folder}: sampling genre_scale must be a finite number >= 0, "
-                                  f"got {self.genre_scale!r}")
+        self.genre_scale = sampling.genre_scale
         #: sampling per genre when that genre is asked for by name (``genre="tango"``, ``--genre tango``): the
-        #: checkpoint's ``"genre_sampling": {genre: {"temperature": t, "noise_correlation": ρ, "smooth_sigma": s,
-        #: "genre_scale": α}}`` (any subset; the rest as :attr:`temperature` etc.), chosen on the validation
+        #: checkpoint's ``"sampling": {"genres": {genre: {"temperature": t, "noise_correlation": ρ, "smooth_sigma": s,
+        #: "genre_scale": α}}}`` (any subset; the rest as :attr:`temperature` etc.), chosen on the validation
         #: songs for the embedded model so that the style classifier reads the genre back; "auto", "none" and
         #: the genres not listed keep the plain settings
-        self.genre_sampling = self._genre_sampling(meta.get("genre_sampling"), folder)
-        #: the per-dance jitter cap (issue 15): the checkpoint's ``"jitter_cap": {"genre_jitter": {genre: m/s},
-        #: "jitter_cap": s, "jitter_cap_min_ratio": ρ}`` (:func:`~dancekit.pipelines.stages.jitter_cap_from_entry`),
-        #: None: no cap. A dance is low-passed before the foot lock until its jitter is at most s × the smallest real
-        #: jitter among the song's plausible genres (a genre asked for by name: that genre's), :meth:`max_jitter`
-        #: with the entry's ``"after_lock"`` (the cap's low-pass after the foot lock and its settle; default: before)
-        #: and ``"to_end"`` (the cap holds for the finished dance, ``stages.finish(jitter_to_end=True)``)
-        self.jitter_cap, self.jitter_after_lock, self.jitter_to_end = jitter_cap_setting(meta.get("jitter_cap"),
-                                                                                         folder=folder)
+        unknown = [g for g, _ in sampling.genres if g not in self.genres]
+        if unknown:
+            raise CheckpointError(f"checkpoint {folder}: config.json: sampling.genres.{unknown[0]} is not a genre of "
+                                  f"the model ({', '.join(self.genres) or 'none'})")
+        self.genre_sampling = {g: spec.settings() for g, spec in sampling.genres}
         if len(stats.music_mean) != model.config.music_dim or len(stats.dance_mean) != model.config.pose_dim:
             raise CheckpointError(f"checkpoint {folder}: statistics ({len(stats.music_mean)}, {len(stats.dance_mean)}) "
                                   f"do not match the model ({model.config.music_dim}, {model.config.pose_dim})")
 
-    def _genre_sampling(self, spec: Any, folder: str | os.PathLike) -> dict[str, dict[str, float]]:
-        if spec is None:
-            return {}
-        allowed = ("temperature", "noise_correlation", "smooth_sigma", "genre_scale")
-        if not isinstance(spec, dict) or set(spec) - set(self.genres) or not all(isinstance(v, dict) for v in spec.values()):
-            raise CheckpointError(f"checkpoint {folder}: config.json 'genre_sampling' maps genres of the model "
-                                  f"({', '.join(self.genres) or 'none'}) to sampling settings, got {spec!r}")
-        out: dict[str, dict[str, float]] = {}
-        for genre, settings in spec.items():
-            if set(settings) - set(allowed):
-                raise CheckpointError(f"checkpoint {folder}: genre_sampling {genre!r} takes {list(allowed)}, "
-                                      f"got {settings!r}")
-            out[genre] = {}
-            for key, value in settings.items():
-                ok = (isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
-                      and value >= 0 and (key != "noise_correlation" or value < 1))
-                if not ok:
-                    raise CheckpointError(f"checkpoint {folder}: genre_sampling {genre!r} {key} must be a finite "
-                                          f"number >= 0{' and < 1' if key == 'noise_correlation' else ''}, "
-                                          f"got {value!r}")
-                out[genre][key] = float(value)
-        return out
-
-    @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu",
-                        precision: str = "fp32") -> Music2DancePipeline:
-        """Load a checkpoint folder (``dancekit train music2dance``) or a model name (:func:`resolve_model`);
-        ``precision``: ``"fp32"``, ``"bf16"`` or ``"int8"`` decoding (:func:`dancekit.models.precision.to_precision`).
-
-        Raises
-        ------
-        CheckpointError
-            For a missing or corrupt folder, or one that holds another model family.
-        """
-        check_precision(precision)
-        folder = resolve_model(folder)
-        model, meta, arrays = load_pretrained(folder, device=device)
-        stats = NormStats.from_arrays(arrays, source=str(folder))
-        parts = components(folder, meta)
-        unknown = sorted(set(parts) - {"genre_reader", "foot_constraint"})  # the foot model: dancekit dance --foot-constraint
-        if unknown:
-            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown} for a Music2Dance model")
-        reader = parts.get("genre_reader")
-        reader = None if reader is None else MusicAttributePipeline.from_pretrained(reader, device=device)
-        pipe = cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_reader=reader)
-        pipe.model = to_precision(pipe.model, precision)
-        pipe.precision = precision
-        return pipe
-
-    def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
-                 end: float | None = None) -> np.ndarray:
-        """Normalised music features (T, music_dim) of the song (excerpt) at the checkpoint's fps."""
-        feats = song_features(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
-                              music_dim=self.model.config.music_dim, start=start, end=end)
-        return self.stats.normalize_music(feats)
+    @property
+    def genres(self) -> tuple[str, ...]:
+        """The dance types of the model's genre condition (in its order)."""
+        return self._genres
 
     def _genre(self, genre: str | None, audio_path, start, end) -> tuple[str, str | None, dict[str, float]]:
         requested = "auto" if genre is None else str(genre)
@@ -190,14 +127,6 @@ class Music2DancePipeline:
             known = ", ".join(self.genres) or "none (the model has no dance-type condition)"
             raise ParameterError(f"unknown genre {requested!r} for this model; choose from {known}, auto or none")
         return requested, requested, {}
-
-    def max_jitter(self, danced: str | None, probs: dict[str, float]) -> float | None:
-        """The jitter cap (m/s) of a dance of genre ``danced`` whose song's genre posterior is ``probs`` (empty for
-        a genre asked for by name): :func:`~dancekit.pipelines.stages.plausible_jitter_cap` over ``probs``, or over
-        ``{danced: 1}`` for a named genre; None without a ``"jitter_cap"`` entry or a genre (``"none"``)."""
-        if self.jitter_cap is None or danced is None:
-            return None
-        return plausible_jitter_cap(probs or {danced: 1.0}, **self.jitter_cap)
 
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, genre: str | None = None,
@@ -297,7 +226,9 @@ class Music2DancePipeline:
             D = self.model.config.gmm_dim
             y = torch.cat([torch.cat([gaussian_smooth(row[None, :, :D], smooth_sigma), row[None, :, D:]], -1)
                            for row in y])  # row by row: each seed's dance as it is alone
-        out, beats = [], None
+        out = []
+        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
+        config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
         for k, (seed, g) in enumerate(zip(seeds, wanted)):
             requested, danced, probs = read[g]
             poses = self.stats.denormalize_dance(y[k].cpu().numpy().astype(np.float64))
@@ -306,20 +237,8 @@ class Music2DancePipeline:
                                    genre=danced, genre_probs=probs, danced_by=self.folder))
             out[-1] = calm_if_not_music(out[-1], audio_path, fps=self.fps, preset=self.preset,
                                         hop_length=self.hop_length, start=start, end=end)
-            if beat_sync and out[-1].looks_like_music and beats is None:  # the song's beats once for all seeds
-                beats = song_beats_for(audio_path, start=start, end=end)
-            out[-1] = finish(out[-1], audio_path, start=start, end=end, beat_sync_on=beat_sync, cleanup_on=cleanup,
-                             beats=beats, trace=seed_trace(stage_trace, k), **self.stage_options(out[-1]))
+            out[-1] = finish(out[-1], song, config, trace=seed_trace(stage_trace, k))
         return out
-
-    def stage_options(self, result: DanceResult) -> dict[str, Any]:
-        """What :func:`~dancekit.pipelines.stages.finish` needs to know of this checkpoint for one of its dances
-        (beside the stage switches): the ``"jitter_cap"`` entry's cap of a dance of ``result.genre`` for a song
-        whose genre posterior is ``result.genre_probs`` (:meth:`max_jitter`; none for a song that does not look
-        like music), where it runs and whether it holds to the end. :meth:`dances` passes it; so does
-        ``dancekit dance`` when it runs the stages itself."""
-        cap = self.max_jitter(result.genre, result.genre_probs) if result.looks_like_music else None
-        return {"max_jitter": cap, "jitter_after_lock": self.jitter_after_lock, "jitter_to_end": self.jitter_to_end}
 
 
 def on_the_floor(motion: Motion) -> Motion:

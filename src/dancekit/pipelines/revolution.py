@@ -30,13 +30,11 @@ a batch and alone; the
 result says what was drawn (:meth:`DanceResult.summary`: ``"as rumba (drawn by seed 3, p = 0.31)"``).
 ``genre="waltz"`` still forces the waltz model, and ``genre="none"`` the model alone.
 
-A drawn genre keeps its steps but need not keep its tremor: with ``"genre_jitter": {genre: m/s}`` (the real
-training dances' median jitter per genre) the checkpoint may (a) draw only genres whose real jitter is at most
-``"genre_max_jitter"`` k times that of the song's most likely genre, and (b) cap a drawn dance's jitter at
-``"jitter_cap"`` s times the smallest real jitter among the song's plausible genres (``p_g ≥ "jitter_cap_min_ratio"
-· max(p)``, default 0.5), by a per-dance low-pass before the foot lock (:func:`dancekit.pipelines.stages.settle`,
-``max_jitter``); ``"jitter_cap_all": true`` caps the most likely genre's dances too (:func:`jitter_cap`);
-``"jitter_cap_to_end": true`` makes the cap hold for the finished dance (``stages.finish(jitter_to_end=True)``).
+A drawn genre keeps its steps but need not keep its tremor: the checkpoint's ``"stages": {"jitter_cap": ...}``
+(:class:`~dancekit.pipelines.config.JitterCapConfig`) caps a drawn dance's jitter at ``scale`` times the smallest
+real jitter (``"genre_stats": {"jitter": ...}``) among the song's plausible genres, by a per-dance low-pass before
+the foot lock (:func:`dancekit.pipelines.stages.finish`); with ``"genre_max_jitter"`` k the draw itself skips
+genres whose real jitter is over k times that of the song's most likely genre.
 """
 
 from __future__ import annotations
@@ -50,9 +48,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from dancekit.checkpoints import NormStats, components, load_pretrained, resolve_model
+from dancekit.checkpoints import NormStats
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.models.precision import check_precision, to_precision
+from dancekit.models.precision import to_precision
 from dancekit.models.revolution import RevolutionModel, SeedVariety
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_motion, get_representation
@@ -62,19 +60,14 @@ from dancekit.pipelines.base import (
     check_seeds,
     clean_motion,
     song_feature_set,
-    song_features,
 )
+from dancekit.pipelines.config import CheckpointSettings, RevolutionSampling, checkpoint_settings
+from dancekit.pipelines.dance import DancePipeline
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import (
-    finish,
-    genre_jitter_table,
-    plausible_jitter_cap,
-    seed_trace,
-    song_beats_for,
-)
+from dancekit.pipelines.stages import Song, finish, genre_jitter_table, seed_trace
 
 
-class RevolutionPipeline:
+class RevolutionPipeline(DancePipeline):
     """Generate a dance for a whole song with a trained :class:`RevolutionModel`.
 
     Parameters
@@ -85,8 +78,13 @@ class RevolutionPipeline:
     stats : the normalisation statistics (``music_mean``, ``music_std``, ``dance_mean``, ``dance_std``)
     """
 
+    family = "revolution"
+    sampling_config = RevolutionSampling
+    component_names = ("genres", "genre_reader")
+
     def __init__(self, model: RevolutionModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
-                 genre_models: dict[str, Path] | None = None, genre_reader: MusicAttributePipeline | None = None):
+                 genre_models: dict[str, Path] | None = None, genre_reader: MusicAttributePipeline | None = None,
+                 settings: CheckpointSettings | None = None):
         if not isinstance(model, RevolutionModel):
             raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a Dance Revolution model")
         for key in ("fps", "skeleton"):
@@ -105,13 +103,17 @@ class RevolutionPipeline:
         except ParameterError as exc:
             raise CheckpointError(f"checkpoint {folder}: {exc}") from None
         self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        #: the checkpoint's stage settings and sampling (:func:`~dancekit.pipelines.config.checkpoint_settings`)
+        self.settings = settings if settings is not None else checkpoint_settings(meta, folder=folder,
+                                                                                  sampling=RevolutionSampling)
         #: how the seed keeps changing the dance (:class:`~dancekit.models.revolution.SeedVariety`), from the
         #: checkpoint's ``"sampling": {"phrase_s": s, "state_noise": a, "latent_noise": σ, "dance_latent": τ}``; none: the paper's
         #: decoding (the seed draws the initial decoder state only). Genre models dance with their parent's.
-        self.variety = variety_from_meta(meta, self.fps, folder=str(folder))
+        self.variety = variety_from_sampling(self.settings.sampling, self.fps, folder=str(folder))
         #: how the seed draws the genre model for ``genre="auto"`` (:class:`GenreDraw`, from the checkpoint's
         #: ``"sampling"`` entry; none: every seed dances the most likely genre)
-        self.genre_draw = genre_draw_from_meta(meta, folder=str(folder))
+        self.genre_draw = genre_draw_from_sampling(self.settings.sampling,
+                                                   self.settings.stages.genre_stats.table("jitter"), folder=str(folder))
         self.genre_models = dict(genre_models or {})  # genre → checkpoint folder, loaded on first use
         self._genre_pipelines: dict[str, RevolutionPipeline] = {}
         self.genre_reader = genre_reader  # reads the genre from the music for genre="auto" (or None)
@@ -127,29 +129,10 @@ class RevolutionPipeline:
             )
 
     @classmethod
-    def from_pretrained(cls, folder: str | os.PathLike, *, device: str = "cpu",
-                        precision: str = "fp32") -> RevolutionPipeline:
-        """Load a model: a checkpoint folder written by ``dancekit train revolution`` (or ``save_pretrained``),
-        or a model name (:func:`dancekit.checkpoints.resolve_model`). ``precision``: ``"fp32"``, ``"bf16"``
-        or ``"int8"`` decoding (:func:`dancekit.models.precision.to_precision`; genre models too).
-
-        The components its ``config.json`` declares are found here: genre models (``"genres"``, loaded when
-        first asked for) and a music attribute classifier (``"genre_reader"``, loaded here).
-
-        Raises
-        ------
-        CheckpointError
-            For a missing or corrupt folder, or one that holds another model family.
-        """
-        check_precision(precision)
-        folder = resolve_model(folder)
-        model, meta, arrays = load_pretrained(folder, device=device)
-        stats = NormStats.from_arrays(arrays, source=str(folder))
-        parts = components(folder, meta)
-        unknown_parts = sorted(set(parts) - {"genres", "genre_reader"})
-        if unknown_parts:
-            raise CheckpointError(f"checkpoint {folder}: unknown components {unknown_parts} for a Dance Revolution "
-                                  "model (it understands 'genres' and 'genre_reader')")
+    def from_parts(cls, model, *, meta, stats, folder, settings, parts, device) -> RevolutionPipeline:
+        """The components its ``config.json`` declares: genre models (``"genres"``, loaded when first asked for)
+        and a music attribute classifier (``"genre_reader"``, loaded here); the rest is
+        :meth:`DancePipeline.from_pretrained <dancekit.pipelines.dance.DancePipeline.from_pretrained>`'s."""
         genre_models = dict(parts.get("genres", {}))
         known = set(meta.get("genres", ()))
         unknown = sorted(set(genre_models) - known) if known else []
@@ -157,10 +140,8 @@ class RevolutionPipeline:
             raise CheckpointError(f"checkpoint {folder}: genre models {unknown} are not genres of its data {sorted(known)}")
         reader_folder = parts.get("genre_reader")
         reader = None if reader_folder is None else MusicAttributePipeline.from_pretrained(reader_folder, device=device)
-        pipe = cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
-                   genre_reader=reader)
-        pipe.set_precision(precision)
-        return pipe
+        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
+                   genre_reader=reader, settings=settings)
 
     def set_precision(self, precision: str) -> None:
         """Decode at ``precision`` from now on (``"fp32"``, ``"bf16"`` or ``"int8"``; genre models too)."""
@@ -170,13 +151,6 @@ class RevolutionPipeline:
         self.precision = precision
         for pipe in self._genre_pipelines.values():
             pipe.set_precision(precision)
-
-    def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
-                 end: float | None = None) -> np.ndarray:
-        """Normalised music features (T, music_dim) of the song (excerpt) at the checkpoint's fps."""
-        feats = song_features(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
-                              music_dim=self.model.config.music_dim, start=start, end=end)
-        return self.stats.normalize_music(feats)
 
     @torch.no_grad()
     def __call__(
@@ -299,7 +273,8 @@ class RevolutionPipeline:
                 danced_by[genre_k] = self.folder
             for i, motion in zip(rows, done):
                 motions[i] = motion
-        beats = song_beats_for(audio_path, start=start, end=end) if beat_sync and music else None
+        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
+        config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
         results = []
         for k, (seed, motion, (genre_k, drawn_p)) in enumerate(zip(seeds, motions, choices)):
             if not music and self.representation == "positions3d":
@@ -308,20 +283,8 @@ class RevolutionPipeline:
             result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
                                  genre=genre_k, genre_probs=probs, danced_by=danced_by[genre_k],
                                  beat_strength=float(strength), looks_like_music=music, genre_drawn_p=drawn_p)
-            results.append(finish(result, audio_path, start=start, end=end, beat_sync_on=beat_sync,
-                                  cleanup_on=cleanup, beats=beats, trace=seed_trace(stage_trace, k),
-                                  **self.stage_options(result)))
+            results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
         return results
-
-    def stage_options(self, result: DanceResult) -> dict[str, Any]:
-        """What :func:`~dancekit.pipelines.stages.finish` needs to know of this checkpoint for one of its dances
-        (beside the stage switches): the genre draw's jitter cap of a dance of ``result.genre`` for a song whose
-        genre posterior is ``result.genre_probs`` (:func:`jitter_cap`; none for a song that does not look like
-        music) and whether it holds to the end. :meth:`dances` passes it; so does ``dancekit dance`` when it
-        runs the stages itself (a foot model, ``--smooth`` / ``--foot-lock``)."""
-        cap = jitter_cap(result.genre_probs, genre=result.genre, draw=self.genre_draw) \
-            if result.looks_like_music else None
-        return {"max_jitter": cap, "jitter_to_end": self.genre_draw.cap_to_end}
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
@@ -403,21 +366,16 @@ class RevolutionPipeline:
         return self.genres.index(genre)
 
 
-def variety_from_meta(meta: dict[str, Any], fps: float, *, folder: str = "?") -> SeedVariety:
-    """The checkpoint's seed variety: ``meta["sampling"]`` with ``phrase_s`` (seconds, converted to frames at
-    ``fps``), ``state_noise``, ``latent_noise``, ``dance_latent``, ``style`` and ``style_share``; no such entry: the paper's decoding (``SeedVariety()``)."""
-    spec = meta.get("sampling") or {}
-    if not isinstance(spec, dict):
-        raise CheckpointError(f"checkpoint {folder}: config.json 'sampling' must be an object, got {spec!r}")
+def variety_from_sampling(sampling: RevolutionSampling, fps: float, *, folder: str = "?") -> SeedVariety:
+    """The checkpoint's seed variety from its sampling settings: ``phrase_s`` (seconds, converted to frames at
+    ``fps``), ``state_noise``, ``latent_noise``, ``dance_latent``, ``style`` and ``style_share``; all 0: the
+    paper's decoding (``SeedVariety()``)."""
     try:
-        return SeedVariety(phrase=int(round(float(spec.get("phrase_s", 0.0)) * fps)),
-                           state_noise=float(spec.get("state_noise", 0.0)),
-                           latent_noise=float(spec.get("latent_noise", 0.0)),
-                           dance_latent=float(spec.get("dance_latent", 0.0)),
-                           style=float(spec.get("style", 0.0)),
-                           style_share=float(spec.get("style_share", 0.0)))
-    except (TypeError, ValueError, ParameterError) as exc:
-        raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None
+        return SeedVariety(phrase=int(round(sampling.phrase_s * fps)), state_noise=sampling.state_noise,
+                           latent_noise=sampling.latent_noise, dance_latent=sampling.dance_latent,
+                           style=sampling.style, style_share=sampling.style_share)
+    except ParameterError as exc:
+        raise CheckpointError(f"checkpoint {folder}: config.json: sampling: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -446,15 +404,6 @@ class GenreDraw:
     genre_jitter: tuple[tuple[str, float], ...] = ()
     #: k > 0: only genres with ``genre_jitter[g] ≤ k · genre_jitter[most likely]`` are drawn (0: no such limit)
     max_jitter: float = 0.0
-    #: s > 0: a drawn dance's jitter is capped at s × the smallest ``genre_jitter`` of the song's plausible genres
-    jitter_cap: float = 0.0
-    #: the plausible genres of the cap: ``p_g ≥ cap_min_ratio · max(p)``
-    cap_min_ratio: float = 0.5
-    #: True: the cap applies to the most likely genre's dances (seed 0) too
-    cap_all: bool = False
-    #: True: the cap holds for the finished dance (``stages.finish(jitter_to_end=True)``: the stages after it are
-    #: run again with a lower cut-off while the lock and the warp bring the jitter back over it)
-    cap_to_end: bool = False
     #: True: seed k's uniform number is the golden-ratio sequence ``frac(k · 0.618…)`` instead of a generator's draw,
     #: so that any run of consecutive seeds spreads its draws over the options in proportion to their probability
     #: (each option's count among n ≤ 100 consecutive seeds is within 3 of n · q); False: a generator seeded by the seed
@@ -471,17 +420,10 @@ class GenreDraw:
             raise ParameterError(f"genre_min_ratio must be in [0, 1], got {self.min_ratio!r}")
         if self.genre_jitter:  # the same check as a "jitter_cap" entry's table (empty: no table)
             genre_jitter_table(self.genre_jitter)
-        for key, v in (("genre_max_jitter", self.max_jitter), ("jitter_cap", self.jitter_cap)):
-            if not (np.isfinite(v) and v >= 0):
-                raise ParameterError(f"{key} must be a finite number ≥ 0, got {v!r}")
-            if v > 0 and not self.genre_jitter:
-                raise ParameterError(f"{key} needs a genre_jitter table")
-        if not (np.isfinite(self.cap_min_ratio) and 0 <= self.cap_min_ratio <= 1):
-            raise ParameterError(f"jitter_cap_min_ratio must be in [0, 1], got {self.cap_min_ratio!r}")
-        if not isinstance(self.cap_all, bool):
-            raise ParameterError(f"jitter_cap_all must be true or false, got {self.cap_all!r}")
-        if not isinstance(self.cap_to_end, bool):
-            raise ParameterError(f"jitter_cap_to_end must be true or false, got {self.cap_to_end!r}")
+        if not (np.isfinite(self.max_jitter) and self.max_jitter >= 0):
+            raise ParameterError(f"genre_max_jitter must be a finite number ≥ 0, got {self.max_jitter!r}")
+        if self.max_jitter > 0 and not self.genre_jitter:
+            raise ParameterError("genre_max_jitter needs a genre_stats.jitter table")
         if not isinstance(self.spread, bool):
             raise ParameterError(f"genre_draw_spread must be true or false, got {self.spread!r}")
 
@@ -559,39 +501,15 @@ def draw_genre(probs: dict[str, float], *, seed: int, draw: GenreDraw) -> tuple[
     return keys[k], options[keys[k]]
 
 
-def jitter_cap(probs: dict[str, float], *, genre: str | None, draw: GenreDraw) -> float | None:
-    """The jitter cap (m/s) of a dance of genre ``genre`` (None: the model alone) for a song whose genre
-    posterior is ``probs``: ``draw.jitter_cap`` × the smallest real jitter (``draw.genre_jitter``) among the song's
-    plausible genres (``p_g ≥ draw.cap_min_ratio · max(p)``, genres in the table); None (no cap) without a
-    posterior, a cap or a table entry, and for the most likely genre's dance unless ``draw.cap_all``."""
-    if probs and genre == max(probs, key=probs.get) and not draw.cap_all:
-        return None
-    return plausible_jitter_cap(probs, genre_jitter=dict(draw.genre_jitter), scale=draw.jitter_cap,
-                                min_ratio=draw.cap_min_ratio)
-
-
-def genre_draw_from_meta(meta: dict[str, Any], *, folder: str = "?") -> GenreDraw:
-    """The checkpoint's genre draw: ``meta["sampling"]`` with ``genre_temperature`` τ, ``genre_alone`` w,
-    ``genre_draw_seed0`` and ``genre_min_ratio`` ρ; none of them: no draw (``GenreDraw()``)."""
-    spec = meta.get("sampling") or {}
-    if not isinstance(spec, dict):
-        raise CheckpointError(f"checkpoint {folder}: config.json 'sampling' must be an object, got {spec!r}")
-    def number(key: str, default: float = 0.0) -> float:
-        try:
-            return float(spec.get(key, default))
-        except (TypeError, ValueError):
-            raise ParameterError(f"{key} must be a number, got {spec[key]!r}") from None
-
-    table = spec.get("genre_jitter", {})
+def genre_draw_from_sampling(sampling: RevolutionSampling, genre_jitter: dict[str, float], *,
+                             folder: str = "?") -> GenreDraw:
+    """The checkpoint's genre draw: ``genre_temperature`` τ, ``genre_alone`` w, ``genre_draw_seed0``,
+    ``genre_min_ratio`` ρ, ``genre_max_jitter`` k (with the real jitters ``genre_jitter``, genre → m/s, from
+    ``genre_stats``) and ``genre_draw_spread`` of its sampling settings; none of them: no draw."""
     try:
-        if not isinstance(table, dict):
-            raise ParameterError(f"genre_jitter must map genres to positive m/s, got {table!r}")
-        return GenreDraw(temperature=number("genre_temperature"), alone=number("genre_alone"),
-                         seed0=spec.get("genre_draw_seed0", False), min_ratio=number("genre_min_ratio"),
-                         genre_jitter=tuple((str(g), v) for g, v in table.items()),
-                         max_jitter=number("genre_max_jitter"), jitter_cap=number("jitter_cap"),
-                         cap_min_ratio=number("jitter_cap_min_ratio", 0.5), cap_all=spec.get("jitter_cap_all", False),
-                         cap_to_end=spec.get("jitter_cap_to_end", False),
-                         spread=spec.get("genre_draw_spread", False))
+        return GenreDraw(temperature=sampling.genre_temperature, alone=sampling.genre_alone,
+                         seed0=sampling.genre_draw_seed0, min_ratio=sampling.genre_min_ratio,
+                         genre_jitter=tuple(genre_jitter.items()) if sampling.genre_max_jitter > 0 else (),
+                         max_jitter=sampling.genre_max_jitter, spread=sampling.genre_draw_spread)
     except ParameterError as exc:
-        raise CheckpointError(f"checkpoint {folder}: bad 'sampling' entry in config.json: {exc}") from None
+        raise CheckpointError(f"checkpoint {folder}: config.json: sampling: {exc}") from None

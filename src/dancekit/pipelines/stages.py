@@ -9,18 +9,18 @@ model's own output):
   song) is left unwarped, with a note. Otherwise the dance is time-warped so that its kinematic beats
   (speed minima) land on the song's beats: :func:`dancekit.motion.timewarp.beat_warp` (dynamic
   programming over candidate pairings, the local speed kept within ±15 %, a smooth rate; a checkpoint's
-  ``"beat_sync"`` entry may set other bounds, :func:`beat_sync_options`).
+  ``"stages": {"beat_sync": ...}`` entry may set other bounds, :class:`~dancekit.pipelines.config.BeatSyncConfig`).
 * **clean-up** (:func:`clean_up`): the figure's root path is kept within a dance floor (turned back
   toward its start beyond 4 m, never farther than 12 m) and its lowest joint put on the floor
   (:mod:`dancekit.motion.cleanup`).
 * **smoothing** (:func:`smooth`): a jittery dance gets a Savitzky-Golay filter whose window is chosen per
   dance (:mod:`dancekit.motion.footlock`); a smooth one is left alone. A dance whose genre was asked for by
   name is brought to that genre's own jitter-to-energy ratio when the model's checkpoint carries one
-  (:func:`genre_smoothing_targets`: real cha-chas and tangos have 2-4x the high-frequency motion of waltzes).
+  (:func:`smoothing_target`: real cha-chas and tangos have 2-4x the high-frequency motion of waltzes).
 * **foot lock** (:func:`foot_lock`): planted feet held where they were planted, the legs solved by two-bone
   IK, the body lowered where a held foot is out of reach, blended in and out (:mod:`dancekit.motion.footlock`).
 * **energy** (:func:`lift_energy`): for a model whose checkpoint asks for it (an ``"energy"`` entry,
-  :func:`energy_options`), a dance whose smoothed energy is under the entry's floor (m/s) has the slow
+  :class:`~dancekit.pipelines.config.EnergyConfig`), a dance whose smoothed energy is under the entry's floor (m/s) has the slow
   band of its deviation from its moving-mean pose scaled up until it reaches it (:mod:`dancekit.motion.energy`:
   one gain per dance, at most ``max_gain``; the flicker band untouched), then put back on the floor.
 * **settle** (:func:`settle`): for a model whose checkpoint asks for it, a light zero-phase windowed-sinc
@@ -43,28 +43,26 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.motion import Motion
 from dancekit.motion.skeleton import keep_bone_lengths
 from dancekit.pipelines.base import DanceResult
+from dancekit.pipelines.config import (  # noqa: F401 (the defaults, re-exported)
+    NOISY_RATIO,
+    SMOOTH_FILTER,
+    SMOOTH_TARGET,
+    SMOOTH_TARGET_NOISY,
+    STAGE_NAMES,
+    FootLockConfig,
+    GenreStats,
+    JitterCapConfig,
+    SmoothConfig,
+    StageConfig,
+)
 
-__all__ = ["BEAT_SYNC_KEYS", "ENERGY_KEYS", "FOOT_LOCK_KEYS", "NOISY_RATIO", "SMOOTHING_KEYS", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY",
-           "STAGE_NAMES",
-           "beat_sync", "beat_sync_options", "clean_up", "energy_options", "finish", "foot_lock", "foot_lock_options", "genre_jitter_table", "genre_smoothing_targets", "jitter_cap_from_entry", "jitter_cap_setting", "lift_energy", "plausible_jitter_cap", "seed_trace", "settle", "settle_options", "smooth",
-           "smoothing_options", "smoothing_target", "song_beats_for"]
+__all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "STAGES", "STAGE_NAMES", "Song",
+           "StageContext", "beat_sync", "clean_up", "finish", "foot_lock", "genre_jitter_table", "jitter_cap_for",
+           "lift_energy", "plausible_jitter_cap", "reground", "seed_trace", "settle", "smooth", "smoothing_target",
+           "song_beats_for"]
 
-#: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
-#: jittery dance down to: about the 80th percentile of the real training dances' (0.055-0.28, median 0.065);
-#: a dance beyond :data:`NOISY_RATIO` (more than nearly every real dance: frame-to-frame noise, the dual
-#: model's 0.31-0.33) is brought to :data:`SMOOTH_TARGET_NOISY`, the real median. Chosen on the validation
-#: songs (``benchmarks/bench_feet.py --grid``, docs/STAGES.md).
-SMOOTH_TARGET = 0.09
-SMOOTH_TARGET_NOISY = 0.065
-NOISY_RATIO = 0.2
-#: The stages of :func:`finish`, in the order it runs them (the names its ``trace`` is called with, after
-#: ``"input"``): the per-dance jitter cap runs before the foot lock, or after the lock's settle with
-#: ``jitter_after_lock``.
-STAGE_NAMES = ("clean_up", "smooth", "lift_energy", "jitter_cap", "foot_lock", "settle", "reground", "beat_sync")
 #: The cut-off (Hz) of the light low-pass after the foot lock (:func:`settle`); 0: none.
 SETTLE_HZ = 0.0
-#: The smoothing stage's filter (:func:`smooth`): ``"lowpass"`` or ``"savgol"``.
-SMOOTH_FILTER = "savgol"
 
 
 def _is_3d(motion: Motion) -> bool:
@@ -80,11 +78,13 @@ def song_beats_for(audio_path: str | os.PathLike, *, start: float | None = None,
 
 
 def beat_sync(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
-              end: float | None = None, beats=None) -> DanceResult:
+              end: float | None = None, beats=None, options: dict | None = None) -> DanceResult:
     """The result with its motion time-warped onto the song's beats (a new :class:`DanceResult`; a note
     in ``notes`` says how many beats were matched, or why the dance was left unwarped).
 
     ``beats``: a :class:`~dancekit.features.pulse.SongBeats` already tracked (else the song is tracked).
+    ``options``: :func:`~dancekit.motion.timewarp.beat_warp` keyword arguments
+    (:meth:`~dancekit.pipelines.config.BeatSyncConfig.warp_options`; none: its defaults).
     """
     from dancekit.motion.timewarp import beat_warp, warp_motion
 
@@ -102,7 +102,7 @@ def beat_sync(result: DanceResult, audio_path: str | os.PathLike, *, start: floa
                else f"pulse clarity {clarity:.2f}")
         return _with_note(result, f"not beat-synced: the song has no clear beat ({why})")
     source, pairs = beat_warp(motion.to_positions(), music_beats=beats.times, fps=motion.fps,
-                              **beat_sync_options(result.model))
+                              **(options or {}))
     n_music = int(np.sum((beats.times > 0) & (beats.times < motion.duration)))
     if len(pairs) == 0:
         return _with_note(result, f"not beat-synced: no movement beat near the song's {n_music} beats")
@@ -151,7 +151,7 @@ REGROUND_SHORTER = (0.6, 0.4, 0.25)
 def reground(result: DanceResult, *, window_s: float, max_float_cm: float | None = None) -> DanceResult:
     """The result with its lowest joint put back on the floor (:func:`dancekit.motion.cleanup.ground_contact`
     over a centred ``window_s`` window, s): a vertical shift per frame, run after the foot lock and its settle
-    when the model's checkpoint asks for it (:func:`ground_options`). The stages after the clean-up (the
+    when the model's checkpoint asks for it (:class:`~dancekit.pipelines.config.RegroundConfig`). The stages after the clean-up (the
     low-passes, the lock's IK) can lift a lively model's dance off the floor again; this one lets it touch
     the floor at least once in every window, while a rise shorter than ``window_s / 2`` stays.
 
@@ -181,36 +181,18 @@ def reground(result: DanceResult, *, window_s: float, max_float_cm: float | None
     return dataclasses.replace(result, motion=out)
 
 
-def ground_options(model: str | os.PathLike | None) -> dict[str, float]:
-    """The :func:`reground` settings a model's checkpoint folder carries in its ``config.json`` (``"ground":
-    {"after_lock_s": s}``, the window in seconds, and optionally ``"max_float_cm": cm``, the float above
-    which shorter windows are tried), chosen on the validation songs (docs/BENCHMARKS.md, "Livelier genre
-    models", "Fifteenth session"); ``{}`` (no second grounding) for a folder without the entry or that is not
-    a checkpoint. A window or bound that is not a positive finite number, or a bound without a window, is a
-    :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
-    spec = _stage_entry(model, "ground", {"after_lock_s", "max_float_cm"})
-    if ("max_float_cm" in spec and "after_lock_s" not in spec) or not all(
-            np.isfinite(v) and v > 0 for v in spec.values()):
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'ground' takes a positive "
-                              f"after_lock_s (s) and optionally a positive max_float_cm, got {spec!r}")
-    if "after_lock_s" not in spec:
-        return {}
-    out = {"window_s": spec["after_lock_s"]}
-    if "max_float_cm" in spec:
-        out["max_float_cm"] = spec["max_float_cm"]
-    return out
-
-
-def smooth(result: DanceResult, *, target: float | None = None, kind: str | None = None) -> DanceResult:
+def smooth(result: DanceResult, *, target: float | None = None, kind: str | None = None,
+           config: SmoothConfig | None = None, genre_stats: GenreStats | None = None) -> DanceResult:
     """The result with frame-to-frame noise filtered out; a dance already smooth enough is returned as it is.
 
     ``kind`` (default :data:`SMOOTH_FILTER`): ``"lowpass"``, a zero-phase windowed-sinc FIR low-pass whose
     cut-off is the highest of :data:`dancekit.motion.footlock.CUTOFFS_HZ` that brings the dance's
     jitter-to-energy ratio to ``target`` (:func:`dancekit.motion.footlock.lowpass_cutoff`); ``"savgol"``, a
     Savitzky-Golay filter whose window is the shortest that does
-    (:func:`dancekit.motion.footlock.smoothing_window`). ``target`` default :func:`smoothing_target`:
-    :data:`SMOOTH_TARGET`, or :data:`SMOOTH_TARGET_NOISY` for a dance beyond :data:`NOISY_RATIO`, or the
-    requested genre's ratio of the model's checkpoint. A motion
+    (:func:`dancekit.motion.footlock.smoothing_window`). ``target`` default: the genre's target of
+    :func:`smoothing_target` (``config``'s genres, ``genre_stats``' ratios), else ``config.target``
+    (:data:`SMOOTH_TARGET`), or ``config.target_noisy`` (:data:`SMOOTH_TARGET_NOISY`) for a dance beyond
+    ``config.noisy_ratio`` (:data:`NOISY_RATIO`); ``kind`` default ``config.filter``. A motion
     with rotations has its rotations filtered (re-orthonormalised) and its positions recomputed from them;
     a positions-only motion takes its bone directions from the filtered dance and keeps each frame's bone
     lengths; so bone lengths stay exact either way."""
@@ -222,13 +204,14 @@ def smooth(result: DanceResult, *, target: float | None = None, kind: str | None
     motion = result.motion
     if not _is_3d(motion):
         return result
-    kind = SMOOTH_FILTER if kind is None else kind
+    config = SmoothConfig() if config is None else config
+    kind = config.filter if kind is None else kind
     sk, fps = motion.skeleton, motion.fps
     p = motion.to_positions()  # (T, J, 3); the helpers work in float64 piece by piece
     if target is None:
-        target = smoothing_target(result)
+        target = smoothing_target(result, config, genre_stats)
     if target is None:
-        target = SMOOTH_TARGET_NOISY if _jitter_ratio(p, sk, fps) > NOISY_RATIO else SMOOTH_TARGET
+        target = config.target_noisy if _jitter_ratio(p, sk, fps) > config.noisy_ratio else config.target
     if kind == "lowpass":
         cutoff = lowpass_cutoff(p, skeleton=sk, fps=fps, target=target)
         if cutoff <= 0:
@@ -285,13 +268,17 @@ def _rotations_filtered(motion: Motion, whole) -> Motion:
                   rotations=rot.astype(motion.rotations.dtype), root_translation=tr.astype(np.float32))
 
 
-def smoothing_target(result: DanceResult) -> float | None:
-    """The jitter-to-energy ratio :func:`smooth` brings ``result`` to when the model's checkpoint has a target
-    for the genre danced (:func:`genre_smoothing_targets`) and that genre was asked for by name
-    (``result.genre_requested`` is a genre, not "auto" / "none"), or, with the entry's ``"drawn": true``,
-    also when the genre was read from the music or drawn by the seed (``result.genre``: the genre model that
-    danced it); None otherwise (the stage's own targets apply: the model alone, a genre without a target)."""
-    targets, drawn = smoothing_options(result.model)
+def smoothing_target(result: DanceResult, config: SmoothConfig,
+                     genre_stats: GenreStats | None = None) -> float | None:
+    """The jitter-to-energy ratio :func:`smooth` brings ``result`` to when ``config`` targets the genre danced
+    (``config.genre_targets``: its real ratio in ``genre_stats.smoothing`` × ``config.scale``) and that genre
+    was asked for by name (``result.genre_requested`` is a genre, not "auto" / "none"), or, with
+    ``config.drawn``, also when the genre was read from the music or drawn by the seed (``result.genre``: the
+    genre model that danced it); None otherwise (the stage's own targets apply: the model alone, a genre
+    without a target)."""
+    ratios = {} if genre_stats is None else genre_stats.table("smoothing")
+    targets = {g: ratios[g] * config.scale for g in config.genre_targets if g in ratios}
+    drawn = config.drawn
     genre = result.genre
     if genre is None or str(genre) not in targets:
         return None
@@ -299,48 +286,13 @@ def smoothing_target(result: DanceResult) -> float | None:
     return targets[str(genre)] if named or (drawn and result.genre_requested in (None, "auto")) else None
 
 
-def genre_smoothing_targets(model: str | os.PathLike | None) -> dict[str, float]:
-    """Per genre, the jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) that the
-    smoothing stage brings a dance of that genre to: the checkpoint's ``"smoothing": {"genre_targets":
-    {genre: ratio}}`` (the median of the real training dances of each genre,
-    ``benchmarks/genre_tables.py smoothing``; docs/MUSIC2DANCE.md) times its ``"scale"`` (default 1).
-    ``{}`` for a folder without the entry or that is not a checkpoint."""
-    return smoothing_options(model)[0]
-
-
-SMOOTHING_KEYS = ("genre_targets", "drawn", "scale")
-
-
-def smoothing_options(model: str | os.PathLike | None) -> tuple[dict[str, float], bool]:
-    """``(targets, drawn)`` from the checkpoint's ``"smoothing"`` entry: the per-genre targets of
-    :func:`genre_smoothing_targets` (already scaled) and whether they also apply to a genre read from the
-    music or drawn by the seed (``"drawn"``, default false: only a genre asked for by name). ``({}, False)``
-    for a folder without the entry or that is not a checkpoint.
-
-    Raises
-    ------
-    CheckpointError
-        Naming the ``config.json``: an unknown key, a target outside (0, 10), a ``scale`` that is not a
-        number in (0, 10], a ``drawn`` that is not true / false."""
-    spec = _raw_entry(model, "smoothing")
-    targets = spec.get("genre_targets", {}) if isinstance(spec, dict) else None
-    scale = spec.get("scale", 1.0) if isinstance(spec, dict) else None
-    drawn = spec.get("drawn", False) if isinstance(spec, dict) else None
-    if not isinstance(spec, dict) or set(spec) - set(SMOOTHING_KEYS) or not isinstance(targets, dict) or not all(
-            _is_number(v) and 0 < v < 10 for v in targets.values()) or not (_is_number(scale) and 0 < scale <= 10) \
-            or not isinstance(drawn, bool):
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'smoothing' takes "
-                              f"{{'genre_targets': {{genre: ratio in (0, 10)}}, 'scale': number in (0, 10], "
-                              f"'drawn': true / false}}, got {spec!r}")
-    return {str(g): float(v) * float(scale) for g, v in targets.items()}, drawn
-
-
-def foot_lock(result: DanceResult) -> DanceResult:
+def foot_lock(result: DanceResult, config: FootLockConfig | None = None,
+              genre_stats: GenreStats | None = None) -> DanceResult:
     """The result with its planted feet pinned (:func:`dancekit.motion.footlock.lock_feet`: contacts from
     foot height and speed, the foot held where it was planted, the leg solved by two-bone IK, blended in
-    and out), with the settings of the model's checkpoint (:func:`foot_lock_options` of ``result.model``).
-    Where the checkpoint gives its genres' real planted-foot shares (:func:`plant_options`), the lock holds
-    the feet no longer than that (:func:`plant_target`, :func:`~dancekit.motion.footlock.lock_feet_to_share`).
+    and out), with ``config``'s settings (None: the defaults). With ``config.plant``, the lock holds the feet
+    no longer than the genre's real planted-foot share (``genre_stats.planted_share``, :func:`plant_target`,
+    :func:`~dancekit.motion.footlock.lock_feet_to_share`).
     Only the legs change; a motion with rotations has its leg rotations updated
     (:func:`~dancekit.motion.footlock.leg_rotations`). Skeletons without legs are returned unchanged."""
     from dancekit.motion.footlock import leg_chains, leg_rotations, lock_feet
@@ -350,8 +302,10 @@ def foot_lock(result: DanceResult) -> DanceResult:
         return result
     sk, fps = motion.skeleton, motion.fps
     p = motion.to_positions()  # lock_feet works on its own float64 copy
-    options = foot_lock_options(result.model)
-    target = plant_target(result, **plant_options(result.model))
+    config = FootLockConfig() if config is None else config
+    options = config.lock_options()
+    share = genre_stats.table("planted_share") if config.plant and genre_stats is not None else None
+    target = plant_target(result, genre_share=share)
     if target is None:
         locked = lock_feet(p, skeleton=sk, fps=fps, **options)
     else:  # no longer than the genre's real dancers plant their feet
@@ -427,76 +381,6 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     return _with_note(out, note) if note else out
 
 
-def settle_options(model: str | os.PathLike | None) -> dict[str, float]:
-    """The :func:`settle` settings a model's checkpoint folder carries in its ``config.json`` (``"settle":
-    {"cutoff_hz": hz}`` or ``{"ratio_target": r}``, the cut-off chosen per dance), chosen on the validation
-    songs (docs/STAGES.md): the embedded Dance Revolution's dances take a 3-Hz low-pass after the lock; the
-    embedded music2dance's geometric FID rises with any fixed one (+3-28 % on validation). ``{}`` (no
-    low-pass, :data:`SETTLE_HZ`) for a folder without the entry or that is not a checkpoint. A negative or
-    non-finite cut-off, a non-positive ratio or both keys is a :class:`~dancekit.errors.CheckpointError`
-    naming the ``config.json``."""
-    spec = _stage_entry(model, "settle", {"cutoff_hz", "ratio_target"})
-    bad = [k for k, v in spec.items() if not (np.isfinite(v) and (v > 0 or (k == "cutoff_hz" and v == 0)))]
-    bad += ["both cutoff_hz and ratio_target"] if len(spec) > 1 else []
-    if bad:
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'settle' takes a cutoff_hz "
-                              f"(Hz, 0: none) or a positive ratio_target, not both; got {bad[0]} in {spec!r}")
-    out = {"cutoff": spec["cutoff_hz"]} if "cutoff_hz" in spec else {}
-    return {**out, "ratio_target": spec["ratio_target"]} if "ratio_target" in spec else out
-
-
-#: The keys a checkpoint's ``"foot_lock"`` entry may carry (:func:`foot_lock_options`): the shortest hold (s),
-#: how far the original ankle may move from a held foot before it is re-planted (``max_drift_m``, m), the
-#: hand-over to and from a hold (``blend_s``, s) and the contact thresholds of
-#: :func:`dancekit.motion.footlock.foot_contacts` (metres above the local floor, m/s; a contact starts below
-#: ``*_on`` and lasts while the foot stays below ``*_off``).
-FOOT_LOCK_KEYS = ("min_hold_s", "max_drift_m", "blend_s", "height_on", "height_off", "speed_on", "speed_off")
-
-
-def foot_lock_options(model: str | os.PathLike | None) -> dict[str, float]:
-    """The :func:`~dancekit.motion.footlock.lock_feet` settings a model's checkpoint folder carries in its
-    ``config.json`` (``"foot_lock": {"min_hold_s": s, "max_drift_m": m, "blend_s": s, "height_on": m,
-    "height_off": m, "speed_on": m/s, "speed_off": m/s}``, any of them, :data:`FOOT_LOCK_KEYS`), chosen on
-    the validation songs (docs/STAGES.md): the embedded Dance Revolution's dances have many short stops near
-    the floor, and holding them for 0.12-0.4 s makes the foot stop and go (jitter); the embedded dual
-    model's feet glide near the floor faster than the default 0.5 m/s contact speed, so it takes faster and
-    higher contacts, longer holds (re-planted after 0.6 m, at least 0.32 s) and a longer hand-over; the embedded
-    music2dance's geometric FID rises without its short holds, so it keeps the defaults. ``{}`` (the
-    defaults) for a folder without the entry or that is not a checkpoint. A value that is not a positive
-    number, or an ``*_on`` threshold above its ``*_off`` (either side taken from the defaults when absent),
-    is a :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
-    from dancekit.motion import footlock as fl
-
-    spec = _stage_entry(model, "foot_lock", set(FOOT_LOCK_KEYS))
-    default = {"height_on": fl.CONTACT_HEIGHT_ON_M, "height_off": fl.CONTACT_HEIGHT_OFF_M,
-               "speed_on": fl.CONTACT_SPEED_ON, "speed_off": fl.CONTACT_SPEED_OFF}
-    full = {**default, **spec}
-    bad = [k for k, v in spec.items() if not (np.isfinite(v) and v > 0)]
-    bad += [f"{q}_on > {q}_off" for q in ("height", "speed") if full[f"{q}_on"] > full[f"{q}_off"]]
-    if bad:
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'foot_lock' needs positive "
-                              f"numbers with *_on <= *_off, got {bad[0]} in {spec!r}")
-    return spec
-
-
-def plant_options(model: str | os.PathLike | None) -> dict:
-    """The planted-share target a model's checkpoint folder carries in its ``config.json`` (``"plant":
-    {"genre_share": {genre: share}}``: each genre's real planted-foot share, the mean over its training
-    dances of :func:`dancekit.motion.footlock.planted_share`), chosen per model on the validation songs
-    (docs/BENCHMARKS.md, issue 15). ``{}`` (the lock as set) for a folder without the entry or that is not a
-    checkpoint. An entry that is not ``{"genre_share": {genre: share in (0, 1]}}`` is a
-    :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
-    spec = _raw_entry(model, "plant")
-    if not spec:
-        return {}
-    table = spec.get("genre_share") if isinstance(spec, dict) else None
-    if set(spec) != {"genre_share"} or not isinstance(table, dict) or not table or not all(
-            _is_number(v) and 0 < v <= 1 for v in table.values()):
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'plant' takes "
-                              f"{{\"genre_share\": {{genre: share in (0, 1]}}}}, got {spec!r}")
-    return {"genre_share": {str(g): float(v) for g, v in table.items()}}
-
-
 def plant_target(result: DanceResult, *, genre_share: dict[str, float] | None = None) -> float | None:
     """The planted-foot share :func:`foot_lock` keeps ``result`` under: the real share of the genre danced
     (``result.genre``), or, for a dance of the model alone, the shares weighted by the genre probabilities
@@ -516,92 +400,6 @@ def posterior_mean(result: DanceResult, table: dict[str, float]) -> float | None
     if not probs:
         return None
     return float(sum(p * table[g] for g, p in probs.items()) / sum(probs.values()))
-
-
-#: The keys a checkpoint's ``"beat_sync"`` entry may carry (:func:`beat_sync_options`), all
-#: :func:`dancekit.motion.timewarp.beat_warp` arguments: the bound on the warp's local speed change
-#: (``max_rate_change``, a fraction: the rate stays within ``1 ± it``), the bound between two matched beats
-#: (``pair_rate_change``, ≤ ``max_rate_change``), the farthest a kinematic beat is moved (``max_shift``, s), the
-#: landing tolerance of unpaired kinematic beats in the pairing (``between_tolerance``, s; 0: off), the time
-#: scale of the rate's smoothness (``smooth_s``, s), the bound on the rate's change from one frame to the
-#: next (``max_rate_step``, a fraction per frame; default 0.02: no visible speed jump) and whether the pairing
-#: already skips steps that bound cannot follow (``step_pairing``, true / false; default true).
-BEAT_SYNC_KEYS = ("max_rate_change", "pair_rate_change", "max_shift", "between_tolerance", "smooth_s",
-                  "max_rate_step", "step_pairing")
-
-
-def beat_sync_options(model: str | os.PathLike | None) -> dict[str, float | bool]:
-    """The :func:`~dancekit.motion.timewarp.beat_warp` settings a model's checkpoint folder carries in its
-    ``config.json`` (``"beat_sync": {"max_rate_change": f, "pair_rate_change": f, "max_shift": s,
-    "between_tolerance": s, "smooth_s": s, "max_rate_step": f, "step_pairing": true/false}``, any of them,
-    :data:`BEAT_SYNC_KEYS`). The embedded dual and music2dance carry one (±30 % and ±40 %, docs/STAGES.md);
-    ``{}``, the defaults (speed change ±15 %, ±13 % between matched beats, 0.6 s, a rate step of at most 2 %
-    per frame, the pairing aware of it), for a folder without the entry or that is not a checkpoint. A rate
-    outside (0, 1), a ``pair_rate_change`` above the ``max_rate_change`` (either side from the defaults when
-    absent), a ``max_shift``, ``smooth_s`` or ``max_rate_step`` that is not positive, a negative
-    ``between_tolerance`` or a ``step_pairing`` that is not true / false is a
-    :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
-    from dancekit.motion import timewarp as tw
-
-    spec = _stage_entry(model, "beat_sync", set(BEAT_SYNC_KEYS) - {"step_pairing"}, flags={"step_pairing"})
-    full = {"max_rate_change": tw.DEFAULT_MAX_RATE_CHANGE, "pair_rate_change": tw.DEFAULT_PAIR_RATE_CHANGE, **spec}
-    bad = [k for k in ("max_rate_change", "pair_rate_change") if k in spec and not 0 < spec[k] < 1]
-    bad += [k for k in ("max_shift", "smooth_s", "max_rate_step") if k in spec
-            and not (np.isfinite(spec[k]) and spec[k] > 0)]
-    bad += [k for k in ("between_tolerance",) if k in spec and not (np.isfinite(spec[k]) and spec[k] >= 0)]
-    if full["pair_rate_change"] > full["max_rate_change"]:
-        bad.append("pair_rate_change > max_rate_change")
-    if bad:
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'beat_sync' needs rates in "
-                              f"(0, 1) with pair_rate_change <= max_rate_change, positive max_shift, smooth_s and "
-                              f"max_rate_step and between_tolerance >= 0, got {bad[0]} in {spec!r}")
-    return spec
-
-
-#: The keys a checkpoint's ``"energy"`` entry may carry (:func:`energy_options`): a fixed smoothed-energy
-#: ``floor`` (m/s), or a ``fraction`` of the real dances' smoothed energy per genre (``genre_energy``: {genre:
-#: m/s}, the genre read from the music; the fixed floor, when given too, applies where no genre is known), the
-#: largest gain ``max_gain`` (>= 1), the moving mean the deviation is taken from (``mean_s``, s) and the cut-off
-#: of the deviation's band that the gain scales (``band_hz``, Hz, below the motion's Nyquist frequency).
-#: :mod:`dancekit.motion.energy`.
-ENERGY_KEYS = ("floor", "fraction", "genre_energy", "max_gain", "mean_s", "band_hz", "damp", "root", "legs")
-
-
-def energy_options(model: str | os.PathLike | None) -> dict:
-    """The :func:`lift_energy` settings a model's checkpoint folder carries in its ``config.json`` (``"energy":
-    {"floor": m/s}`` or ``{"fraction": f, "genre_energy": {genre: m/s}}`` (or both), plus any of ``"max_gain":
-    g, "mean_s": s, "band_hz": hz``, defaults :mod:`dancekit.motion.energy`'s), chosen per model on the
-    validation songs (docs/STAGES.md). ``{}`` (no lift) for a folder without the entry or that is not a
-    checkpoint. An unknown key, a non-number, a non-positive ``floor``, ``fraction``, ``mean_s``, ``band_hz`` or
-    genre energy, a ``max_gain`` under 1, or neither a floor nor a fraction with genre energies is a
-    :class:`~dancekit.errors.CheckpointError` naming the ``config.json``."""
-    spec = _raw_entry(model, "energy")
-    if not spec:
-        return {}
-
-    table = spec.get("genre_energy", {}) if isinstance(spec, dict) else None
-    bad = [] if isinstance(spec, dict) else ["not a mapping"]
-    if not bad:
-        bad += [f"unknown key {k!r}" for k in sorted(set(spec) - set(ENERGY_KEYS))]
-        bad += [f"{k} not a positive number" for k in ("floor", "fraction", "mean_s", "band_hz")
-                if k in spec and not (_is_number(spec[k]) and spec[k] > 0)]
-        bad += ["damp outside [0, 1]"] if "damp" in spec and not (_is_number(spec["damp"]) and 0 <= spec["damp"] <= 1) \
-            else []
-        bad += [f"{k} not 0 or 1" for k in ("root", "legs") if k in spec and spec[k] not in (0, 1)]
-        bad += ["max_gain < 1"] if "max_gain" in spec and not (_is_number(spec["max_gain"]) and spec["max_gain"] >= 1) \
-            else []
-        bad += [] if isinstance(table, dict) and all(_is_number(v) and v > 0 for v in table.values()) \
-            else ["genre_energy not {genre: positive m/s}"]
-        bad += [] if "floor" in spec or ("fraction" in spec and table) else ["neither a floor nor a fraction with "
-                                                                               "genre_energy"]
-    if bad:
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: 'energy' takes a positive "
-                              f"floor (m/s) or fraction with genre_energy {{genre: m/s}}, max_gain >= 1 and positive "
-                              f"mean_s and band_hz; {bad[0]} in {spec!r}")
-    out = {k: float(v) for k, v in spec.items() if k != "genre_energy"}
-    if table:
-        out["genre_energy"] = {str(g): float(v) for g, v in table.items()}
-    return out
 
 
 def energy_floor(result: DanceResult, *, floor: float | None = None, fraction: float | None = None,
@@ -630,7 +428,7 @@ def lift_energy(result: DanceResult, *, floor: float | None = None, fraction: fl
     root translation kept, bone lengths exact; ``root`` 0: the root's orientation not lifted (rotation
     motions); ``legs`` 0: the legs not lifted), then the change the lift made to the clean-up's ground offset
     (:func:`~dancekit.motion.cleanup.ground_offset`) taken off, so the lowest joint stays on the floor. No
-    floor (no ``"energy"`` entry in the checkpoint, :func:`energy_options`, or no genre known for a
+    floor (no ``lift_energy`` settings in the checkpoint, :class:`~dancekit.pipelines.config.EnergyConfig`, or no genre known for a
     genre-only entry), a 2D dance, a dance already at the floor or one calmed because its input does not look
     like music (``result.looks_like_music`` False): the result itself, unchanged. A motion with
     rotations has its local rotations lifted and its positions recomputed by forward kinematics. A note gives
@@ -705,38 +503,6 @@ def genre_jitter_table(table) -> dict[str, float]:
     return {g: float(v) for g, v in pairs}
 
 
-def _raw_entry(model: str | os.PathLike | None, key: str):
-    """The checkpoint folder's ``config.json`` entry ``key`` as stored (unchecked); ``{}`` for no model, a
-    folder without the entry, or one that is not a checkpoint."""
-    from dancekit.checkpoints.hub import read_meta
-
-    if not model:
-        return {}
-    try:
-        return read_meta(model).get(key) or {}
-    except (CheckpointError, OSError):
-        return {}
-
-
-def _stage_entry(model: str | os.PathLike | None, key: str, allowed: set[str],
-                 flags: set[str] = frozenset()) -> dict[str, float | bool]:
-    """The checkpoint folder's ``config.json`` entry ``key`` (a dict of numbers whose keys are in
-    ``allowed``, and of true / false for the keys in ``flags``); ``{}`` for no model, a folder without the
-    entry, or one that is not a checkpoint. A malformed entry is a :class:`~dancekit.errors.CheckpointError`
-    naming the file."""
-    spec = _raw_entry(model, key)
-    if not isinstance(spec, dict) or not set(spec) <= allowed | flags or not all(
-            isinstance(v, bool) if k in flags else isinstance(v, (int, float)) and not isinstance(v, bool)
-            for k, v in spec.items()):
-        raise CheckpointError(f"corrupt checkpoint file {Path(model) / 'config.json'}: '{key}' takes "
-                              f"numbers for {sorted(allowed)}"
-                              + (f" and true / false for {sorted(flags)}" if flags else "") + f", got {spec!r}")
-    return {k: v if k in flags else float(v) for k, v in spec.items()}
-
-
-JITTER_CAP_KEYS = ("genre_jitter", "jitter_cap", "jitter_cap_min_ratio", "after_lock", "to_end")
-
-
 def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, float], scale: float,
                          min_ratio: float) -> float | None:
     """The per-dance jitter cap (m/s, the ``max_jitter`` of :func:`finish`) for a song whose genre posterior is
@@ -751,141 +517,181 @@ def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, flo
     return float(scale * min(plausible)) if plausible else None
 
 
-def jitter_cap_from_entry(spec, *, folder: str | os.PathLike = "?", key: str = "jitter_cap") -> dict | None:
-    """A checkpoint's jitter cap entry ``{"genre_jitter": {genre: m/s}, "jitter_cap": s,
-    "jitter_cap_min_ratio": ρ, "after_lock": bool, "to_end": bool}`` (ρ default 0.5, the two flags default
-    false) checked: ``{"genre_jitter", "scale", "min_ratio"}`` (the keyword arguments of
-    :func:`plausible_jitter_cap`) plus ``"after_lock"`` (the ``jitter_after_lock`` of :func:`finish`: the cap's
-    low-pass after the foot lock and its settle instead of before the lock) and ``"to_end"`` (its
-    ``jitter_to_end``: the cap holds for the finished dance); None for no entry.
-
-    Raises
-    ------
-    CheckpointError
-        Naming ``config.json`` and ``key``, for an entry that is not an object, an unknown key, a table that
-        does not map genres to positive m/s, a scale that is not a finite number > 0, ρ outside [0, 1], or an
-        ``after_lock`` or ``to_end`` that is not true / false."""
-    if spec is None:
+def jitter_cap_for(result: DanceResult, config: JitterCapConfig | None,
+                   genre_stats: GenreStats | None = None) -> float | None:
+    """The jitter cap (m/s) of one dance, or None (no cap): ``config.max_jitter`` when set; else
+    :func:`plausible_jitter_cap` over the genre posterior read from the music (``result.genre_probs``) with the
+    real jitters of ``genre_stats.jitter`` — not for the most likely genre's dance unless ``config.all`` —, or,
+    for a genre asked for by name (no posterior) with ``config.named``, over that genre alone. None without a
+    ``config``, for a dance whose input does not look like music, or without a posterior or a named genre."""
+    if config is None or not result.looks_like_music:
         return None
-    where = f"checkpoint {folder}: bad {key!r} entry in config.json"
-
-    if not isinstance(spec, dict) or set(spec) - set(JITTER_CAP_KEYS):
-        raise CheckpointError(f"{where}: takes {list(JITTER_CAP_KEYS)}, got {spec!r}")
-    table = spec.get("genre_jitter")
-    try:  # a mapping (JSON object), not a list of pairs
-        table = genre_jitter_table(table if isinstance(table, dict) else None)
-    except ParameterError:
-        raise CheckpointError(f"{where}: genre_jitter must map genres to positive m/s, got {spec['genre_jitter']!r}"
-                              if "genre_jitter" in spec else f"{where}: genre_jitter is missing") from None
-    scale = spec.get("jitter_cap")
-    if not (_is_number(scale) and scale > 0):
-        raise CheckpointError(f"{where}: jitter_cap must be a finite number > 0, got {scale!r}")
-    ratio = spec.get("jitter_cap_min_ratio", 0.5)
-    if not (_is_number(ratio) and 0 <= ratio <= 1):
-        raise CheckpointError(f"{where}: jitter_cap_min_ratio must be in [0, 1], got {ratio!r}")
-    flags = {k: spec.get(k, False) for k in ("after_lock", "to_end")}
-    for k, v in flags.items():
-        if not isinstance(v, bool):
-            raise CheckpointError(f"{where}: {k} must be true or false, got {v!r}")
-    return {"genre_jitter": table, "scale": float(scale), "min_ratio": float(ratio), **flags}
+    if config.max_jitter is not None:
+        return config.max_jitter
+    probs = result.genre_probs or {}
+    if not probs:
+        if not config.named or result.genre is None:
+            return None
+        probs = {result.genre: 1.0}
+    elif result.genre is not None and result.genre == max(probs, key=probs.get) and not config.all:
+        return None
+    table = {} if genre_stats is None else genre_stats.table("jitter")
+    return plausible_jitter_cap(probs, genre_jitter=table, scale=config.scale, min_ratio=config.min_ratio)
 
 
-def jitter_cap_setting(spec, *, folder: str | os.PathLike = "?") -> tuple[dict | None, bool, bool]:
-    """A checkpoint's ``"jitter_cap"`` entry as a pipeline keeps it: ``(cap, after_lock, to_end)``, ``cap`` the
-    keyword arguments of :func:`plausible_jitter_cap` (None: no entry, then both flags false) and the two flags
-    the ``jitter_after_lock`` / ``jitter_to_end`` of :func:`finish`; checked by :func:`jitter_cap_from_entry`."""
-    cap = jitter_cap_from_entry(spec, folder=folder)
-    if cap is None:
-        return None, False, False
-    return cap, bool(cap.pop("after_lock")), bool(cap.pop("to_end"))
+@dataclasses.dataclass
+class Song:
+    """The song (excerpt ``[start, end)`` s) a dance was made for; its beats (:func:`song_beats_for`) tracked
+    on first use and kept, so that the dances of one song share them."""
+
+    path: str | os.PathLike
+    start: float | None = None
+    end: float | None = None
+    beats: object | None = None
+
+    def song_beats(self):
+        if self.beats is None:
+            self.beats = song_beats_for(self.path, start=self.start, end=self.end)
+        return self.beats
 
 
-def finish(result: DanceResult, audio_path: str | os.PathLike, *, start: float | None = None,
-           end: float | None = None, beat_sync_on: bool = True, cleanup_on: bool = True,
-           foot_lock_on: bool | None = None, smooth_on: bool | None = None, energy_on: bool | None = None,
-           beats=None, max_jitter: float | None = None, jitter_after_lock: bool = False,
-           jitter_to_end: bool = False, trace: Callable[[str, DanceResult], None] | None = None) -> DanceResult:
-    """The stages as switched, in this order: the clean-up (it moves frames rigidly), the smoothing (only
-    a jittery dance is filtered), the energy lift the model's checkpoint asks for (:func:`lift_energy`,
-    :func:`energy_options`: only a dance under its floor; after the smoothing, so the flicker it removed is
-    not measured as energy), the foot lock (after the smoothing and the lift, so a pinned foot stays pinned)
-    and, with it, the light low-pass after the lock that the model's checkpoint asks for (:func:`settle`,
-    :func:`settle_options`: a held foot stays held), then the beat sync (so the speed minima it aligns are
-    those of the final dance). ``foot_lock_on``, ``smooth_on`` and ``energy_on`` follow ``cleanup_on`` unless
-    given. ``beats``: the song's :class:`~dancekit.features.pulse.SongBeats` when already tracked (many
-    dances of one song), else tracked here when needed. ``max_jitter`` (m/s): before the foot lock, a
-    per-dance low-pass caps the dance's jitter (:func:`settle`; a genre model the seed drew, issue 15), so the
-    lock plants the calmed dance's feet (after the lock, a 1-Hz cap lifted the feet off the floor);
-    ``jitter_after_lock``: that low-pass runs after the foot lock and its settle instead (the jitter measured
-    closer to its final value: the lock adds some back; a checkpoint's ``"after_lock"``,
-    :func:`jitter_cap_from_entry`). ``jitter_to_end``: the cap holds for the finished dance, not only where
-    the low-pass runs: when the stages after it (the lock's stop-and-go, the regrounding, the warp's speed
-    changes) bring the jitter back over ``max_jitter``, they are run again from the cap on with its next lower
-    cut-off (:data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ`; from the highest for a dance the cap had left
-    alone), down to the lowest (a checkpoint's ``"to_end"``, :func:`jitter_cap_from_entry`, or revolution's
-    ``"jitter_cap_to_end"``). Last in the lock's block, the second grounding the checkpoint asks for
-    (:func:`reground`, :func:`ground_options`). ``trace``: called as ``trace("input", result)`` with the dance
-    as given, then as ``trace(name, result)`` after each stage that ran, with the names of :data:`STAGE_NAMES`
-    in that order (a stage-by-stage look at one dance, e.g. ``benchmarks/stage_ablation.py``, or the dance
-    before its warp, as ``dancekit evaluate`` keeps it; the ``"jitter_cap"`` and ``"reground"`` stages only
-    where they apply; with ``jitter_to_end``, the stages after the cap as last run)."""
-    steps: list[tuple[str, DanceResult]] = [("input", result)]  # kept only for a trace (memory: long songs)
+@dataclasses.dataclass
+class StageContext:
+    """What a stage knows beside the dance and its own settings: the song, the checkpoint's genre statistics,
+    the dance's jitter cap (m/s, None: none; :func:`jitter_cap_for`) and the cut-off (Hz) the cap is to use on
+    this pass of the stages after it (None: chosen per dance; set by :func:`finish` for
+    :attr:`~dancekit.pipelines.config.JitterCapConfig.to_end`); ``chosen`` keeps the cut-off the first pass chose."""
 
-    def done(name: str, out: DanceResult) -> DanceResult:
-        if trace is not None:
-            steps.append((name, out))
-        return out
+    song: Song
+    genre_stats: GenreStats
+    max_jitter: float | None = None
+    cap_cutoff: float | None = None
+    chosen: list[float] = dataclasses.field(default_factory=list)
 
-    locking = cleanup_on if foot_lock_on is None else foot_lock_on
-    chosen: list[float] = []  # the cut-off the cap chose (Hz, 0: none), for jitter_to_end
 
-    def cap(r: DanceResult, cutoff: float | None) -> DanceResult:
-        if cutoff is None and jitter_to_end and _is_3d(r.motion):  # chosen here (as settle would), and kept
-            from dancekit.motion.jitter import jitter_cutoff
+def stage_clean_up(result: DanceResult, config, ctx: StageContext) -> DanceResult:
+    """:func:`clean_up`: rigid per frame (the root path turned back within the dance floor, the lowest joint on
+    the floor); fps, frame count, bone lengths and the rotations of the non-root joints unchanged."""
+    return clean_up(result)
 
-            m = r.motion
-            chosen.append(jitter_cutoff(m.to_positions(), skeleton=m.skeleton, fps=m.fps, max_jitter=float(max_jitter)))
-            cutoff = chosen[0]
-            if not cutoff:  # under the cap already
-                return r
-        if cutoff is None:  # the highest cut-off that brings the dance under the cap (0: none needed)
-            return settle(r, max_jitter=max_jitter)
-        return _with_note(settle(r, cutoff=cutoff), _calmed(cutoff))
 
-    def from_the_lock(r: DanceResult, cutoff: float | None) -> DanceResult:
-        """The lock's block and the beat sync, the cap's low-pass at ``cutoff`` Hz (None: as it chooses)."""
-        if locking:
-            if max_jitter is not None and not jitter_after_lock:  # before the lock: it plants the calmed feet
-                r = done("jitter_cap", cap(r, cutoff))
-            r = done("foot_lock", foot_lock(r))
-            r = done("settle", settle(r, **settle_options(r.model)))
-            if max_jitter is not None and jitter_after_lock:  # after: the jitter the lock added back is measured
-                r = done("jitter_cap", cap(r, cutoff))
-            ground = ground_options(r.model)
-            if ground:  # a lively model's dance, lifted again by the low-passes and the lock's IK
-                r = done("reground", reground(r, **ground))
-        if beat_sync_on:
-            r = done("beat_sync", beat_sync(r, audio_path, start=start, end=end, beats=beats))
-        return r
+def stage_smooth(result: DanceResult, config: SmoothConfig, ctx: StageContext) -> DanceResult:
+    """:func:`smooth`: only a jittery dance is filtered (zero-phase, same fps and frame count); bone lengths exact."""
+    return smooth(result, config=config, genre_stats=ctx.genre_stats)
 
-    if cleanup_on:
-        result = done("clean_up", clean_up(result))
-    if cleanup_on if smooth_on is None else smooth_on:
-        result = done("smooth", smooth(result))
-    if cleanup_on if energy_on is None else energy_on:
-        result = done("lift_energy", lift_energy(result, **energy_options(result.model)))
-    head = len(steps)
-    out = from_the_lock(result, None)
-    if jitter_to_end and max_jitter is not None and locking and _is_3d(out.motion):
+
+def stage_lift_energy(result: DanceResult, config, ctx: StageContext) -> DanceResult:
+    """:func:`lift_energy`: a dance under its energy floor (m/s) lifted (no settings: unchanged); fps, frame
+    count, bone lengths and the lowest joint's height over the floor unchanged."""
+    if config is None:
+        return result
+    energy = ctx.genre_stats.table("energy")
+    return lift_energy(result, floor=config.floor, fraction=config.fraction, genre_energy=energy or None,
+                       max_gain=config.max_gain, mean_s=config.mean_s, band_hz=config.band_hz, damp=config.damp,
+                       root=config.root, legs=config.legs)
+
+
+def stage_jitter_cap(result: DanceResult, config: JitterCapConfig, ctx: StageContext) -> DanceResult | None:
+    """A per-dance low-pass (:func:`settle`) that brings the dance's jitter under ``ctx.max_jitter`` (m/s): the
+    highest cut-off of :data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ` that does, or ``ctx.cap_cutoff`` on a
+    later pass; a dance under the cap is left alone. None (the stage does not apply) without a cap. Fps and
+    frame count unchanged; bone lengths exact."""
+    if ctx.max_jitter is None:
+        return None
+    cutoff = ctx.cap_cutoff
+    if cutoff is None and config.to_end and _is_3d(result.motion):  # chosen here (as settle would), and kept
+        from dancekit.motion.jitter import jitter_cutoff
+
+        m = result.motion
+        ctx.chosen.append(jitter_cutoff(m.to_positions(), skeleton=m.skeleton, fps=m.fps,
+                                        max_jitter=float(ctx.max_jitter)))
+        cutoff = ctx.chosen[0]
+        if not cutoff:  # under the cap already
+            return result
+    if cutoff is None:  # the highest cut-off that brings the dance under the cap (0: none needed)
+        return settle(result, max_jitter=ctx.max_jitter)
+    return _with_note(settle(result, cutoff=cutoff), _calmed(cutoff))
+
+
+def stage_foot_lock(result: DanceResult, config: FootLockConfig, ctx: StageContext) -> DanceResult:
+    """:func:`foot_lock`: only the legs change (the body lowered where a held foot is out of reach); fps and
+    frame count unchanged."""
+    return foot_lock(result, config, ctx.genre_stats)
+
+
+def stage_settle(result: DanceResult, config, ctx: StageContext) -> DanceResult:
+    """:func:`settle`: a light zero-phase low-pass after the lock (none without a cut-off); a held foot stays held."""
+    return settle(result, **config.settle_options())
+
+
+def stage_reground(result: DanceResult, config, ctx: StageContext) -> DanceResult:
+    """:func:`reground`: a vertical shift per frame (the lowest joint on the floor once in every window)."""
+    return reground(result, **config.reground_options())
+
+
+def stage_beat_sync(result: DanceResult, config, ctx: StageContext) -> DanceResult:
+    """:func:`beat_sync`: the frames re-timed onto the song's beats (same fps and frame count; poses are
+    interpolated between frames); a song without a clear beat or a dance calmed for not-music is left as it is."""
+    needs = _is_3d(result.motion) and result.looks_like_music
+    return beat_sync(result, ctx.song.path, start=ctx.song.start, end=ctx.song.end,
+                     beats=ctx.song.song_beats() if needs else None, options=config.warp_options())
+
+
+#: stage name → its function ``(result, its settings, StageContext) -> result`` (None: the stage does not apply)
+STAGES: dict[str, Callable] = {"clean_up": stage_clean_up, "smooth": stage_smooth, "lift_energy": stage_lift_energy,
+                               "jitter_cap": stage_jitter_cap, "foot_lock": stage_foot_lock, "settle": stage_settle,
+                               "reground": stage_reground, "beat_sync": stage_beat_sync}
+
+
+def _run(result: DanceResult, names, config: StageConfig, ctx: StageContext, steps: list | None) -> DanceResult:
+    for name in names:
+        out = STAGES[name](result, getattr(config, name), ctx)
+        if out is None:  # does not apply to this dance
+            continue
+        result = out
+        if steps is not None:
+            steps.append((name, result))
+    return result
+
+
+def finish(result: DanceResult, audio: Song | str | os.PathLike, config: StageConfig | None = None,
+           trace: Callable[[str, DanceResult], None] | None = None) -> DanceResult:
+    """The dance through the stages ``config`` enables, in the order of :meth:`StageConfig.order
+    <dancekit.pipelines.config.StageConfig.order>`: the clean-up, the smoothing, the energy lift, the jitter cap
+    (before the lock, or after its settle), the foot lock, the settle, the regrounding, the beat sync.
+
+    ``audio``: the song (a :class:`Song`, whose beats many dances share, or a path); ``config``: the
+    checkpoint's :class:`~dancekit.pipelines.config.StageConfig` switched for this run (None: the defaults).
+    With the jitter cap's ``to_end``, while the finished dance's jitter is over its cap the stages from the cap
+    (or the lock) on run again from the same input with the next lower cut-off
+    (:data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ`), down to the lowest. ``trace``: called as
+    ``trace("input", result)``, then ``trace(name, result)`` after each stage that ran (with ``to_end``, the
+    stages after the cap as last run)."""
+    config = StageConfig() if config is None else config
+    song = audio if isinstance(audio, Song) else Song(audio)
+    ctx = StageContext(song=song, genre_stats=config.genre_stats,
+                       max_jitter=jitter_cap_for(result, config.jitter_cap, config.genre_stats))
+    steps: list | None = [("input", result)] if trace is not None else None  # kept only for a trace
+    order = config.order()
+    lock = [n for n in ("jitter_cap", "foot_lock", "settle", "reground") if n in order]
+    split = order.index(lock[0]) if lock else len(order)
+    head = _run(result, order[:split], config, ctx, steps)
+    kept = None if steps is None else len(steps)
+    out = _run(head, order[split:], config, ctx, steps)
+    cap = config.jitter_cap
+    if cap is not None and cap.to_end and "jitter_cap" in order and ctx.max_jitter is not None \
+            and _is_3d(out.motion):
         from dancekit.motion.jitter import CAP_CUTOFFS_HZ, jitter_speed
 
-        first = chosen[0] if chosen else 0.0
+        first = ctx.chosen[0] if ctx.chosen else 0.0
         for c in (c for c in CAP_CUTOFFS_HZ if not first or c < first):
             m = out.motion
-            if jitter_speed(m.to_positions(), skeleton=m.skeleton, fps=m.fps) <= max_jitter:
+            if jitter_speed(m.to_positions(), skeleton=m.skeleton, fps=m.fps) <= ctx.max_jitter:
                 break
-            del steps[head:]
-            out = from_the_lock(result, c)
+            if steps is not None:
+                del steps[kept:]
+            ctx.cap_cutoff = c
+            out = _run(head, order[split:], config, ctx, steps)
     if trace is not None:
         for name, r in steps:
             trace(name, r)

@@ -271,5 +271,28 @@ def assemble_run(
         "data": {"root": str(Path(data_dir).resolve()), "train": data.names("train"), "val": data.names("val")},
         "init": str(Path(init).resolve()) if init_state is not None else None,
     }
+    if fam.kind == "dance" and data.skeleton.dims == 3:  # the real dances' per-genre tables the stages compare with
+        stats_tables = _genre_stats(data)
+        if stats_tables:
+            meta["genre_stats"] = stats_tables
     return TrainRun(family=fam, model=model, config=config, train_set=train_set, val_set=val_set, stats=stats,
                     meta=meta, out_dir=out_dir, resume=resume, resumed_from=found, load_seconds=load_seconds)
+
+
+def _genre_stats(data) -> dict[str, dict[str, float]]:
+    """The ``"genre_stats"`` tables of a dance checkpoint (:mod:`dancekit.training.genre_stats`) from the training
+    split, keeping the values a checkpoint may hold (finite and positive; a planted share of at most 1): a skeleton
+    without legs has no planted share, a still test dance no jitter."""
+    import numpy as np
+
+    from dancekit.training.genre_stats import prepared_genre_stats
+
+    tables = prepared_genre_stats(data, "train")
+    top = {"planted_share": 1.0}
+    out = {}
+    for name, table in tables.items():
+        kept = {g: v for g, v in table.items() if np.isfinite(v) and 0 < v <= top.get(name, np.inf)
+                and (name != "smoothing" or v < 10)}
+        if kept:
+            out[name] = kept
+    return out
