@@ -5,26 +5,24 @@
 STAGE (each one's own help below and in its function's docstring):
 
 - ``stages``    the warp's pair-rate bound and maximum shift, and the ground-contact window
-- ``footlock``  foot-lock / smoothing / settle variants on cached raw dances
 - ``beatsync``  beat-warp variants on cached raw dances (why kinematic beats miss, and a grid)
-- ``energy``    the ``"energy"`` entry (and ``"settle"`` / ``"jitter_cap"``) of a model's config, per setting
 - ``variety``   the default model's seed variety and genre draw (``"sampling"``)
 - ``candidate`` a candidate checkpoint folder: a model folder with some ``config.json`` entries overridden
 
-Every setting is a configuration override of an embedded model (a candidate folder, ``candidate``) or keyword
-arguments of the stage's function; the raw dances of ``footlock`` / ``beatsync`` / ``energy`` come from
+Every setting is a configuration override of an embedded model (a candidate folder, ``candidate``: its
+``"stages"`` / ``"sampling"`` entries, checked by the typed stage configuration when the folder is loaded) or the
+typed stage configuration passed to ``finish``; the raw dances of ``beatsync`` come from
 ``benchmarks/feet_dances.py``. Settings are chosen on ``val``; the test split is scored once with ``dancekit
-evaluate``. This script replaces tune_stages.py, tune_footlock.py, tune_beatsync.py, tune_energy.py,
-tune_variety.py and candidate_folder.py (read at 264b8a3), with the same arguments after the stage name.
+evaluate``. This script replaces tune_stages.py, tune_beatsync.py, tune_variety.py and candidate_folder.py
+(read at 264b8a3), with the same arguments after the stage name; the decided foot-lock and energy studies are read
+at 264b8a3:benchmarks/tune_footlock.py and 264b8a3:benchmarks/tune_energy.py.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -32,24 +30,22 @@ import bench_feet  # benchmarks/ is on the path when run as a script
 import bench_stages
 import numpy as np
 import torch
-from genre_tables import genre_table
 
 from dancekit.checkpoints.hub import resolve_model
 from dancekit.data import PreparedData
 from dancekit.evaluation.score import SAMPLE_SEP, evaluate_dirs
-from dancekit.features import MUSIC_BEAT_STRENGTH
 from dancekit.metrics import jitter
 from dancekit.metrics.beat import beat_metrics, kinematic_beats
 from dancekit.models.revolution import SeedVariety
-from dancekit.motion import Motion, get_skeleton, write_motion
-from dancekit.motion import footlock as fl
+from dancekit.motion import get_skeleton, write_motion
 from dancekit.motion.cleanup import contain_root_path, ground_contact
 from dancekit.motion.representations import decode_motion
 from dancekit.motion.timewarp import beat_warp, warp_bones, warp_motion
 from dancekit.pipelines import load_pipeline, stages
-from dancekit.pipelines.base import DanceResult, clean_motion, song_feature_set
-from dancekit.pipelines.music_attributes import MusicAttributePipeline
+from dancekit.pipelines.base import DanceResult, clean_motion
+from dancekit.pipelines.config import read_stage_config
 from dancekit.pipelines.revolution import GenreDraw
+from dancekit.pipelines.stages import Song
 from dancekit.pipelines.stages import finish as stages_finish
 
 SK = get_skeleton("tang2018")
@@ -140,98 +136,6 @@ shift, and the ground-contact window. Never run on the test split.
                 np.mean(jerks)), flush=True)
 
 
-# --- footlock: formerly tune_footlock.py --------------------------------------------------------------------
-
-
-def footlock_main() -> None:
-    """Foot-lock settings on cached dances (issue 15, the lock's jitter): per variant, per-song jitter / energy
-ratios to the song's real dance, planted share, skating, jerk, knees, floor, travel, BAS / hit rate (with the
-warp) and FID_k / FID_g against the training dances (``FID=1``).
-
-    PYTHONPATH=src FID=1 python benchmarks/tune.py footlock revolution val \
-        '{"former": {"lock": {"c1_blend": false}, "warp": true}, "hold 0.4": {"lock": {"min_hold_s": 0.4}, "warp": true}}'
-
-Arguments: model, split (val / test / song), a JSON object ``name -> {"smooth": target | null | "off",
-"noisy_ratio": the smoothing stage's NOISY_RATIO (default 0.2), "noisy_target": its SMOOTH_TARGET_NOISY (0.065), "kind": the smoothing filter ("lowpass" /
-"savgol", default the stage's), "post": a final low-pass cut-off in Hz after the lock (``stages.settle``), "post_ground": the lowest joint
-put back on the floor after it,
-"lock": lock_feet keyword arguments | null (no lock), "warp": bool}``, optionally a comma-separated list of
-song-name prefixes. Dances: ``runs/feet_raw/<model>/<split>/`` of ``benchmarks/feet_dances.py``; real dances
-and songs from ``data/tang2018`` and ``../shared/music``. Choose settings on ``val`` only.
-    """
-    model, split = sys.argv[1], sys.argv[2]
-    variants = json.loads(sys.argv[3])
-    songs = sys.argv[4].split(",") if len(sys.argv) > 4 and sys.argv[4] else None
-    do_fid = os.environ.get("FID") == "1"
-    data = PreparedData("data/tang2018")
-    real = {n: bench_feet.metrics(data.motion(n), None, None) for n in data.names("test" if split == "song" else split)}
-    rm = bench_feet.mean_rows(list(real.values()))
-    print(f"real {split}: planted {rm['planted_foot_share']:.3f} skate {rm['foot_skating']:.3f} knee p5 "
-          f"{rm['knee_p5_deg']:.1f} floor {rm['floor_median_cm']:.2f}/{rm['floor_within_2cm']:.2f}", flush=True)
-    files = sorted(Path(f"runs/feet_raw/{model}/{split}").glob("*__*.npz"))
-    if songs:
-        files = [f for f in files if any(f.stem.startswith(s) for s in songs)]
-    audio = bench_feet.song_audio(data, split)
-    reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")] if do_fid else []
-    ref_features: dict[str, np.ndarray] = {}
-
-    def fids(dances):
-        return bench_stages.fids(dances, reference, FPS, SK, cache=ref_features)
-
-    beats = {}
-    cleaned = {f: stages.clean_up(DanceResult(motion=bench_feet.load(f, SK), model="x", seed=0)) for f in files}
-    for name, v in variants.items():
-        per, pos = {}, []
-        t0 = time.process_time()
-        for f, res in cleaned.items():
-            song = f.stem.rsplit("__", 1)[0]
-            if v.get("smooth") != "off":
-                stages.NOISY_RATIO = v.get("noisy_ratio", 0.2)
-                stages.SMOOTH_TARGET_NOISY = v.get("noisy_target", 0.065)
-                res = stages.smooth(res, target=v.get("smooth"), kind=v.get("kind"))
-            if v.get("lock") is not None:
-                q = fl.lock_feet(np.asarray(res.motion.to_positions(), np.float64), skeleton=SK, fps=FPS, **v["lock"])
-                res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=q.astype(np.float32)), model="x", seed=0)
-            if v.get("post"):
-                res = stages.settle(res, cutoff=v["post"], legs=v.get("post_legs", True))
-                if v.get("post_ground"):  # the lowest joint put back on the floor (the clean-up's offset)
-                    from dancekit.motion.analysis import up_sign
-                    from dancekit.motion.cleanup import ground_offset
-
-                    q = np.asarray(res.motion.to_positions(), np.float64)
-                    q[..., SK.up_index] -= up_sign(SK) * ground_offset(q, skeleton=SK, fps=FPS)[:, None]
-                    res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=q.astype(np.float32)), model="x",
-                                      seed=0)
-            b = None
-            if v.get("warp"):
-                a = audio[song]
-                if song not in beats:
-                    beats[song] = stages.song_beats_for(a[0], start=a[1], end=a[2])
-                b = beats[song]
-                res = stages.beat_sync(res, a[0], start=a[1], end=a[2], beats=b)
-            per.setdefault(song, []).append(bench_feet.metrics(res.motion, None if b is None else b.times,
-                                                               real.get(song, rm)))
-            pos.append(np.asarray(res.motion.to_positions(), np.float64))
-        cpu = time.process_time() - t0
-        m = bench_feet.mean_rows([r for x in per.values() for r in x])
-        js = {s[6:][:8]: round(float(np.mean([r["jitter_ratio"] for r in x])), 3) for s, x in per.items()}
-        es = {s[6:][:8]: round(float(np.mean([r["energy_ratio"] for r in x])), 3) for s, x in per.items()}
-        st = max(float(np.mean([r["stillness"] for r in x])) for x in per.values())
-        extra = ""
-        if do_fid:
-            fd = fids(pos)
-            extra = f" FID_k {fd['fid_k']:.2f} FID_g {fd['fid_g']:.2f}"
-        if "bas" in m:
-            extra += f" BAS {m['bas']:.3f} hit {m['hit_rate']:.3f}"
-        print(f"{name:24s} planted {m['planted_foot_share']:.3f} skate {m['foot_skating']:.3f} jerk {m['jerk']:.1f} "
-              f"knee p5 {m['knee_p5_deg']:.1f} floor {m['floor_median_cm']:.2f}/{m['floor_within_2cm']:.2f} far "
-              f"{m['max_distance_m']:.1f}{extra} cpu {cpu:.0f}s\n   jitter {js} max {max(js.values())}\n"
-              f"   energy {es} min {min(es.values())} stillness worst song {st:.3f}", flush=True)
-
-
-# --- beatsync: formerly tune_beatsync.py --------------------------------------------------------------------
-
-
 def where_beats(kin: np.ndarray, music: np.ndarray) -> dict[str, float]:
     """Where the kinematic beats of an unwarped dance lie against the music beats: the share within 0.1 s of a
     beat, the share nearer a half-beat than a beat, kinematic beats per music beat interval."""
@@ -281,7 +185,7 @@ kinematic beats lie (the diagnosis). Choose settings on ``val`` only.
         if song not in beats:
             beats[song] = stages.song_beats_for(a[0], start=a[1], end=a[2])
         res = DanceResult(motion=bench_feet.load(f, SK), model=folder, seed=0)
-        pre[f] = stages.finish(res, a[0], start=a[1], end=a[2], beat_sync_on=False)
+        pre[f] = stages.finish(res, stages.Song(a[0], a[1], a[2]), read_stage_config(folder).switched(beat_sync=False))
     print(f"{model} {split}: {len(files)} dances, stages before the warp {time.process_time() - t0:.0f} s CPU", flush=True)
     diag = [where_beats(kinematic_beats(np.asarray(r.motion.to_positions(), np.float64), fps=FPS),
                         beats[f.stem.rsplit("__", 1)[0]].times) for f, r in pre.items()]
@@ -340,133 +244,6 @@ kinematic beats lie (the diagnosis). Choose settings on ``val`` only.
         Path(sys.argv[sys.argv.index("--json") + 1]).write_text(json.dumps(rows_out, indent=1))
 
 
-# --- energy: formerly tune_energy.py ------------------------------------------------------------------------
-def setting_folder(model: str, entry: dict | None, root: Path) -> tuple[str, dict | None]:
-    """A candidate folder (``tune.py candidate``) of the embedded ``model`` whose ``"energy"`` entry
-    is the setting ``entry`` (None or only the keys below: no lift), its ``"settle"`` and ``"jitter_cap"``
-    entries replaced by the setting's keys of those names where it has them; and that ``"jitter_cap"`` entry
-    checked (:func:`dancekit.pipelines.stages.jitter_cap_from_entry`; None for none), once per setting."""
-    entry = dict(entry or {})
-    change = {k: entry.pop(k) for k in ("settle", "jitter_cap") if k in entry}
-    change["energy"] = entry or None
-    root.mkdir(parents=True, exist_ok=True)
-    folder = str(candidate_folder(bench_feet.model_folder(model), root / f"setting{len(list(root.iterdir()))}",
-                                  change, merge=False))
-    return folder, stages.jitter_cap_from_entry(change.get("jitter_cap"), folder=folder)
-
-
-def energy_finish(motion, folder: str, cap: dict | None, audio, beats, probs: dict[str, float], music: bool = True):
-    """A cached raw dance through ``stages.finish`` with the candidate ``folder``'s entries (the song's genre
-    posterior ``probs`` for the energy floor and for ``cap``, the folder's checked ``"jitter_cap"`` entry):
-    (the finished motion, the energy stage's gain, the motion before the lift)."""
-    res = DanceResult(motion=motion, model=folder, seed=0, genre_probs=probs, looks_like_music=bool(music))
-    cap = dict(cap) if cap else None  # its flags popped below, the setting's own entry kept
-    flags = {"jitter_after_lock": bool(cap and cap.pop("after_lock")), "jitter_to_end": bool(cap and cap.pop("to_end"))}
-    max_jitter = stages.plausible_jitter_cap(probs, **cap) if cap and music else None
-    seen: dict[str, DanceResult] = {}
-    out = stages.finish(res, audio[0], start=audio[1], end=audio[2], beat_sync_on=beats is not None, beats=beats,
-                        max_jitter=max_jitter, trace=seen.__setitem__, **flags)
-    return out.motion, bench_stages.energy_gain(seen["lift_energy"]), seen["smooth"].motion
-
-
-def energy_main() -> None:
-    """The energy stage (issues 14 and 15): its ``"energy"`` entry chosen per model on the validation songs, and
-the chosen entry scored on the test songs and the songs of ``../shared/music``, on cached raw dances of
-``benchmarks/feet_dances.py``.
-
-    PYTHONPATH=src:benchmarks python benchmarks/tune.py energy dual val \
-        '{"none": null, "f0.45": {"floor": 0.45}, "f0.45 b2": {"floor": 0.45, "band_hz": 2.0}}' [--fid] [-o OUT.json]
-
-Each setting runs ``stages.finish`` itself on every cached dance, with a candidate folder of the embedded model
-(``tune.py candidate``) whose ``"energy"`` entry is the setting (``null``: none); a ``"settle"``
-key in a setting, e.g. ``{"settle": {"ratio_target": 0.07}}``, replaces the checkpoint's settle entry, and a
-``"jitter_cap"`` key, e.g. ``{"jitter_cap": {"genre_jitter": {...}, "jitter_cap": 1.5, "jitter_cap_min_ratio":
-0.7}}``, is music2dance's entry of that name (the cap before the foot lock, after it with ``"after_lock": true``,
-held to the end with ``"to_end": true``; the song's genre read by music2dance's classifier). The checkpoint's
-other entries apply as in the pipeline (foot lock, settle, the second grounding), the beat sync last. Per setting: per song (seeds averaged) smoothed energy, jitter (speed residual) and
-their ratios to the song's real dance (``--split song``: the real test dances' mean), stillness; over all
-dances planted share, skating, jerk, floor, BAS / hit rate, the gains, and with ``--fid`` FID_k / FID_g
-against the training dances (10-s segments). Prints one block per setting.
-    """
-    ap = argparse.ArgumentParser()
-    ap.add_argument("model")
-    ap.add_argument("split", choices=("val", "test", "song"))
-    ap.add_argument("settings", help="JSON: name -> energy entry (or null)")
-    ap.add_argument("--data", default="data/tang2018")
-    ap.add_argument("--raw", default="runs/feet_raw")
-    ap.add_argument("--music", default="../shared/music")
-    ap.add_argument("--fid", action="store_true")
-    ap.add_argument("-o", "--out")
-    args = ap.parse_args()
-    data = PreparedData(args.data)
-    table = genre_table(data, "energy")
-    print("genre energy (median of the real training dances, m/s):", json.dumps(table))
-    settings = json.loads(args.settings)
-    for entry in settings.values():
-        if entry and "fraction" in entry and "genre_energy" not in entry:
-            entry["genre_energy"] = table
-    sk = get_skeleton("tang2018")
-    fps = 25.0
-    real_split = "test" if args.split == "song" else args.split
-    real = {n: bench_feet.metrics(data.motion(n), np.asarray(data.features(n, "revolution")["beat_times"],
-                                                            np.float64), None) for n in data.names(real_split)}
-    real_mean = bench_feet.mean_rows(list(real.values()))
-    audio = bench_feet.song_audio(data, args.split, args.music)
-    beats = {k: stages.song_beats_for(a[0], start=a[1], end=a[2]) for k, a in audio.items()}
-    reader = MusicAttributePipeline.from_pretrained(bench_feet.model_folder("music2dance") + "/music_attributes")
-    probs = {k: reader(a[0], start=a[1], end=a[2]) for k, a in audio.items()}
-    music = {k: not song_feature_set(a[0], fps=fps, preset="dual", hop_length=512, start=a[1],
-                                     end=a[2]).beat_strength < MUSIC_BEAT_STRENGTH for k, a in audio.items()}
-    print("looks like music:", music)
-    files = sorted((Path(args.raw) / args.model / args.split).glob("*__*.npz"))
-    reference = [np.asarray(data.motion(n).to_positions(), np.float64) for n in data.names("train")] if args.fid else []
-    cache: dict = {}
-    report = {}
-    tmp = tempfile.TemporaryDirectory(prefix="tune_energy_")
-    for name, entry in settings.items():
-        t0, c0 = time.perf_counter(), time.process_time()
-        folder, cap = setting_folder(args.model, entry, Path(tmp.name))
-        rows, per_song, positions, gains = [], {}, [], []
-        for f in files:
-            song = f.stem.rsplit("__", 1)[0]
-            m, gain, _ = energy_finish(bench_feet.load(f, sk), folder, cap, audio[song], beats[song], probs[song],
-                                music[song])
-            r = bench_feet.metrics(m, beats[song].times, real.get(song, real_mean))
-            r["gain"] = gain
-            rows.append(r)
-            gains.append(gain)
-            per_song.setdefault(song, []).append(r)
-            positions.append(np.asarray(m.to_positions(), np.float64))
-        summary = bench_feet.mean_rows(rows)
-        if args.fid:
-            summary.update(bench_stages.fids(positions, reference, fps, sk, cache=cache))
-        summary["per_song"] = {s: bench_feet.mean_rows(v) for s, v in per_song.items()}
-        summary["seconds"], summary["cpu_seconds"] = time.perf_counter() - t0, time.process_time() - c0
-        report[name] = summary
-        ps = summary["per_song"]
-        print(f"== {args.model} {args.split} {name}: {json.dumps(entry)}  ({summary['seconds']:.0f} s, "
-              f"cpu {summary['cpu_seconds']:.0f} s)")
-        for s, v in ps.items():
-            fl = None if entry is None else stages.energy_floor(
-                DanceResult(motion=None, model="", seed=0, genre_probs=probs[s]),
-                **{k: entry[k] for k in ("floor", "fraction", "genre_energy") if k in entry})
-            v["floor_m_s"] = fl
-            print(f"   {s[:26]:26s} floor {fl or 0:.3f} energy {v['energy']:.3f} ({v['energy_ratio']:.3f}x) jitter {v['jitter']:.4f} "
-                  f"({v['jitter_ratio']:.3f}x) still {v['stillness']:.3f} gain {v['gain']:.2f} "
-                  f"planted {v['planted_foot_share']:.3f} skate {v['foot_skating']:.3f}")
-        print(f"   ALL energy min {min(v['energy_ratio'] for v in ps.values()):.3f} mean {summary['energy_ratio']:.3f} "
-              f"| jitter max {max(v['jitter_ratio'] for v in ps.values()):.3f} mean {summary['jitter_ratio']:.3f} | "
-              f"still max {max(v['stillness'] for v in ps.values()):.3f} | planted {summary['planted_foot_share']:.3f} "
-              f"skate {summary['foot_skating']:.3f} | jerk {summary['jerk']:.1f} | floor "
-              f"{summary['floor_median_cm']:.2f}/{summary['floor_within_2cm']:.2f} | BAS {summary['bas']:.3f} hit "
-              f"{summary['hit_rate']:.3f} | gain {min(gains):.2f}-{max(gains):.2f}"
-              + (f" | FID_k {summary['fid_k']:.2f} FID_g {summary['fid_g']:.2f}" if args.fid else ""), flush=True)
-    print(f"real {real_split}: planted {real_mean['planted_foot_share']:.3f} skate {real_mean['foot_skating']:.3f}")
-    if args.out:
-        Path(args.out).write_text(json.dumps({"real": real_mean, "settings": settings, "report": report}, indent=1,
-                                             default=float))
-
-
 # --- variety: formerly tune_variety.py ----------------------------------------------------------------------
 def dance_batch(pipe, path, *, seeds, start, end, variety, stages=True):
     """The seeds' dances of one song, as ``pipe(path, seed=k)`` with ``pipe.variety = variety``."""
@@ -482,7 +259,8 @@ def dance_batch(pipe, path, *, seeds, start, end, variety, stages=True):
                                             p.representation))
         res = DanceResult(motion=motion, model=pipe.folder, seed=int(seed), genre_requested="auto", genre=genre,
                           genre_probs=probs, danced_by=p.folder)
-        out.append(stages_finish(res, path, start=start, end=end, beat_sync_on=stages, cleanup_on=stages))
+        config = pipe.stage_options(beat_sync=stages, cleanup=stages)
+        out.append(stages_finish(res, Song(path, start, end), config))
     return out
 
 
@@ -581,8 +359,7 @@ latent, ``style_dim > 0``: the 5th and 6th grid fields are the style temperature
         (out / "rows.jsonl").open("a").write(json.dumps(row) + "\n")
 
 
-COMMANDS = {"stages": stages_main, "footlock": footlock_main, "beatsync": beatsync_main, "energy": energy_main,
-            "variety": variety_main, "candidate": candidate_main}
+COMMANDS = {"stages": stages_main, "beatsync": beatsync_main, "variety": variety_main, "candidate": candidate_main}
 
 
 def main() -> None:

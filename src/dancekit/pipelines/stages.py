@@ -488,7 +488,7 @@ def _is_number(v) -> bool:
 
 
 def genre_jitter_table(table) -> dict[str, float]:
-    """A per-genre jitter table (genre name -> real dances' median jitter, m/s; ``benchmarks/genre_tables.py
+    """A per-genre jitter table (genre name -> real dances' median jitter, m/s; ``dancekit.training.genre_stats
     jitter``) checked, as floats: the check of the genre draw's ``"genre_jitter"`` and of a ``"jitter_cap"``
     entry's. A table that is not a non-empty mapping of names to finite numbers > 0 (not booleans) is a
     :class:`~dancekit.errors.ParameterError` naming ``genre_jitter``."""
@@ -507,7 +507,7 @@ def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, flo
                          min_ratio: float) -> float | None:
     """The per-dance jitter cap (m/s, the ``max_jitter`` of :func:`finish`) for a song whose genre posterior is
     ``probs`` (genre → p): ``scale`` × the smallest real jitter ``genre_jitter[g]`` (m/s, the real training
-    dances' median per genre, ``benchmarks/genre_tables.py jitter``) among the song's plausible genres
+    dances' median per genre, :func:`dancekit.training.genre_stats.genre_stats`, its ``jitter`` table) among the song's plausible genres
     (``p_g ≥ min_ratio · max(p)``, genres in the table). None (no cap) without a posterior, a scale or a
     plausible genre in the table. A genre asked for by name is ``probs = {genre: 1.0}``."""
     if not probs or not scale > 0 or not genre_jitter:
