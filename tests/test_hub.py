@@ -32,7 +32,7 @@ from urllib.parse import unquote, urlsplit
 import numpy as np
 import pytest
 
-from dancekit.checkpoints import _hf as hfmod
+from dancekit.checkpoints import hf as hfmod
 from dancekit.checkpoints import resolve_model
 from dancekit.checkpoints.hub import MODELS_DIR
 from dancekit.errors import CheckpointError, ParameterError

@@ -9,7 +9,7 @@
    no download.
 
 A name ``hf:USER/NAME`` (or ``hf:USER/NAME@REVISION``: a branch, tag or commit) is a model on the Hugging
-Face Hub, downloaded once into ``<user models folder>/hf`` (:mod:`dancekit.checkpoints._hf`;
+Face Hub, downloaded once into ``<user models folder>/hf`` (:mod:`dancekit.checkpoints.hf`;
 ``HF_ENDPOINT`` and ``HF_HUB_OFFLINE=1`` are honoured).
 
 A **composite model** declares its parts in its own ``config.json`` (as diffusers' ``model_index.json``
@@ -64,7 +64,7 @@ def available_models() -> dict[str, Path]:
 def resolve_model(model: str | os.PathLike | None = None) -> Path:
     """The checkpoint folder of ``model``: an explicit folder, else a name in the user's models folder,
     else an embedded model (``None``: the default model); ``hf:USER/NAME[@REVISION]``: a hub model,
-    downloaded into the hub cache on first use (:func:`dancekit.checkpoints._hf.download_model`).
+    downloaded into the hub cache on first use (:func:`dancekit.checkpoints.hf.download_model`).
 
     Raises
     ------
@@ -76,7 +76,7 @@ def resolve_model(model: str | os.PathLike | None = None) -> Path:
     """
     name = DEFAULT_MODEL if model is None else model
     if isinstance(name, str) and name.startswith("hf:"):
-        from dancekit.checkpoints._hf import download_model
+        from dancekit.checkpoints.hf import download_model
 
         return download_model(name)
     path = Path(name)

@@ -28,7 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_push(args: argparse.Namespace) -> int:
-    from dancekit.checkpoints._hf import endpoint, push_model
+    from dancekit.checkpoints.hf import endpoint, push_model
 
     repo = args.repo[3:] if args.repo.startswith("hf:") else args.repo
     commit = push_model(args.folder, repo, private=args.private, message=args.message)

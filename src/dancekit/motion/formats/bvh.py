@@ -307,7 +307,7 @@ def _matrix_to_euler(m: np.ndarray, order: str) -> np.ndarray:
     return np.stack([a, b, c], axis=-1)
 
 
-def _fk_translations(rot: np.ndarray, trans: np.ndarray, parents: list[int]) -> np.ndarray:
+def fk_translations(rot: np.ndarray, trans: np.ndarray, parents: list[int]) -> np.ndarray:
     from dancekit.motion.skeleton import parents_first_order
 
     T, J = rot.shape[:2]
@@ -484,9 +484,9 @@ def read_bvh(path: str | os.PathLike, *, units: str | None = None) -> Motion:
             "are kept in positions only (rotations use the fixed offsets)",
             stacklevel=2,
         )
-    positions = _fk_translations(rot, trans, parents)
+    positions = fk_translations(rot, trans, parents)
     # fold branch joints (p -> "p_to_c" -> c) back into Skeleton.branch_joints
-    branches = _find_branch_joints(names, parents, offsets, animated)
+    branches = find_branch_joints(names, parents, offsets, animated)
     branch_parents: tuple[str, ...] = ()
     file_names = list(names)
     if branches:
@@ -534,7 +534,7 @@ def read_bvh(path: str | os.PathLike, *, units: str | None = None) -> Motion:
         raise MotionFormatError(f"{path}: {exc}") from exc
 
 
-def _find_branch_joints(names: list[str], parents: list[int], offsets: np.ndarray,
+def find_branch_joints(names: list[str], parents: list[int], offsets: np.ndarray,
                         animated: np.ndarray) -> dict[int, list[int]]:
     """Joints whose children are all branch joints: ``{parent: [branch joint indices]}`` (see :func:`read_bvh`)."""
     children: dict[int, list[int]] = {}

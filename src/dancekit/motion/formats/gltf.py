@@ -436,11 +436,11 @@ def read_glb(path: str | os.PathLike) -> Motion:
     for j, v in trans_keys.items():
         trans[:, j] = v
 
-    from dancekit.motion.formats.bvh import _find_branch_joints, _fk_translations, guess_roles
+    from dancekit.motion.formats.bvh import find_branch_joints, fk_translations, guess_roles
 
-    positions = _fk_translations(rot, trans, parents)
+    positions = fk_translations(rot, trans, parents)
     animated = np.array([j in trans_keys and j != root for j in range(J)])
-    branches = _find_branch_joints(names, parents, offsets, animated)
+    branches = find_branch_joints(names, parents, offsets, animated)
     drop = {b for bs in branches.values() for b in bs}
     keep = [j for j in range(J) if j not in drop]
     remap = {old: new for new, old in enumerate(keep)}
