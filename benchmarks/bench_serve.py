@@ -2,7 +2,8 @@
 
     python benchmarks/bench_serve.py [--song SONG] [--repeats 5] [--out docs/results/serve.json]
 
-A server (``dancekit serve --workers 1``, the default model preloaded) runs on 127.0.0.1. Each repeat uploads a
+A server (``dancekit serve --workers 1``; the runs start once its worker has loaded the default model and warmed
+up, ``workers_ready`` in ``/api/options``) runs on 127.0.0.1. Each repeat uploads a
 60-s excerpt of ``--song`` (each repeat another excerpt, a fresh feature cache for server and CLI alike, so no
 run reads the features another computed) through the HTTP API with the dance page's defaults (model revolution,
 genre auto, seed 0; formats html and npz: the player is written first whatever the formats, so the time to it is
@@ -83,6 +84,8 @@ def main() -> int:
         os.environ.update(old)
         try:
             with httpx.Client(base_url=srv.url, timeout=60) as c:
+                while c.get("/api/options").json()["workers_ready"] < 1:  # the worker has loaded and warmed up
+                    time.sleep(0.2)
                 for k in range(args.repeats):
                     song = excerpt(Path(args.song), 0.25 * k, tmp / f"song{k}.ogg")
                     cpu0, wall0 = cpu_seconds(srv.pids()), time.time()

@@ -60,6 +60,7 @@ def test_options_and_models_list_the_embedded_models(idle):
     o = idle.get("/api/options").json()
     assert set(o["dance_models"]) >= {"revolution", "music2dance", "dual"}
     assert o["default_model"] == "revolution" and o["compose_models"] == ["dual"]
+    assert o["workers"] == 0 and o["workers_ready"] == 0 and o["max_queue"] == 3
     assert o["dance_models"]["revolution"]["genres"][:2] == ["auto", "none"]
     assert "waltz" in o["dance_models"]["revolution"]["genres"]
     cards = idle.get("/api/models").json()

@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import hmac
 import ipaddress
-import os
 import shutil
 from importlib import resources
 from pathlib import Path
@@ -171,7 +170,8 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
     @app.get("/api/options", summary="the dance and compose models, their genres, the formats and the limits")
     def options():
         return {**table, "max_upload_mb": config.max_upload_bytes / 1e6, "max_minutes": config.max_seconds / 60,
-                "max_seeds": config.max_seeds, "workers": config.workers, "max_queue": config.max_queue}
+                "max_seeds": config.max_seeds, "workers": config.workers, "workers_ready": manager.ready_workers(),
+                "max_queue": config.max_queue}
 
     @app.get("/api/models", summary="every model's card, as `dancekit models --json`")
     def models():
@@ -440,7 +440,3 @@ def serve(config: ServeConfig, *, port: int = 8000, log_level: str = "warning") 
     app = create_app(config)
     uvicorn.run(app, host=config.host, port=port, log_level=log_level, access_log=False,
                 timeout_graceful_shutdown=5)
-
-
-def token_from_env() -> str | None:
-    return os.environ.get("DANCEKIT_SERVE_TOKEN") or None

@@ -134,6 +134,11 @@ class JobManager:
         theirs.close()
         return {"index": index, "proc": proc, "conn": ours, "ready": False, "job": None}
 
+    def ready_workers(self) -> int:
+        """Workers that have loaded their models and warmed up (and so take jobs at once)."""
+        with self.lock:
+            return sum(1 for w in self.workers if w["ready"])
+
     def worker_pids(self) -> list[int]:
         return [w["proc"].pid for w in self.workers if w["proc"].pid is not None]
 
