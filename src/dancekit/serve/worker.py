@@ -28,7 +28,7 @@ FOLDER_FORMATS = ("openpose", "coco17", "coco18")
 def song_seconds(path: Path) -> float:
     """The length of the song at ``path`` in seconds, from its header (libsndfile) or ffmpeg's probe."""
     from dancekit.audio.io import duration
-    from dancekit.render._ffmpeg import audio_duration
+    from dancekit.render import audio_duration
 
     seconds = duration(path)
     return float(seconds) if seconds is not None else float(audio_duration(path))
