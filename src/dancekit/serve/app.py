@@ -335,12 +335,6 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
                 fail(400, f"tempo must be auto, periodic or a number of BPM, got {tempo!r}")
             if not 20 <= tempo <= 400:
                 fail(400, f"tempo must be between 20 and 400 BPM, got {tempo:g}")
-        upload = form.get("file")
-        if upload is not None and not isinstance(upload, str):
-            upload.file.seek(0)
-            if sniff(upload.file.read(64)) == "glb":
-                fail(415, f"{upload.filename or 'the upload'} is a glb: the compose page takes npz, bvh or "
-                          f"AIST++ pkl (dancekit does not read glb dances yet)")
         stored, name, stem = store_upload(form, stage, DANCE_KINDS, what="a dance", default_stem="dance")
         return stored, name, stem, {"model": model, "seed": seed, "tempo": tempo}
 

@@ -15,7 +15,7 @@ from dancekit.errors import ParameterError
 #: Audio kinds the dance page takes, by content: kind -> the suffix the upload is stored under.
 AUDIO_KINDS = {"wav": ".wav", "flac": ".flac", "ogg": ".ogg", "mp3": ".mp3", "mp4": ".m4a", "aiff": ".aiff"}
 #: Dance kinds the compose page takes, by content: kind -> the suffix the motion readers go by.
-DANCE_KINDS = {"npz": ".npz", "bvh": ".bvh", "pkl": ".pkl"}
+DANCE_KINDS = {"npz": ".npz", "bvh": ".bvh", "pkl": ".pkl", "glb": ".glb"}
 
 _NAME_OK = re.compile(r"[^A-Za-z0-9._-]+")
 
