@@ -63,7 +63,7 @@ def test_ground_options_come_from_the_checkpoint(tmp_path):
 
 
 def test_finish_regrounds_last_in_the_lock_block_for_the_model_that_asks(tmp_path, monkeypatch):
-    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    p = np.load(Path(__file__).parents[1] / "golden" / "default_model.npz")["none_seed3"]
     folder = tmp_path / "m"
     folder.mkdir()
     cfg = json.loads((ASSETS / "revolution" / "config.json").read_text())
@@ -107,7 +107,7 @@ def test_a_motion_with_rotations_keeps_them_and_its_root_translation_follows():
 
 
 def test_finish_traces_every_stage_it_runs_in_order_and_each_traced_dance_is_that_stage_applied():
-    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    p = np.load(Path(__file__).parents[1] / "golden" / "default_model.npz")["none_seed3"]
     res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=str(ASSETS / "revolution"), seed=0)
     seen = []
     out = stages.finish(res, "unused.wav", beat_sync_on=False, max_jitter=1e-9,
