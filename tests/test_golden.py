@@ -7,7 +7,7 @@ a maintainer reruns it only for an intended change of a model, a stage or a file
 changes a dance or a file fails here.
 
 The raw pins are the model's own output: the shared pipeline stages (beat sync, clean-up; on by default) are
-switched off (they are tested in tests/test_stages.py); the finished pins have them all on.
+switched off (they are tested in tests/pipelines/test_stages.py); the finished pins have them all on.
 
 The default's seed variety (issue 15, the checkpoint's ``"sampling"`` entry) changes the dance after the
 opening: ``variety=False`` (the paper's decoding) must still give the dances pinned before it, and the
