@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+# the tests live in one folder per layer (tests/motion/, tests/pipelines/, ...); their shared helpers
+# (_media.py, _signals.py, _prepared.py, _style.py) stay here, importable from every folder
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 SHARED = ROOT.parent / "shared"
 TANG2018 = SHARED / "data" / "tang2018"
 MUSIC = SHARED / "music"

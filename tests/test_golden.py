@@ -7,7 +7,7 @@ a maintainer reruns it only for an intended change of a model, a stage or a file
 changes a dance or a file fails here.
 
 The raw pins are the model's own output: the shared pipeline stages (beat sync, clean-up; on by default) are
-switched off (they are tested in tests/test_stages.py); the finished pins have them all on.
+switched off (they are tested in tests/pipelines/test_stages.py); the finished pins have them all on.
 
 The default's seed variety (issue 15, the checkpoint's ``"sampling"`` entry) changes the dance after the
 opening: ``variety=False`` (the paper's decoding) must still give the dances pinned before it, and the
@@ -91,14 +91,15 @@ def test_embedded_music2dance_dance_is_pinned(song):
 
 FINISHED_MODELS = ("revolution", "music2dance", "dual")
 #: cm: positions (npz), the root's translation (npz, BVH) and, in metres / 100, the glb's translations.
-#: Measured: the same finished dances with the AVX2 kernels forced (``ATEN_CPU_CAPABILITY=avx2
-#: OPENBLAS_CORETYPE=Haswell MKL_ENABLE_INSTRUCTIONS=AVX2 ONEDNN_MAX_CPU_ISA=AVX2``) on the AVX-512 machine
-#: that wrote the golden files move by at most 1.3e-4 cm (npz positions), 6e-5 cm (BVH root) and 4e-7
-#: (glb quaternions); the planted bugs of issue 40 move them by centimetres.
+#: Measured: the same finished dances on this AVX-512 machine with the AVX2 kernels forced
+#: (``NPY_DISABLE_CPU_FEATURES=X86_V4 OPENBLAS_CORETYPE=Haswell ATEN_CPU_CAPABILITY=avx2
+#: MKL_ENABLE_INSTRUCTIONS=AVX2 ONEDNN_MAX_CPU_ISA=AVX2``) move by at most 1.3e-4 cm (npz positions), 6.1e-5 cm
+#: (BVH root) and 6e-7 m (glb translations); the planted bugs of issue 40 move them by centimetres.
 FILE_TOL_CM = 1e-3
 #: unitless: rotation-matrix entries (npz; the BVH's Euler angles turned into matrices, well conditioned where
 #: the angles are not) and unit-quaternion components (glb, up to one sign per track). Measured with AVX2 as
-#: above: 1.1e-5 (the BVH of the positions-only default, whose rotations come from IK on its positions).
+#: above: 1.1e-5 (the BVH of the positions-only default, whose rotations come from IK on its positions), 5.1e-6
+#: (glb quaternions), 2.1e-6 (npz rotations).
 FILE_TOL_ROT = 1e-4
 
 

@@ -21,7 +21,12 @@ Files (all ``.npz``, float32 numbers, strings as unicode arrays; no pickles):
   its accessors (``glb/times`` (T,) s; ``glb/rotation/<node>`` (T, 4) xyzw; ``glb/translation/<node>``
   (T, 3) m; ``glb/inverse_bind`` (N, 16)).
 
-``style_classifier.npz`` is written by tests/test_style_family.py (``DANCEKIT_WRITE_GOLDEN=1``).
+``style_classifier.npz`` is written by tests/models/test_style_model.py (``DANCEKIT_WRITE_GOLDEN=1``).
+
+The tolerances of tests/test_golden.py were measured against another CPU's kernels: on an AVX-512 machine,
+``NPY_DISABLE_CPU_FEATURES=X86_V4 OPENBLAS_CORETYPE=Haswell ATEN_CPU_CAPABILITY=avx2 MKL_ENABLE_INSTRUCTIONS=AVX2
+ONEDNN_MAX_CPU_ISA=AVX2 python -m pytest tests/test_golden.py`` runs NumPy, OpenBLAS and torch on their AVX2 code
+paths (what an AVX2 machine runs); rerun it after regenerating on a new machine.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ as librosa's ``res_type="soxr_hq"``), following librosa 0.11.0 operation by oper
 (ISC licence, https://github.com/librosa/librosa) so that the values agree:
 
 - beat frames of :func:`beat_track` are the same frames as ``librosa.beat.beat_track(onset_envelope=...,
-  bpm=..., units="frames")`` (tested on real songs in ``tests/test_dsp.py``);
+  bpm=..., units="frames")`` (tested on real songs in ``tests/features/test_dsp.py``);
 - the spectral arrays agree to float32 rounding (sums taken in another order: BLAS instead of numba loops
   or scipy.sparse; a matrix DCT instead of pocketfft's float32 one).
 

@@ -307,7 +307,7 @@ def extract_path(
     (``fps * hop_length`` Hz, float32) waits in a temporary file for the chromagram's chunks.
 
     The result equals ``extract(*load(path, start=start, end=end), ...)`` to float rounding (the constant-Q
-    chunks: ~1e-6; everything else bit for bit); ``tests/test_streaming.py`` checks it with a small chunk.
+    chunks: ~1e-6; everything else bit for bit); ``tests/features/test_streaming.py`` checks it with a small chunk.
     The ``dual`` preset (harmonic / percussive separation of the whole song) and the madmom backend take
     the whole-song path of :func:`extract`.
 

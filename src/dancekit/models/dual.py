@@ -324,7 +324,7 @@ class Seq2Seq(nn.Module):
 
         Incremental decoding: each layer keeps the normalised inputs of the frames decoded so far (its
         self-attention keys and values), so a new frame costs one query per layer instead of a pass over the
-        whole prefix. The same numbers as :meth:`decode` on the prefix (tests/test_dual.py), in eval mode.
+        whole prefix. The same numbers as :meth:`decode` on the prefix (tests/models/test_dual.py), in eval mode.
         """
         return self.rollout(self.encode(src), start, src.shape[1], cond)
 

@@ -22,7 +22,7 @@ Sinkhorn step with unit marginals (``a = 1 ⊘ K b``), which is the same plan sc
 
 Relation to POT: ``ot.gromov.entropic_gromov_wasserstein`` runs Sinkhorn on ``2 E`` (its ``gwggrad`` carries
 the factor 2 that Peyré et al.'s Prop. 2 omits), so POT's ``epsilon = 2 ε`` gives this function's plan
-(tests/test_dual.py compares them). POT updates ``v`` before ``u`` in Sinkhorn and this function ``a``
+(tests/models/test_dual.py compares them). POT updates ``v`` before ``u`` in Sinkhorn and this function ``a``
 before ``b`` (Algorithm 1); with few iterations the plans differ by that, at convergence they agree.
 
 Scale (``normalize``): ε is absolute. When the costs are much larger than ε (e.g. 8 random 5-d points

@@ -29,7 +29,7 @@ Architecture (paper §4.4.2–4.4.3, supplement §1.2.1)
 
 Generation (:meth:`Music2DanceModel.generate`) is incremental: each WaveNet layer keeps a queue of its last
 ``dilation · (kernel - 1)`` inputs, so a new frame costs O(layers), not O(receptive field), and equals the
-full-sequence evaluation (``tests/test_music2dance.py``). The frame loop runs in NumPy
+full-sequence evaluation (``tests/models/test_music2dance.py``). The frame loop runs in NumPy
 (:class:`NumpyWaveNet`: the same products, a small NumPy operation costs about a microsecond where a torch
 call costs several, and a frame is some 250 of them); :meth:`Music2DanceModel.step` is the torch reference.
 
@@ -555,7 +555,7 @@ class NumpyWaveNet:
     * the dilated convolution's bias added to the precomputed conditions once per chunk of frames; the last
       block's residual (unused) not computed.
 
-    The output equals the torch step's to float rounding (``tests/test_music2dance_fast.py``).
+    The output equals the torch step's to float rounding (``tests/models/test_music2dance_numpy.py``).
 
     Sampling draws the same random numbers from the same generators in the same order as
     :func:`gmm_sample` frame by frame: with one mixture component (or temperature 0) no draw depends on the

@@ -55,7 +55,7 @@ def smoothed_energy(positions: np.ndarray, *, skeleton: Skeleton, fps: float) ->
     """Mean body-relative joint speed (m/s) after a :data:`ENERGY_FRAMES`-frame centred moving average of the
     positions (edge frames repeated; speeds by central differences): the number
     :func:`dancekit.metrics.smoothed_energy` gives, computed here without importing the metrics, piece by
-    piece (:func:`dancekit.motion.footlock.chunks`, a 3-frame margin: the same sums)."""
+    piece (:func:`dancekit.motion.filters.chunks`, a 3-frame margin: the same sums)."""
     from dancekit.motion.filters import chunks
 
     p = np.asarray(positions)
@@ -176,7 +176,7 @@ def lift_positions(positions: np.ndarray, *, skeleton: Skeleton, fps: float, flo
     The body-relative positions (every joint minus the root of the frame) are split into their
     ``mean_s``-second moving mean and the deviation from it; the deviation's ``band_hz`` low band is scaled by
     the gain (:func:`energy_gain`), the root kept where it was, and each frame's bone lengths restored (bone
-    directions from the lifted dance, parents first). Piece by piece (:func:`dancekit.motion.footlock.chunks`,
+    directions from the lifted dance, parents first). Piece by piece (:func:`dancekit.motion.filters.chunks`,
     with margins over the filters' reach: the same numbers as one pass), so an hour-long dance needs two float32
     copies of itself (the low band and the result), not float64 ones. Returns ``(positions float32 (T, J, 3),
     gain)``; gain 1: ``(positions, 1.0)``, the input itself."""
@@ -225,7 +225,7 @@ def lift_positions(positions: np.ndarray, *, skeleton: Skeleton, fps: float, flo
 
 def leg_joints(skeleton: Skeleton) -> list[int]:
     """The joints of the skeleton's legs (hip, knee, ankle and the foot joints below;
-    :func:`dancekit.motion.footlock.leg_chains`)."""
+    :func:`dancekit.motion.analysis.leg_chains`)."""
     from dancekit.motion.analysis import leg_chains
 
     return sorted({j for hip, knee, ankle, below in leg_chains(skeleton) for j in (hip, knee, ankle, *below)})

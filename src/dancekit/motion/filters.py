@@ -22,7 +22,7 @@ one-dimensional filters, all with ``mode="nearest"`` (the edge sample repeated),
 Windows follow scipy's placement (origin 0): a window of ``size`` samples around sample ``i`` covers
 ``i - size // 2 … i + (size - 1) // 2``. Every function returns a new float64 array of the input's
 shape; the rank filters work through the samples in pieces of :data:`PIECE`, so a long song needs no
-``(T, size)`` array. Checked against scipy in ``tests/test_filters.py``.
+``(T, size)`` array. Checked against scipy in ``tests/motion/test_filters.py``.
 """
 
 from __future__ import annotations
@@ -227,7 +227,7 @@ def savgol(p: np.ndarray, window: int, order: int) -> np.ndarray:
     mode="interp")`` in NumPy (``scipy.signal`` imports ``scipy.stats``, a second of a ``dancekit dance``
     process): each frame the value at its centre of the degree-``order`` least-squares polynomial through
     the ``window`` frames around it; the first and last ``window // 2`` frames take the polynomial fitted to
-    the first / last window. Equal to scipy's to float rounding (``tests/test_footlock.py``). float64 out."""
+    the first / last window. Equal to scipy's to float rounding (``tests/motion/test_footlock.py``). float64 out."""
     p = np.asarray(p)
     if window <= order or window > len(p):
         return p.copy()

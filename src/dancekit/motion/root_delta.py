@@ -23,7 +23,7 @@ Per frame, for a 3D skeleton with ``up_axis="y"`` (tang2018, SMPL), in this colu
     :func:`~dancekit.motion.analysis.floor_curve`) **and** moves slower than :data:`CONTACT_SPEED_CM_S`
     (central difference, 3D), measured on the motion's observed positions when it has them (else on the
     forward kinematics). Thresholds are in cm and cm/s, converted to the skeleton's units. On the real
-    tang2018 dances (see ``tests/test_music2dance.py``) toes are within 5 cm of the floor 80–95 % of the
+    tang2018 dances (see ``tests/models/test_music2dance.py``) toes are within 5 cm of the floor 80–95 % of the
     time (ballroom feet glide), and their median speed is 20–50 cm/s; the two thresholds flag 40–65 % of
     frames as contacts.
 

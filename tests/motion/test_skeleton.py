@@ -103,6 +103,7 @@ def test_smpl_bad_offsets(tmp_path):
 
 
 @pytest.mark.shared
+@pytest.mark.slow
 def test_tang2018_sides_and_offsets_from_data(tang2018_dir):
     """Re-derive the side assignment and the hard-coded rest offsets from the data."""
     from dancekit.motion._tang2018_rest import measure_rest_offsets, side_evidence

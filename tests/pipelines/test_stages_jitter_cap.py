@@ -31,7 +31,7 @@ def _capped(max_jitter: float, to_end: bool = False):
 
 @pytest.fixture(scope="module")
 def dance() -> DanceResult:
-    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]  # (201, 23, 3) cm
+    p = np.load(Path(__file__).parents[1] / "golden" / "default_model.npz")["none_seed3"]  # (201, 23, 3) cm
     return DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=REVOLUTION, seed=0)
 
 

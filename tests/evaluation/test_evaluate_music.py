@@ -76,6 +76,7 @@ def baseline_report(tiny_data):
     return evaluate_music(root, music=None, split="test", settings=SETTINGS)
 
 
+@pytest.mark.slow
 def test_real_music_against_itself_scores_one(baseline_report):
     real = baseline_report["columns"]["real_music"]
     for clip in ("2s", "5s", "whole"):
@@ -178,6 +179,7 @@ def test_cli_music_needs_data(tmp_path, capsys):
     assert rc == 2 and "--data" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_cli_composes_and_scores_with_a_dual_checkpoint(tiny_data, tmp_path, capsys):
     """``--compose``: an untrained tiny dual model composes music for both dances, which is then scored."""
     import torch

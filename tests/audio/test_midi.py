@@ -115,6 +115,7 @@ def test_bad_input_is_a_named_error():
 
 
 @pytest.mark.parametrize("bpm", [100.0, 125.0])
+@pytest.mark.slow
 def test_wav_is_audible_unclipped_and_its_tracked_beats_are_the_midi_beats(bpm):
     """Listen-free check of a composed WAV: librosa's beat tracker on the rendered audio finds the MIDI's beats
     (beat F1 ≥ 0.9 within ±0.1 s, mir_eval) and the tempo (±5 %); the audio is neither silent nor clipped."""

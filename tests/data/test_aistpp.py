@@ -48,6 +48,7 @@ def test_music_id():
     assert music_id("my_dance") is None
 
 
+@pytest.mark.slow
 def test_prepare_aistpp_reports_and_keeps_official_splits(release, tmp_path, capsys):
     data = tmp_path / "data"
     assert main(["prepare", "aistpp", str(release), "-o", str(data), "--presets", "revolution", "--workers", "2"]) == 0

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-METRICS = Path(__file__).resolve().parents[1] / "src" / "dancekit" / "metrics"
+METRICS = Path(__file__).resolve().parents[2] / "src" / "dancekit" / "metrics"
 ALLOWED = ("dancekit.metrics", "dancekit.motion", "dancekit.errors", "dancekit._checks")
 # no models, files or progress bars; librosa's signal functions (onset detection, resampling: arrays in,
 # arrays out, as the music beat scores of issue 20 require) are allowed, its file reading is not

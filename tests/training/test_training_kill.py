@@ -12,12 +12,13 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from _prepared import write_fake_prepared
 from safetensors.torch import load_file
 
 from dancekit.training import checkpoints
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STEPS, PER_EPOCH, CKPT = 28, 6, 5  # 26 windows // batch 4 = 6 steps an epoch; checkpoints at 5, 10, ...: mid-epoch
 SETS = [f"steps={STEPS}", "batch_size=4", "seq_len=20", "stride=5", "log_every=1", "val_every=7",
         f"ckpt_every={CKPT}", "keep_checkpoints=10", "warmup_steps=2", "threads=1", "d_model=16", "n_heads=2",
@@ -36,6 +37,7 @@ def _losses(run: Path) -> dict[int, float]:
             if "loss" in r}
 
 
+@pytest.mark.slow
 def test_sigkill_mid_epoch_then_resume_matches_uninterrupted_run(tmp_path, rng):
     data = write_fake_prepared(tmp_path / "prepared", rng, dim=8)
     env = {**os.environ, "OMP_NUM_THREADS": "1",

@@ -17,7 +17,7 @@ from dancekit.audio.synth import ode_to_joy
 from dancekit.features.prefetch import Prefetch, prefetch_features
 
 SR = 22050
-SRC = str(Path(__file__).resolve().parents[1] / "src")
+SRC = str(Path(__file__).resolve().parents[2] / "src")
 
 
 @pytest.fixture(scope="module")
@@ -117,6 +117,7 @@ except ProcessLookupError:
     assert not [p for p in (tmp_path / "cache").rglob(".*") if p.is_file()]  # no temporary file left
 
 
+@pytest.mark.slow
 def test_cli_dance_with_and_without_prefetch_is_the_same_dance(song, tmp_path):
     outs = {}
     for flag in ("1", "0"):

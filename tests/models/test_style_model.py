@@ -19,7 +19,7 @@ from dancekit.pipelines import StylePipeline
 from dancekit.pipelines.style import StyleResult
 
 SK = get_skeleton("tang2018")
-GOLDEN = Path(__file__).parent / "golden" / "style_classifier.npz"
+GOLDEN = Path(__file__).parents[1] / "golden" / "style_classifier.npz"
 
 
 def golden_motion(fps: float, seconds: float = 12.0) -> np.ndarray:

@@ -29,7 +29,7 @@ from dancekit.training import (
 )
 from dancekit.training.datasets import music_dance_windows
 
-ASSETS = Path(__file__).resolve().parents[1] / "src" / "dancekit" / "assets" / "models"
+ASSETS = Path(__file__).resolve().parents[2] / "src" / "dancekit" / "assets" / "models"
 
 D = 8  # music features per frame of the fake dataset
 STEPS = 10  # 26 training windows of 20 frames (stride 5) / batch 4 = 6 steps per epoch: two epochs

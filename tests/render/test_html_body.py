@@ -63,6 +63,7 @@ def test_export_passes_the_figure_to_the_html(tmp_path):
     assert page_data(written[0])["figure"] == "body"
 
 
+@pytest.mark.slow
 def test_body_figure_draws_in_headless_chromium(tmp_path):
     exe = _chromium()
     kw = dict(parents=PARENTS, fps=FPS, unit_scale=1.0, sides=SIDES, head=2)

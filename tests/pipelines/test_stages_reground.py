@@ -71,7 +71,7 @@ def test_the_reground_settings_come_from_the_checkpoint(tmp_path):
 
 
 def test_finish_regrounds_last_in_the_lock_block_for_the_model_that_asks(tmp_path, monkeypatch):
-    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    p = np.load(Path(__file__).parents[1] / "golden" / "default_model.npz")["none_seed3"]
     folder = _with_reground(tmp_path / "m", {"window_s": 0.6})
     order = []
     for name in ("foot_lock", "settle", "reground"):
@@ -110,7 +110,7 @@ def test_a_motion_with_rotations_keeps_them_and_its_root_translation_follows():
 
 
 def test_finish_traces_every_stage_it_runs_in_order_and_each_traced_dance_is_that_stage_applied():
-    p = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    p = np.load(Path(__file__).parents[1] / "golden" / "default_model.npz")["none_seed3"]
     res = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p), model=str(ASSETS / "revolution"), seed=0)
     import dataclasses
 

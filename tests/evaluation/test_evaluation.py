@@ -262,7 +262,7 @@ def test_steering_dances_each_genre_through_a_pipelines_dances_with_one_genre(da
     from dancekit.pipelines.base import DanceResult
 
     sk = get_skeleton("tang2018")
-    base = np.load(Path(__file__).parent / "golden" / "default_model.npz")["none_seed3"]
+    base = np.load(Path(__file__).parents[1] / "golden" / "default_model.npz")["none_seed3"]
     calls = []
 
     class OneGenrePipeline:

@@ -23,7 +23,7 @@ from dancekit.audio.synth import click_track
 from dancekit.cli.main import main
 from dancekit.render._ffmpeg import ffmpeg_exe
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SR = 22050
 
 
@@ -193,6 +193,7 @@ def test_render_refuses_audio_shorter_than_the_dance(tmp_path, capfd):
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"])
+@pytest.mark.slow
 def test_signal_during_render_leaves_nothing(tmp_path, sig):
     """Ctrl-C reaches the whole foreground process group (dancekit and its ffmpeg), as in a terminal; a plain
     ``kill`` / ``timeout`` (SIGTERM) or a closed terminal (SIGHUP) reaches dancekit alone."""

@@ -27,7 +27,7 @@ from dancekit.training import OptimConfig, Trainer
 from dancekit.training.distributed import weights_sha256
 from dancekit.training.loop import epoch_batches
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SETS = ["steps=4", "batch_size=4", "seq_len=20", "stride=5", "log_every=1", "val_every=2", "ckpt_every=2",
         "warmup_steps=1", "threads=1", "d_model=16", "n_heads=2", "d_ff=32", "window=6", "decoder_hidden=16",
         "curriculum_q=3", "music_dropout=0.5"]
@@ -39,6 +39,7 @@ def _torchrun(args: list[str], env: dict[str, str]) -> subprocess.CompletedProce
     return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120, cwd=ROOT)
 
 
+@pytest.mark.slow
 def test_train_under_torchrun_two_ranks(tmp_path, rng):
     data = write_fake_prepared(tmp_path / "prepared", rng, dim=8)
     run, debug = tmp_path / "run", tmp_path / "debug"

@@ -141,7 +141,7 @@ beat_warp(p, music_beats=np.arange(0.5, 8.0, 60 / 112), fps=25.0)
 bad = sorted(m for m in sys.modules if m.startswith(("scipy.ndimage", "scipy.sparse")))
 print(",".join(bad))
 """
-    golden = Path(__file__).parent / "golden" / "default_model.npz"
+    golden = Path(__file__).parents[1] / "golden" / "default_model.npz"
     import os
 
     import dancekit

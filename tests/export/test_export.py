@@ -19,7 +19,7 @@ from dancekit.motion import Motion, get_skeleton
 from dancekit.motion.formats import read_motion
 from dancekit.render import AudioClip, RenderOptions, render_motion_html, render_motion_mp4
 
-SRC = Path(__file__).resolve().parents[1] / "src" / "dancekit"
+SRC = Path(__file__).resolve().parents[2] / "src" / "dancekit"
 SMALL = RenderOptions(width=64, height=48)
 
 

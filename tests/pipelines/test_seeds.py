@@ -89,6 +89,7 @@ def test_music2dance_rows_are_the_seeds_alone(mixtures):
 
 
 @pytest.mark.parametrize("name", ["revolution", "dual", "music2dance"])
+@pytest.mark.slow
 def test_dances_equal_each_seed_alone(song, name):
     """Every dance family: pipe.dances(seeds=...)[k] is bit for bit pipe(seed=seeds[k]) (stages on), so a seed is
     the same dance in any batch, at any position."""

@@ -23,7 +23,7 @@ librosa = pytest.importorskip("librosa")
 
 SR = 22050
 HOP = 256
-SHARED = Path(__file__).resolve().parents[2] / "shared"
+SHARED = Path(__file__).resolve().parents[3] / "shared"
 REAL = [SHARED / "music" / n for n in ("Kevin_MacLeod_-_Vibe_Ace.ogg", "brahms_hungarian_dance_5.ogg",
                                         "Kevin_MacLeod_-_P_I_Tchaikovsky_Dance_of_the_Sugar_Plum_Fairy.ogg")]
 REAL += [SHARED / "data" / "tang2018" / d / "audio.mp3" for d in ("DANCE_W_7", "DANCE_C_6", "DANCE_R_3", "DANCE_T_5")]

@@ -361,7 +361,7 @@ def test_make_demo_tune_script(tmp_path):
     import importlib.util
     from pathlib import Path
 
-    script = Path(__file__).resolve().parents[1] / "scripts" / "make_demo_tune.py"
+    script = Path(__file__).resolve().parents[2] / "scripts" / "make_demo_tune.py"
     spec = importlib.util.spec_from_file_location("make_demo_tune", script)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)

@@ -396,7 +396,7 @@ def test_a_batch_of_seeds_equals_the_seeds_one_by_one(m2d_folder, song8):
     assert [r.seed for r in batch] == [3, 0, 7]
     for r in batch:
         alone = pipe(song8, seed=r.seed, genre="rumba", end=3.0).motion.to_positions()
-        np.testing.assert_array_equal(r.motion.to_positions(), alone)  # bit for bit (tests/test_seeds.py)
+        np.testing.assert_array_equal(r.motion.to_positions(), alone)  # bit for bit (tests/pipelines/test_seeds.py)
     assert np.abs(batch[0].motion.to_positions() - batch[1].motion.to_positions()).max() > 1.0
     mixed = pipe.dances(song8, seeds=[0, 0], genre=["waltz", "rumba"], end=3.0)
     assert [r.genre for r in mixed] == ["waltz", "rumba"]

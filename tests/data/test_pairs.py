@@ -19,7 +19,7 @@ from dancekit.audio.synth import click_track
 from dancekit.cli.main import main
 from dancekit.data import PreparedData, prepare_pairs
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SR = 22050
 
 
@@ -47,6 +47,7 @@ def pairs_folder(tmp_path) -> Path:
     return src
 
 
+@pytest.mark.slow
 def test_prepare_pairs_then_train_then_dance(pairs_folder, tmp_path, capsys):
     data = tmp_path / "data"
     assert main(["prepare", "pairs", str(pairs_folder), "-o", str(data), "--presets", "revolution"]) == 0
@@ -84,6 +85,7 @@ def test_prepare_pairs_then_train_then_dance(pairs_folder, tmp_path, capsys):
     assert pos.shape[1] == prepared.skeleton.num_joints and np.isfinite(pos).all()
 
 
+@pytest.mark.slow
 def test_prepare_pairs_with_workers_and_nothing_usable(pairs_folder, tmp_path):
     out, report = prepare_pairs(pairs_folder, tmp_path / "w2", presets=("revolution",), workers=2, progress=False)
     assert report["prepared"] == ["alpha", "beta", "gamma"]

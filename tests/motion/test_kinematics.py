@@ -244,6 +244,7 @@ def _errors(fk: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 @pytest.mark.shared
+@pytest.mark.slow
 def test_fk_ik_on_real_tang2018_dances(tang2018_dir):
     """FK(IK(p)) against p with rest bone lengths, on four real dances (one per genre), in float64.
 

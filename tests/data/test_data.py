@@ -104,6 +104,7 @@ def test_prepared_data_missing_folder_is_a_named_error(tmp_path):
 # ---- the real tang2018 data, prepared once per test session (one preset, to stay fast) ----
 
 
+@pytest.mark.slow
 def test_prepared_tang2018_alignment_every_dance(prepared_tang2018):
     data = prepared_tang2018
     names = data.names()
@@ -122,6 +123,7 @@ def test_prepared_tang2018_alignment_every_dance(prepared_tang2018):
         assert data.genre(name) in GENRES
 
 
+@pytest.mark.slow
 def test_prepared_tang2018_floor_and_splits(prepared_tang2018):
     data = prepared_tang2018
     split = data.splits
@@ -161,6 +163,7 @@ def test_mirror_and_heading_augmentations_are_the_moved_dance_re_encoded(rng):
                                atol=1e-4)
 
 
+@pytest.mark.slow
 def test_window_dataset_augmentations_are_seeded_and_keep_the_window(prepared_tang2018):
     data = prepared_tang2018
     plain = WindowDataset(data, "train", preset="music2dance", window=100, stride=200)
@@ -181,6 +184,7 @@ def test_window_dataset_augmentations_are_seeded_and_keep_the_window(prepared_ta
         WindowDataset(data, "train", preset="music2dance", window=100, representation="rot6d", mirror=0.5)
 
 
+@pytest.mark.slow
 def test_window_dataset_shapes_and_train_only_stats(prepared_tang2018):
     data = prepared_tang2018
     train = WindowDataset(data, "train", preset="music2dance", window=100, stride=200)
@@ -206,11 +210,13 @@ def test_prepare_cli_bad_source_exits_nonzero(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_meta_json_is_plain_json(prepared_tang2018):
     meta = json.loads((prepared_tang2018.root / "meta.json").read_text())
     assert meta["source"] == "tang2018" and meta["fps"] == 25.0
 
 
+@pytest.mark.slow
 def test_window_dataset_balances_genres(prepared_tang2018):
     data = prepared_tang2018
     plain = WindowDataset(data, "train", preset="music2dance", window=100, stride=100)
@@ -228,6 +234,7 @@ def test_window_dataset_balances_genres(prepared_tang2018):
     assert set(bal.index) == set(plain.index)  # the same windows, repeated
 
 
+@pytest.mark.slow
 def test_window_dataset_keeps_only_the_asked_genres(prepared_tang2018):
     data = prepared_tang2018
     plain = WindowDataset(data, "train", preset="music2dance", window=100, stride=100)
