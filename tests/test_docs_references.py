@@ -18,7 +18,7 @@ IMAGE = re.compile(r"!\[[^\]]*\]\(([^)\s]+\.png)\)")
 def _documents() -> list[Path]:
     files = [ROOT / "README.md", ROOT / "Makefile", *sorted((ROOT / ".ci").glob("*")),
              *sorted((ROOT / "docs").rglob("*.md")),
-             *sorted(f for f in (ROOT / "tests").glob("*.py") if f.name != Path(__file__).name)]
+             *sorted(f for f in (ROOT / "tests").rglob("*.py") if f.name != Path(__file__).name)]
     return [f for f in files if f.is_file()]
 
 

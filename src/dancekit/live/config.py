@@ -25,7 +25,7 @@ class LiveConfig:
     lookahead_s : audio after a frame that its features may see before the row is made (s, ≥ 0). The
         offline extractor's support is about 0.9 s (the lowest constant-Q filter, the MFCC delta's ±4 frames):
         with ``lookahead_s ≥ EXACT_LOOKAHEAD_S`` the online features equal the offline ones
-        (``tests/test_live.py``); less trades that for latency (0.08 s: the mel spectrogram's own window)
+        (``tests/live/test_live.py``); less trades that for latency (0.08 s: the mel spectrogram's own window)
     model_lookahead_s : feature rows after a frame that the model's music encoder may see (s, ≥ 0; whole
         frames, rounded up). With ``lookahead_s`` it is the latency floor: ``lookahead_s + model_lookahead_s``
         plus up to one block

@@ -8,7 +8,7 @@ columns) computed on the audio received so far, a frame at a time:
   (the same code paths and constants as the offline extractor). They equal the offline values on the same
   samples once the lookahead covers their support (:data:`EXACT_LOOKAHEAD_S`: the lowest constant-Q filter,
   the delta's ±4 frames); a shorter lookahead zero-pads the frames' right edge as the offline extractor does at
-  a song's end (what the test measures: ``tests/test_live.py``). The dB floor (80 dB under the loudest frame)
+  a song's end (what the test measures: ``tests/live/test_live.py``). The dB floor (80 dB under the loudest frame)
   is the loudest frame *so far*.
 * the tempogram (384 frames, ±7.7 s at 25 fps) cannot wait for its centred window: row ``f`` holds the
   offline tempogram of frame ``f - 192`` (the window that ends at ``f``): the same values, delayed by half
@@ -38,7 +38,7 @@ LEFT_CONTEXT_S = 1.2
 #: the beat tracker's onset envelope: STFT size and hop at the feature rate (hop 128 at 12.8 kHz: 100 Hz)
 FINE_NFFT, FINE_HOP, FINE_MELS = 1024, 128, 40
 #: the flux of a click peaks 3/8 of a window before the click reaches the window's centre: the beat times
-#: are moved by that (0.03 s at 12.8 kHz; measured on the click tracks of tests/test_live.py)
+#: are moved by that (0.03 s at 12.8 kHz; measured on the click tracks of tests/live/test_live.py)
 FINE_SHIFT = 3 * FINE_NFFT // 8
 
 

@@ -9,7 +9,7 @@ skeleton and units) of the frames it can dance now; :meth:`finish` dances the re
   from the music up to ``lookahead`` frames after it (the frames beyond are not there yet: the encoder sees the
   stream's end there, as it sees a song's end offline) and ``context`` frames before it. With ``lookahead`` and
   ``context`` at least the receptive field the latents are the offline ones, and the dance — the LSTM decoder
-  stepped with its state carried from block to block — equals one offline pass (``tests/test_live.py``); the
+  stepped with its state carried from block to block — equals one offline pass (``tests/live/test_live.py``); the
   default lookahead is the latency floor's 3 frames, an approximation whose cost the quality benchmark
   measures. The seed draws the initial state; the checkpoint's per-phrase state noise is drawn phrase by
   phrase as the phrases come.

@@ -357,7 +357,7 @@ class Seq2Seq(nn.Module):
         """:meth:`rollout` for inference (eval mode, no gradient), faster: the cross-attention keys and values
         of ``memory`` are projected once per layer, and each new frame's self-attention key and value are
         projected once and appended to a per-layer cache (:meth:`rollout` re-projects the whole prefix and the
-        whole memory at every frame). The same function to float rounding (tests/test_arrange.py); G_D→M's
+        whole memory at every frame). The same function to float rounding (tests/audio/test_arrange.py); G_D→M's
         composing uses it (:meth:`DualModel.generate_music`)."""
         import torch.nn.functional as F
 

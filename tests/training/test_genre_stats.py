@@ -11,7 +11,7 @@ import pytest
 
 from dancekit.training.genre_stats import tang2018_genre_stats
 
-ASSETS = Path(__file__).resolve().parents[1] / "src" / "dancekit" / "assets" / "models"
+ASSETS = Path(__file__).resolve().parents[2] / "src" / "dancekit" / "assets" / "models"
 
 
 @functools.lru_cache(maxsize=1)

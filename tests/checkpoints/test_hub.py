@@ -37,7 +37,7 @@ from dancekit.checkpoints import resolve_model
 from dancekit.checkpoints.hub import MODELS_DIR
 from dancekit.errors import CheckpointError, ParameterError
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 M2D = MODELS_DIR / "music2dance"  # a composite model: genre_reader and foot_constraint component folders
 
 

@@ -21,7 +21,7 @@ from dancekit.motion import Motion
 from dancekit.motion.formats import read_motion, write_motion
 from dancekit.motion.skeleton import get_skeleton
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SR = 22050
 
 

@@ -22,7 +22,7 @@ from dancekit.export.fbx import find_blender, read_fbx_joints, write_fbx
 from dancekit.motion.formats import read_motion
 from dancekit.motion.formats.bvh import humanoid_motion
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TOL_CM = 0.5  # the acceptance bound: every joint of every frame within 0.5 cm of the npz
 
 
