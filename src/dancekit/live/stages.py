@@ -7,7 +7,8 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
    root's steps are scaled by a gain that glides (time constant ``calm_glide_s``) between 1 while music plays
    and ``calm`` in silence, speech or a dropped block, towards a slow running mean pose — the dancer calms and
    keeps its balance instead of freezing mid-step, and the music coming back brings the dance back;
-2. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz``;
+2. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz`` (times
+   the calm gain squared while calming: a model fed silence trembles, the calm dancer does not);
 3. **floor bounds** (offline: the root path turned back beyond 4 m): the root's steps that would leave a
    disc of :data:`FLOOR_RADIUS_CM` are not taken;
 4. **floor** (offline: the running floor moved to 0): the lowest joint's lowest height over the last
@@ -90,7 +91,8 @@ class OnlineStages:
             q = rel + nxt
             if self.smoothed is None:
                 self.smoothed = q.copy()
-            self.smoothed += self.a_smooth * (q - self.smoothed)
+            a = self.a_smooth if self.gain >= 1.0 else 1.0 - (1.0 - self.a_smooth) ** (self.gain**2)
+            self.smoothed += a * (q - self.smoothed)  # calmer: a lower cut-off too (gain² × smooth_hz)
             out[k] = self.smoothed
         out = np.asarray(normalize_bone_lengths(out, self.skeleton), np.float64) if len(out) else out
         for k in range(len(out)):
