@@ -228,6 +228,7 @@ def _speed(p, fps=25.0):
     return np.linalg.norm(np.diff(p, axis=0), axis=-1).mean(axis=1) * fps  # (T - 1,) cm/s, mean over joints
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model", ["revolution", "music2dance"])
 def test_session_dances_silence_and_the_music_coming_back(model, song):
     """4 s of music, 3 s of silence, 3 s of music again (one block dropped in the middle of the music): every
