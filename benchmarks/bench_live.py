@@ -65,7 +65,6 @@ def run(args) -> None:
         session.sinks.append(sink)
         session.keep_stats = False
         stop = threading.Event()
-        state = {"blocks": 0, "cpu": 0.0, "wall": 0.0}
         audio_per_minute = 60.0
         mark = {"audio": 0.0, "cpu": 0.0, "wall": 0.0, "light": 0, "merged": 0}
 

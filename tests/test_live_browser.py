@@ -9,8 +9,8 @@ import threading
 
 import numpy as np
 import pytest
-
 from _media import chromium
+
 from dancekit.audio import save_wav
 from dancekit.audio.synth import ode_to_joy
 
