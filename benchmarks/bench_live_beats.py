@@ -57,9 +57,7 @@ def main() -> None:
     for name, y, truth in cases:
         offline = song_beats(y=y, sr=SR)
         times, bpm = live_beats(y)
-        s = args.settle
-
-        def f1(ref, est):
+        def f1(ref, est, s=args.settle):
             return round(float(mir_eval.beat.f_measure(ref[ref > s], est[est > s], f_measure_threshold=0.07)), 3)
 
         rows.append([name, round(float(offline.tempo), 1), None if bpm is None else round(bpm, 1),

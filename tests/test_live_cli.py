@@ -30,6 +30,7 @@ def song(tmp_path_factory):
     (["live", "--input", "{song}", "--record", "out.txt", "--no-serve"], "--record out.txt: the file must end in"),
     (["live", "--stdin", "--realtime"], "--realtime paces a file"),
     (["live", "--input", "{song}", "--duration", "-1"], "--duration must be > 0 s"),
+    (["live", "--input", "{song}", "--osc", "localhost"], "--osc needs HOST:PORT"),
 ])
 def test_live_bad_input_is_one_line(argv, message, song, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
