@@ -9,7 +9,7 @@ from dancekit.cli.main import main
 # every verb `dancekit --help` must offer (spelled out here, not read from dancekit.cli.main.VERBS,
 # so a verb whose module fails to import and is silently left out of the parser is caught)
 EXPECTED_VERBS = ("features", "info", "prepare", "train", "evaluate", "baselines", "compare", "select-checkpoint",
-                  "steering", "score-classifier", "dance", "render", "models", "convert", "compose")
+                  "steering", "score-classifier", "dance", "render", "models", "convert", "compose", "live")
 
 
 def test_help_lists_verbs(capsys):
