@@ -26,7 +26,7 @@ import numpy as np
 from dancekit.live.config import LiveConfig
 from dancekit.motion.kinematics import normalize_bone_lengths
 
-__all__ = ["FLOOR_RADIUS_CM", "OnlineStages"]
+__all__ = ["FLOOR_RADIUS_CM", "BeatNudge", "OnlineStages"]
 
 #: the dance floor's radius (skeleton units: cm for tang2018); the offline clean-up turns back beyond 4 m
 FLOOR_RADIUS_CM = 400.0
@@ -100,3 +100,66 @@ class OnlineStages:
             out[k, :, self.up] -= min(self.lows)
         self.frames += len(out)
         return out.astype(np.float32)
+
+
+class BeatNudge:
+    """Beat alignment online (offline: the beat-synchronous time warp): the dance is played on a clock of its own
+    whose rate is nudged, within ``1 ± rate_bound`` (the offline warp's ±15 %), so that the model's next
+    kinematic beat (a minimum of its joints' mean speed) lands on the tracker's predicted next music beat.
+
+    The dance clock never runs ahead of the newest frame the model has made and never falls more than
+    ``max_lag_s`` behind it (between beats it drifts back to half of that, so it has room both ways); a pose
+    between two model frames is interpolated linearly (the bone lengths are set afterwards by
+    :class:`OnlineStages`). No beat predicted (before the tracker locks, in silence): rate 1.
+
+    Parameters
+    ----------
+    fps : frames per second
+    rate_bound : the rate stays within ``1 ± rate_bound``
+    max_lag_s : how far the dance clock may fall behind the model (s)
+    """
+
+    def __init__(self, *, fps: float, rate_bound: float = 0.15, max_lag_s: float = 0.24):
+        self.fps, self.bound = float(fps), float(rate_bound)
+        self.lag = max(1, int(round(max_lag_s * fps)))
+        self.buf: deque[np.ndarray] = deque(maxlen=self.lag + 3)  # the newest model frames
+        self.n = 0  # model frames received
+        self.tau = 0.0  # the dance clock (a model frame index, fractional)
+        self.speeds: deque[float] = deque(maxlen=3)
+        self.kinematic: deque[int] = deque(maxlen=8)  # model frames of the recent speed minima
+        self.rates: list[float] = []
+
+    def process(self, poses: np.ndarray, next_beat_s: float | None) -> np.ndarray:
+        """Model poses ``(k, J, 3)`` in → the poses ``(k, J, 3)`` shown on the dance clock; ``next_beat_s``: the
+        tracker's predicted next beat (s of audio) or None."""
+        poses = np.asarray(poses, np.float64)
+        out = np.empty_like(poses)
+        for j, p in enumerate(poses):
+            if self.buf:
+                self.speeds.append(float(np.linalg.norm(p - self.buf[-1], axis=-1).mean()))
+                if len(self.speeds) == 3 and self.speeds[1] < self.speeds[0] and self.speeds[1] <= self.speeds[2]:
+                    self.kinematic.append(self.n - 1)  # frame n - 1 was the slowest of its neighbours
+            self.buf.append(p)
+            t = self.n  # the newest model frame, and the output frame being made
+            self.n += 1
+            if t == 0:
+                out[j] = p
+                continue
+            rate = 1.0 + 0.1 * ((t - self.lag / 2) - self.tau - 1.0)  # drift back to half the allowed lag
+            pending = [k for k in self.kinematic if k > self.tau]
+            if next_beat_s is not None and pending:
+                due = next_beat_s * self.fps  # output frame of the next music beat
+                if due > t:
+                    rate = (pending[0] - self.tau) / (due - t + 1.0)
+            rate = min(1.0 + self.bound, max(1.0 - self.bound, rate))
+            self.tau = min(float(t), max(float(t - self.lag), self.tau + rate))
+            self.rates.append(rate)
+            if len(self.rates) > 256:
+                del self.rates[:-256]
+            back = t - self.tau  # frames behind the newest
+            i = int(np.floor(back))
+            f = back - i
+            a = self.buf[-1 - i]
+            b = self.buf[-2 - i] if f > 0 and i + 1 < len(self.buf) else a
+            out[j] = (1.0 - f) * a + f * b
+        return out
