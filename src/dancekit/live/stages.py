@@ -11,8 +11,9 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
    the calm gain squared while calming: a model fed silence trembles, the calm dancer does not);
 3. **floor bounds** (offline: the root path turned back beyond 4 m): the root's steps that would leave a
    disc of :data:`FLOOR_RADIUS_CM` are not taken;
-4. **floor** (offline: the running floor moved to 0): the lowest joint's lowest height over the last
-   ``floor_window_s`` is the floor, moved to 0;
+4. **floor** (offline: the running floor moved to 0, :func:`dancekit.motion.analysis.floor_curve`): the 5th
+   percentile of the lowest foot joint's height over the last ``floor_window_s`` is the floor, moved to 0 (the
+   offline curve's percentile over a window that ends at the frame instead of one centred on it);
 
 then every bone is set back to its rest length (bone directions kept), as the offline clean-up does.
 """
@@ -30,6 +31,8 @@ __all__ = ["FLOOR_RADIUS_CM", "BeatNudge", "OnlineStages"]
 
 #: the dance floor's radius (skeleton units: cm for tang2018); the offline clean-up turns back beyond 4 m
 FLOOR_RADIUS_CM = 400.0
+#: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
+FLOOR_PERCENTILE = 5.0
 #: time constant (s) of the running mean pose that calming pulls towards
 MEAN_POSE_S = 2.0
 
@@ -60,6 +63,8 @@ class OnlineStages:
         self.root_out = np.zeros(3)
         self.smoothed: np.ndarray | None = None
         self.lows: deque[float] = deque(maxlen=max(1, int(round(c.floor_window_s * self.fps))))
+        names = list(skeleton.feet)
+        self.feet = [skeleton.index(f) for f in names] or list(range(skeleton.num_joints))
         self.frames = 0
 
     def process(self, poses: np.ndarray, music: np.ndarray) -> np.ndarray:
@@ -96,8 +101,8 @@ class OnlineStages:
             out[k] = self.smoothed
         out = np.asarray(normalize_bone_lengths(out, self.skeleton), np.float64) if len(out) else out
         for k in range(len(out)):
-            self.lows.append(float(out[k, :, self.up].min()))
-            out[k, :, self.up] -= min(self.lows)
+            self.lows.append(float(out[k, self.feet, self.up].min()))
+            out[k, :, self.up] -= np.percentile(self.lows, FLOOR_PERCENTILE)
         self.frames += len(out)
         return out.astype(np.float32)
 
