@@ -65,7 +65,6 @@ def run(args) -> None:
         session.sinks.append(sink)
         session.keep_stats = False
         stop = threading.Event()
-        state = {"blocks": 0, "cpu": 0.0, "wall": 0.0}
         audio_per_minute = 60.0
         mark = {"audio": 0.0, "cpu": 0.0, "wall": 0.0, "light": 0, "merged": 0}
 
@@ -132,12 +131,20 @@ def table(args) -> None:
         def pooled(ms, key):
             return float(np.median([m[key] for m in ms if m[key] is not None])) if ms else None
 
-        lat10 = [m for m in first]
-        med_first = pooled(first, "latency_median_s")
-        med_last = pooled(last, "latency_median_s")
-        rows.append([r["model"], r["minutes"],
-                     round(pooled(lat10, "latency_median_s"), 3), round(max(m["latency_p99_s"] for m in lat10), 3),
-                     round(pooled(lat10, "lookahead_median_s"), 3), round(pooled(lat10, "compute_median_s"), 3),
+        def frames(ms):  # every frame's latency of these minutes (kept with --keep-latencies)
+            return np.concatenate([m["latencies"] for m in ms]) if all(m.get("latencies") for m in ms) else None
+
+        lat10 = frames(first)
+        if lat10 is not None:
+            med10, p99_10 = float(np.median(lat10)), float(np.quantile(lat10, 0.99))
+        else:
+            med10, p99_10 = pooled(first, "latency_median_s"), max(m["latency_p99_s"] for m in first)
+        lat_last = frames(last)
+        med_first = med10
+        med_last = float(np.median(lat_last)) if lat_last is not None else pooled(last, "latency_median_s")
+        rows.append([r["model"], len(pm),
+                     round(med10, 3), round(p99_10, 3),
+                     round(pooled(first, "lookahead_median_s"), 3), round(pooled(first, "compute_median_s"), 3),
                      round(float(np.mean([m["cpu_per_audio_s"] for m in pm])), 3),
                      round(float(np.mean([m["wall_per_audio_s"] for m in pm])), 3),
                      round(r["rss_start_mb"]), round(max(m["rss_mb"] for m in pm)), round(pm[-1]["rss_mb"]),
@@ -149,8 +156,8 @@ def table(args) -> None:
            "command": "; ".join(json.loads(Path(p).read_text())["command"] for p in args.runs),
            "machine": json.loads(Path(args.runs[0]).read_text())["machine"],
            "date": json.loads(Path(args.runs[0]).read_text())["date"],
-           "columns": ["model", "minutes", "latency median s (first 10 min, median of per-minute medians)",
-                       "latency p99 s (first 10 min, worst minute)", "lookahead s (median)", "compute+queue s (median)",
+           "columns": ["model", "minutes recorded", "latency median s (first 10 min, every frame)",
+                       "latency p99 s (first 10 min, every frame)", "lookahead s (median)", "compute+queue s (median)",
                        "CPU s per s of audio", "wall s per s of audio", "RSS start MB", "RSS max MB", "RSS end MB",
                        "last-10-min / first-10-min median latency", "lighter-path blocks", "merged blocks",
                        "load average (1 min, mean)"],

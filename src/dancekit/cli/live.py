@@ -34,6 +34,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--host", default="127.0.0.1", help="where the live page listens (default loopback)")
     p.add_argument("--port", type=int, default=8765, help="port of the live page and pose stream (0: any free)")
     p.add_argument("--no-serve", action="store_true", help="no page and no stream (record or log only)")
+    p.add_argument("--osc", metavar="HOST:PORT", default=None,
+                   help="also send the poses over OSC (UDP) to HOST:PORT (needs the osc extra; docs/LIVE.md)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of audio")
     p.add_argument("--record", type=Path, default=None, metavar="OUT",
                    help="write the performance when it stops: OUT.npz, OUT.bvh or OUT.glb (with OUT.wav, the audio)")
@@ -57,6 +59,10 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--record {args.record}: the file must end in .npz, .bvh or .glb")
     if args.realtime and not args.input:
         raise ParameterError("--realtime paces a file: use it with --input")
+    if args.osc is not None:
+        from dancekit.live.osc import parse_address
+
+        parse_address(args.osc)
     if args.duration is not None and not args.duration > 0:
         raise ParameterError(f"--duration must be > 0 s, got {args.duration}")
     if args.input and not Path(args.input).is_file():
@@ -77,6 +83,10 @@ def run(args: argparse.Namespace) -> int:
                                 channels=args.channels)
         else:
             source = microphone_source(sr=session.sr, block_s=config.block_s, device=args.device)
+        if args.osc is not None:
+            from dancekit.live.osc import OscSink
+
+            session.sinks.append(OscSink(args.osc, skeleton=session.skeleton))
         if args.record is not None:
             session.sinks.append(lambda frames: recorded.extend(f.joints for f in frames))
             source = _tee(source, heard)

@@ -83,6 +83,11 @@ class BeatTracker:
         """The current tempo estimate (BPM), None before the first."""
         return None if self.period is None else 60.0 * self.rate / self.period
 
+    @property
+    def next_time(self) -> float | None:
+        """The predicted time (s) of the next beat, None while the tracker has no beat."""
+        return None if self.next_beat is None else self.next_beat / self.rate + self.offset
+
     def feed(self, env: np.ndarray) -> list[Beat]:
         """Append envelope frames; returns the beats placed meanwhile."""
         out = []

@@ -32,7 +32,7 @@ import numpy as np
 from dancekit.errors import AudioError, ParameterError
 from dancekit.live.config import LiveConfig
 from dancekit.live.features import OnlineFeatures
-from dancekit.live.stages import OnlineStages
+from dancekit.live.stages import BeatNudge, OnlineStages
 from dancekit.live.steppers import make_stepper
 
 __all__ = ["Block", "Frame", "LiveSession", "file_source", "microphone_source", "pcm_source"]
@@ -145,6 +145,7 @@ class LiveSession:
             self.stepper.raw = True  # the online stages set the bone lengths
         self.skeleton = self.pipe.skeleton
         self.stages = OnlineStages(self.skeleton, fps=self.fps, config=c)
+        self.nudge = BeatNudge(fps=self.fps, rate_bound=c.rate_bound) if c.rate_bound > 0 else None
         self.sinks = list(sinks or [])
         self.stats = SessionStats()
         self.keep_stats = keep_stats
@@ -203,6 +204,8 @@ class LiveSession:
         which = np.clip(np.searchsorted(starts, centre, side="right") - 1, 0, max(0, len(starts) - 1))
         clear = self.features.tracker.clarity >= self.features.tracker.min_clarity
         music = np.array([self._blocks[w][2] for w in which], bool) if k else np.zeros(0, bool)
+        if self.nudge is not None and k:
+            poses = self.nudge.process(poses, self.features.tracker.next_time if clear else None)
         poses = self.stages.process(poses, music & clear)
         bpm = self.features.tracker.bpm
         beats = {int(round(b.time * self.fps)) for b in self.features.tracker.beats[-8:]}

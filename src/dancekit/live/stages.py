@@ -7,11 +7,13 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
    root's steps are scaled by a gain that glides (time constant ``calm_glide_s``) between 1 while music plays
    and ``calm`` in silence, speech or a dropped block, towards a slow running mean pose — the dancer calms and
    keeps its balance instead of freezing mid-step, and the music coming back brings the dance back;
-2. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz``;
+2. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz`` (times
+   the calm gain squared while calming: a model fed silence trembles, the calm dancer does not);
 3. **floor bounds** (offline: the root path turned back beyond 4 m): the root's steps that would leave a
    disc of :data:`FLOOR_RADIUS_CM` are not taken;
-4. **floor** (offline: the running floor moved to 0): the lowest joint's lowest height over the last
-   ``floor_window_s`` is the floor, moved to 0;
+4. **floor** (offline: the running floor moved to 0, :func:`dancekit.motion.analysis.floor_curve`): the 5th
+   percentile of the lowest foot joint's height over the last ``floor_window_s`` is the floor, moved to 0 (the
+   offline curve's percentile over a window that ends at the frame instead of one centred on it);
 
 then every bone is set back to its rest length (bone directions kept), as the offline clean-up does.
 """
@@ -25,10 +27,12 @@ import numpy as np
 from dancekit.live.config import LiveConfig
 from dancekit.motion.kinematics import normalize_bone_lengths
 
-__all__ = ["FLOOR_RADIUS_CM", "OnlineStages"]
+__all__ = ["FLOOR_RADIUS_CM", "BeatNudge", "OnlineStages"]
 
 #: the dance floor's radius (skeleton units: cm for tang2018); the offline clean-up turns back beyond 4 m
 FLOOR_RADIUS_CM = 400.0
+#: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
+FLOOR_PERCENTILE = 5.0
 #: time constant (s) of the running mean pose that calming pulls towards
 MEAN_POSE_S = 2.0
 
@@ -59,6 +63,8 @@ class OnlineStages:
         self.root_out = np.zeros(3)
         self.smoothed: np.ndarray | None = None
         self.lows: deque[float] = deque(maxlen=max(1, int(round(c.floor_window_s * self.fps))))
+        names = list(skeleton.feet)
+        self.feet = [skeleton.index(f) for f in names] or list(range(skeleton.num_joints))
         self.frames = 0
 
     def process(self, poses: np.ndarray, music: np.ndarray) -> np.ndarray:
@@ -90,11 +96,75 @@ class OnlineStages:
             q = rel + nxt
             if self.smoothed is None:
                 self.smoothed = q.copy()
-            self.smoothed += self.a_smooth * (q - self.smoothed)
+            a = self.a_smooth if self.gain >= 1.0 else 1.0 - (1.0 - self.a_smooth) ** (self.gain**2)
+            self.smoothed += a * (q - self.smoothed)  # calmer: a lower cut-off too (gain² × smooth_hz)
             out[k] = self.smoothed
         out = np.asarray(normalize_bone_lengths(out, self.skeleton), np.float64) if len(out) else out
         for k in range(len(out)):
-            self.lows.append(float(out[k, :, self.up].min()))
-            out[k, :, self.up] -= min(self.lows)
+            self.lows.append(float(out[k, self.feet, self.up].min()))
+            out[k, :, self.up] -= np.percentile(self.lows, FLOOR_PERCENTILE)
         self.frames += len(out)
         return out.astype(np.float32)
+
+
+class BeatNudge:
+    """Beat alignment online (offline: the beat-synchronous time warp): the dance is played on a clock of its own
+    whose rate is nudged, within ``1 ± rate_bound`` (the offline warp's ±15 %), so that the model's next
+    kinematic beat (a minimum of its joints' mean speed) lands on the tracker's predicted next music beat.
+
+    The dance clock never runs ahead of the newest frame the model has made and never falls more than
+    ``max_lag_s`` behind it (between beats it drifts back to half of that, so it has room both ways); a pose
+    between two model frames is interpolated linearly (the bone lengths are set afterwards by
+    :class:`OnlineStages`). No beat predicted (before the tracker locks, in silence): rate 1.
+
+    Parameters
+    ----------
+    fps : frames per second
+    rate_bound : the rate stays within ``1 ± rate_bound``
+    max_lag_s : how far the dance clock may fall behind the model (s)
+    """
+
+    def __init__(self, *, fps: float, rate_bound: float = 0.15, max_lag_s: float = 0.24):
+        self.fps, self.bound = float(fps), float(rate_bound)
+        self.lag = max(1, int(round(max_lag_s * fps)))
+        self.buf: deque[np.ndarray] = deque(maxlen=self.lag + 3)  # the newest model frames
+        self.n = 0  # model frames received
+        self.tau = 0.0  # the dance clock (a model frame index, fractional)
+        self.speeds: deque[float] = deque(maxlen=3)
+        self.kinematic: deque[int] = deque(maxlen=8)  # model frames of the recent speed minima
+        self.rates: list[float] = []
+
+    def process(self, poses: np.ndarray, next_beat_s: float | None) -> np.ndarray:
+        """Model poses ``(k, J, 3)`` in → the poses ``(k, J, 3)`` shown on the dance clock; ``next_beat_s``: the
+        tracker's predicted next beat (s of audio) or None."""
+        poses = np.asarray(poses, np.float64)
+        out = np.empty_like(poses)
+        for j, p in enumerate(poses):
+            if self.buf:
+                self.speeds.append(float(np.linalg.norm(p - self.buf[-1], axis=-1).mean()))
+                if len(self.speeds) == 3 and self.speeds[1] < self.speeds[0] and self.speeds[1] <= self.speeds[2]:
+                    self.kinematic.append(self.n - 1)  # frame n - 1 was the slowest of its neighbours
+            self.buf.append(p)
+            t = self.n  # the newest model frame, and the output frame being made
+            self.n += 1
+            if t == 0:
+                out[j] = p
+                continue
+            rate = 1.0 + 0.1 * ((t - self.lag / 2) - self.tau - 1.0)  # drift back to half the allowed lag
+            pending = [k for k in self.kinematic if k > self.tau]
+            if next_beat_s is not None and pending:
+                due = next_beat_s * self.fps  # output frame of the next music beat
+                if due > t:
+                    rate = (pending[0] - self.tau) / (due - t + 1.0)
+            rate = min(1.0 + self.bound, max(1.0 - self.bound, rate))
+            self.tau = min(float(t), max(float(t - self.lag), self.tau + rate))
+            self.rates.append(rate)
+            if len(self.rates) > 256:
+                del self.rates[:-256]
+            back = t - self.tau  # frames behind the newest
+            i = int(np.floor(back))
+            f = back - i
+            a = self.buf[-1 - i]
+            b = self.buf[-2 - i] if f > 0 and i + 1 < len(self.buf) else a
+            out[j] = (1.0 - f) * a + f * b
+        return out
