@@ -1,4 +1,4 @@
-"""dancekit.features._dsp (librosa's feature algorithms in NumPy, written to spare a fresh process the import of
+"""dancekit.features.dsp (librosa's feature algorithms in NumPy, written to spare a fresh process the import of
 librosa.beat and librosa.core.constantq) against librosa itself, step by step, on synthetic songs and, where
 they are present, the real songs of ../shared/music and tang2018.
 
@@ -17,7 +17,7 @@ import pytest
 
 from dancekit.audio import synth
 from dancekit.audio.io import resample
-from dancekit.features import _dsp
+from dancekit.features import dsp as _dsp
 
 librosa = pytest.importorskip("librosa")
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from dancekit.audio.io import resample
 from dancekit.errors import ParameterError
-from dancekit.features import _dsp
+from dancekit.features import dsp as _dsp
 
 __all__ = ["BEAT_HOP", "BEAT_SR", "MUSIC_BEAT_STRENGTH", "beat_onehot", "beat_strength", "beat_track", "downbeats",
            "fold_meter"]
@@ -84,7 +84,7 @@ def beat_track(
     *, y: np.ndarray, sr: int, start_bpm: float = 120.0, tightness: float = 100.0
 ) -> tuple[float, np.ndarray]:
     """Track beats on the fine grid (22050 Hz, hop 256) with librosa's dynamic-programming tracker
-    (re-implemented in NumPy: :func:`dancekit.features._dsp.beat_track`).
+    (re-implemented in NumPy: :func:`dancekit.features.dsp.beat_track`).
 
     Parameters
     ----------

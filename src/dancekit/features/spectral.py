@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from dancekit.errors import ParameterError
-from dancekit.features import _dsp
+from dancekit.features import dsp as _dsp
 
 __all__ = [
     "CQT_FMIN",
@@ -197,7 +197,7 @@ def tempogram(
     return np.nan_to_num(fit_frames(tg, env.shape[-1]), nan=0.0).astype(np.float32)
 
 
-def _cqt_octaves(sr: int) -> int:
+def cqt_octaves(sr: int) -> int:
     """Octaves above C1 that fit below Nyquist with a 10 % margin for the filter bandwidth."""
     n = int(np.floor(np.log2(sr / 2 / (CQT_FMIN * 1.1))))
     if n < 1:
@@ -224,7 +224,7 @@ def chroma_cqt(
     T = n_frames(n_samples=len(y), hop_length=hop_length)
     if not np.any(y):
         return np.zeros((n_chroma, T), dtype=np.float32)
-    n_oct = _cqt_octaves(sr)
+    n_oct = cqt_octaves(sr)
     if bins_per_octave % n_chroma:
         raise ParameterError(f"bins_per_octave={bins_per_octave} must be a multiple of n_chroma={n_chroma}")
     C = _dsp.cqt_magnitude(y, sr=sr, hop_length=hop_length, fmin=CQT_FMIN, n_bins=n_oct * bins_per_octave,
@@ -352,7 +352,7 @@ def chroma_cqt_chunked(*, y, sr: int, hop_length: int = 512, n_chroma: int = 12,
     if not callable(y) and not np.any(y):
         out[:] = 0.0
         return out
-    n_oct = _cqt_octaves(sr)
+    n_oct = cqt_octaves(sr)
     margin = int(np.ceil(CQT_MARGIN_S * sr / hop_length))
     for f0 in range(0, T, int(chunk)):
         f1 = min(T, f0 + int(chunk))
@@ -367,7 +367,7 @@ def chroma_cqt_chunked(*, y, sr: int, hop_length: int = 512, n_chroma: int = 12,
 
 
 def _tempogram_blocks(env: np.ndarray, *, win_length: int, chunk: int):
-    """The autocorrelation tempogram of ``env`` (:func:`dancekit.features._dsp.tempogram`, librosa's: float64,
+    """The autocorrelation tempogram of ``env`` (:func:`dancekit.features.dsp.tempogram`, librosa's: float64,
     each column scaled to a maximum of 1), ``chunk`` frames at a time: yields ``(f0, f1, tg (win_length,
     f1 - f0))``. Every frame is its own window of the (ramp-padded) envelope, so the blocks are the columns
     of ``_dsp.tempogram(env, win_length=win_length)``."""
@@ -384,7 +384,7 @@ def _tempogram_blocks(env: np.ndarray, *, win_length: int, chunk: int):
 
 def tempogram_mean(*, onset_envelope: np.ndarray, win_length: int, chunk: int = 4 * CHUNK_FRAMES) -> np.ndarray:
     """The time average ``(win_length, 1)`` float64 of librosa's tempogram of ``onset_envelope`` (what
-    ``librosa.feature.tempo`` aggregates; pass it to :func:`dancekit.features._dsp.tempo_from_tempogram`),
+    ``librosa.feature.tempo`` aggregates; pass it to :func:`dancekit.features.dsp.tempo_from_tempogram`),
     summed ``chunk`` frames at a time instead of a whole-song ``(win_length, T)`` array and its complex FFT.
     One chunk: ``_dsp.tempo``'s mean bit for bit; more: the same sum in another order (float rounding)."""
     env = np.asarray(onset_envelope)

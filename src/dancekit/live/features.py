@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from dancekit.errors import ParameterError
-from dancekit.features import _dsp, spectral
+from dancekit.features import dsp as _dsp
+from dancekit.features import spectral
 from dancekit.features.presets import PRESET_DIMS, PRESETS, feature_sr
 from dancekit.live.beats import BeatTracker
 
@@ -49,14 +50,14 @@ class OnlineChroma:
 
     def __init__(self, *, sr: int, hop_length: int, bins_per_octave: int = 36, n_chroma: int = 12):
         self.sr, self.hop, self.bpo, self.n_chroma = int(sr), int(hop_length), bins_per_octave, n_chroma
-        n_oct = spectral._cqt_octaves(self.sr)
+        n_oct = spectral.cqt_octaves(self.sr)
         n_bins = self.n_bins = n_oct * bins_per_octave
         fmin = spectral.CQT_FMIN
         ratios = 2.0 ** (np.arange(0, bins_per_octave, dtype=float) / bins_per_octave)
         octaves = 2.0 ** np.arange(np.ceil(n_bins / bins_per_octave))
         freqs = np.sort(np.multiply.outer(octaves, ratios).flatten()[:n_bins]) * fmin
-        alpha = _dsp._relative_bandwidth(freqs)
-        _, cutoff = _dsp._wavelet_lengths(freqs, self.sr, alpha)
+        alpha = _dsp.relative_bandwidth(freqs)
+        _, cutoff = _dsp.wavelet_lengths(freqs, self.sr, alpha)
         nyquist = self.sr / 2.0
         count1 = max(0, int(np.ceil(np.log2(nyquist / cutoff)) - 1) - 1)
         twos, h = 0, self.hop
@@ -71,13 +72,13 @@ class OnlineChroma:
         self.octaves = []  # (basis (bins, n_fft//2+1), n_fft, hop at that octave's rate)
         for i in range(n_oct):
             sl = slice(-bins_per_octave, None) if i == 0 else slice(-bins_per_octave * (i + 1), -bins_per_octave * i)
-            basis, n_fft = _dsp._cqt_basis(my_sr, freqs[sl], alpha[sl])
+            basis, n_fft = _dsp.cqt_basis(my_sr, freqs[sl], alpha[sl])
             basis = basis * np.sqrt(sr0 / my_sr)
             self.octaves.append((basis, n_fft, my_hop))
             if my_hop % 2 == 0:
                 my_hop //= 2
                 my_sr /= 2.0
-        lengths, _ = _dsp._wavelet_lengths(freqs, sr0, alpha)
+        lengths, _ = _dsp.wavelet_lengths(freqs, sr0, alpha)
         self.scale = 1.0 / np.sqrt(lengths)[:, None]
 
     def frames(self, seg: np.ndarray, rel_frames: np.ndarray) -> np.ndarray:
@@ -87,7 +88,7 @@ class OnlineChroma:
         if not np.any(y):
             return np.zeros((len(rel_frames), self.n_chroma), np.float32)
         if self.count > 0:
-            y = _dsp._halve(y, 2**self.count)
+            y = _dsp.halve(y, 2**self.count)
         V = np.empty((self.n_bins, len(rel_frames)), np.complex64)
         end = self.n_bins
         for i, (basis, n_fft, hop) in enumerate(self.octaves):
@@ -104,7 +105,7 @@ class OnlineChroma:
                 V[end - k : end] = r
             end -= k
             if i < len(self.octaves) - 1 and hop % 2 == 0:
-                y = _dsp._halve(y)
+                y = _dsp.halve(y)
         C = np.abs(V) * self.scale
         chroma = _dsp.chroma_from_cqt(C.astype(np.float32), bins_per_octave=self.bpo, n_chroma=self.n_chroma)
         return np.nan_to_num(chroma, nan=0.0).T.astype(np.float32)
@@ -138,7 +139,7 @@ class OnlineFeatures:
             raise ParameterError(f"live features support the presets revolution and music2dance, not {preset!r}")
         self.preset, self.fps, self.hop = preset, float(fps), int(hop_length)
         self.sr = feature_sr(fps=fps, hop_length=hop_length)
-        self.n_fft = spectral._n_fft(None, self.hop)
+        self.n_fft = spectral.default_n_fft(None, self.hop)
         self.dim = PRESET_DIMS[preset]
         self.names = tuple(f"{n}:{d}" for n, d in PRESETS[preset])
         self.cols, c = {}, 0

@@ -147,7 +147,7 @@ class RevolutionStepper(_Stepper):
 
 
 def _axes(skeleton):
-    from dancekit.motion.representations import _axes as axes
+    from dancekit.motion.representations import up_and_horizontal_axes as axes
 
     return axes(skeleton)
 

@@ -31,7 +31,7 @@ from dancekit.motion.motion import Motion
 from dancekit.motion.skeleton import Skeleton, get_skeleton
 
 
-def _axes(skeleton: Skeleton) -> tuple[int, tuple[int, int]]:
+def up_and_horizontal_axes(skeleton: Skeleton) -> tuple[int, tuple[int, int]]:
     up = skeleton.up_index
     horizontal = tuple(a for a in range(3) if a != up)
     return up, horizontal  # type: ignore[return-value]
@@ -45,7 +45,7 @@ def encode_positions(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
             f"positions must have shape (T, {skeleton.num_joints}, 3) for skeleton {skeleton.name!r}, "
             f"got {positions.shape}"
         )
-    up, (h0, h1) = _axes(skeleton)
+    up, (h0, h1) = up_and_horizontal_axes(skeleton)
     root = positions[:, skeleton.root]  # (T, 3)
     local = positions - root[:, None, :]  # (T, J, 3)
     vel = np.zeros((len(positions), 2))
@@ -61,7 +61,7 @@ def decode_positions(x: np.ndarray, skeleton: Skeleton) -> np.ndarray:
     J = skeleton.num_joints
     if x.ndim != 2 or x.shape[1] != 3 * J + 3:
         raise ParameterError(f"features must have shape (T, {3 * J + 3}) for skeleton {skeleton.name!r}, got {x.shape}")
-    up, (h0, h1) = _axes(skeleton)
+    up, (h0, h1) = up_and_horizontal_axes(skeleton)
     T = len(x)
     root = np.zeros((T, 3))
     root[:, h0] = np.cumsum(x[:, 3 * J])

@@ -390,7 +390,7 @@ def delta(x: np.ndarray, *, width: int) -> np.ndarray:
 # constant-Q transform and chroma (librosa.cqt with tuning 0, its default; librosa.feature.chroma_cqt)
 
 
-def _relative_bandwidth(freqs: np.ndarray) -> np.ndarray:
+def relative_bandwidth(freqs: np.ndarray) -> np.ndarray:
     bpo = np.empty_like(freqs)
     logf = np.log2(freqs)
     bpo[0] = 1 / (logf[1] - logf[0])
@@ -399,17 +399,17 @@ def _relative_bandwidth(freqs: np.ndarray) -> np.ndarray:
     return (2.0 ** (2 / bpo) - 1) / (2.0 ** (2 / bpo) + 1)
 
 
-def _wavelet_lengths(freqs: np.ndarray, sr: float, alpha: np.ndarray) -> tuple[np.ndarray, float]:
+def wavelet_lengths(freqs: np.ndarray, sr: float, alpha: np.ndarray) -> tuple[np.ndarray, float]:
     gamma = 0
     Q = 1.0 / alpha
     cutoff = max(freqs * (1 + 0.5 * _HANN_BANDWIDTH / Q) + 0.5 * gamma)
     return Q * sr / (freqs + gamma / alpha), cutoff
 
 
-def _cqt_basis(sr: float, freqs: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, int]:
+def cqt_basis(sr: float, freqs: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, int]:
     """FFT of one octave's Hann-windowed complex wavelets, sparsified (quantile 0.01), complex64
     ``(n_bins, n_fft // 2 + 1)``."""
-    lengths, _ = _wavelet_lengths(freqs, sr, alpha)
+    lengths, _ = wavelet_lengths(freqs, sr, alpha)
     filters = []
     for ilen, freq in zip(lengths, freqs):
         angles = np.arange(-ilen // 2, ilen // 2, dtype=float) * 2 * np.pi * freq / sr
@@ -434,7 +434,7 @@ def _cqt_basis(sr: float, freqs: np.ndarray, alpha: np.ndarray) -> tuple[np.ndar
     return np.where(keep, fft_basis, 0).astype(np.complex64), n_fft
 
 
-def _halve(y: np.ndarray, factor: int = 2) -> np.ndarray:
+def halve(y: np.ndarray, factor: int = 2) -> np.ndarray:
     """Downsample by ``factor`` with soxr (HQ), scaled by ``sqrt(factor)`` as librosa's ``scale=True``."""
     from dancekit.audio.io import resample
 
@@ -459,8 +459,8 @@ def cqt_magnitude(y: np.ndarray, *, sr: float, hop_length: int, fmin: float, n_b
     ratios = 2.0 ** ((0.0 + np.arange(0, bins_per_octave, dtype=float)) / bins_per_octave)
     octaves = 2.0 ** np.arange(np.ceil(n_bins / bins_per_octave))
     freqs = np.sort(np.multiply.outer(octaves, ratios).flatten()[:n_bins]) * (fmin * 2.0 ** (0.0 / bins_per_octave))
-    alpha = _relative_bandwidth(freqs)
-    lengths, cutoff = _wavelet_lengths(freqs, sr, alpha)
+    alpha = relative_bandwidth(freqs)
+    lengths, cutoff = wavelet_lengths(freqs, sr, alpha)
     nyquist = sr / 2.0
     if cutoff > nyquist:
         raise ValueError(f"constant-Q bins up to {cutoff:.0f} Hz exceed the Nyquist frequency {nyquist:.0f} Hz")
@@ -474,20 +474,20 @@ def cqt_magnitude(y: np.ndarray, *, sr: float, hop_length: int, fmin: float, n_b
     if count > 0:
         factor = 2**count
         my_hop //= factor
-        my_y = _halve(y, factor)
+        my_y = halve(y, factor)
         my_sr = sr / float(factor)
     sr0 = my_sr
     responses = []
     for i in range(n_octaves):
         sl = slice(-n_filters, None) if i == 0 else slice(-n_filters * (i + 1), -n_filters * i)
-        basis, n_fft = _cqt_basis(my_sr, freqs[sl], alpha[sl])
+        basis, n_fft = cqt_basis(my_sr, freqs[sl], alpha[sl])
         basis *= np.sqrt(sr0 / my_sr)
         D = stft(my_y, n_fft=n_fft, hop_length=my_hop, window="ones")
         responses.append(basis @ D)
         if my_hop % 2 == 0:
             my_hop //= 2
             my_sr /= 2.0
-            my_y = _halve(my_y)
+            my_y = halve(my_y)
     n_cols = min(r.shape[-1] for r in responses)
     V = np.empty((n_bins, n_cols), dtype=np.complex64, order="F")
     end = n_bins
@@ -498,7 +498,7 @@ def cqt_magnitude(y: np.ndarray, *, sr: float, hop_length: int, fmin: float, n_b
         else:
             V[end - k:end] = r[:, :n_cols]
         end -= k
-    lengths, _ = _wavelet_lengths(freqs, sr0, alpha)
+    lengths, _ = wavelet_lengths(freqs, sr0, alpha)
     V /= np.sqrt(lengths)[:, None]
     return np.abs(V)
 
