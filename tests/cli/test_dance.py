@@ -158,6 +158,7 @@ def test_foot_lock_and_smooth_switches(tmp_path, checkpoint, song):
         np.testing.assert_allclose(read_motion(out / "ode.npz").positions, want.motion.positions, atol=1e-4)
 
 
+@pytest.mark.slow
 def test_a_stage_switch_given_as_its_default_keeps_the_checkpoints_jitter_cap(tmp_path):
     """`--smooth on` / `--foot-lock on` (the defaults, said out loud) make the CLI run the stages itself; the
     embedded model's genre-draw jitter cap must still apply there, so the dances equal the default's bit for bit

@@ -135,6 +135,7 @@ def test_report_lists_every_baseline_in_one_table(baseline_report):
         assert f"| {row}" in table
 
 
+@pytest.mark.slow
 def test_cli_scores_a_music_folder(tiny_data, tmp_path, capsys):
     """A folder holding copies of the real music (WAV) and a MIDI-only piece, through ``dancekit evaluate --music``."""
     from dancekit.cli.main import main

@@ -507,6 +507,7 @@ def test_gw_with_mean_normalised_costs_is_scale_invariant_and_resolves_the_plan(
     assert float(entropic_gromov_wasserstein(2 * x, 2 * y)) > 3 * float(entropic_gromov_wasserstein(x, y))
 
 
+@pytest.mark.slow
 def test_gw_with_normalised_costs_and_unit_marginals_agrees_with_pot():
     """Unit marginals are uniform marginals with ε / m and a GW m² times larger; POT's epsilon is 2 ε (its
     factor 2): POT on the mean-normalised cost matrices with epsilon = 2 ε / m, times m², is this value. With
