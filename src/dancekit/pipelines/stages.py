@@ -156,7 +156,7 @@ def reground(result: DanceResult, *, window_s: float, max_float_cm: float | None
     the floor at least once in every window, while a rise shorter than ``window_s / 2`` stays.
 
     ``max_float_cm``: when the regrounded dance still floats higher than this (its lowest joint's median
-    height over the local floor, :func:`dancekit.motion.footlock.floor_float_cm`, cm), shorter windows are
+    height over the local floor, :func:`dancekit.motion.floor.floor_float_cm`, cm), shorter windows are
     tried in turn (``REGROUND_SHORTER`` × ``window_s``) and the first that brings it to the bound is kept (the
     shortest when none does). A dance under the bound keeps the checkpoint's window, so only the dances a
     strong low-pass lifted are touched. A motion with rotations keeps them (its root translation moved); 2D
@@ -186,10 +186,10 @@ def smooth(result: DanceResult, *, target: float | None = None, kind: str | None
     """The result with frame-to-frame noise filtered out; a dance already smooth enough is returned as it is.
 
     ``kind`` (default :data:`SMOOTH_FILTER`): ``"lowpass"``, a zero-phase windowed-sinc FIR low-pass whose
-    cut-off is the highest of :data:`dancekit.motion.footlock.CUTOFFS_HZ` that brings the dance's
-    jitter-to-energy ratio to ``target`` (:func:`dancekit.motion.footlock.lowpass_cutoff`); ``"savgol"``, a
+    cut-off is the highest of :data:`dancekit.motion.jitter.CUTOFFS_HZ` that brings the dance's
+    jitter-to-energy ratio to ``target`` (:func:`dancekit.motion.jitter.lowpass_cutoff`); ``"savgol"``, a
     Savitzky-Golay filter whose window is the shortest that does
-    (:func:`dancekit.motion.footlock.smoothing_window`). ``target`` default: the genre's target of
+    (:func:`dancekit.motion.jitter.smoothing_window`). ``target`` default: the genre's target of
     :func:`smoothing_target` (``config``'s genres, ``genre_stats``' ratios), else ``config.target``
     (:data:`SMOOTH_TARGET`), or ``config.target_noisy`` (:data:`SMOOTH_TARGET_NOISY`) for a dance beyond
     ``config.noisy_ratio`` (:data:`NOISY_RATIO`); ``kind`` default ``config.filter``. A motion
@@ -328,15 +328,15 @@ def settle(result: DanceResult, *, cutoff: float | None = None, legs: bool = Tru
     the lock's stop-and-go (a foot handed over between holds, the knee solved frame by frame) is softened,
     while a held foot stays where it is (a constant passes a unit-gain low-pass unchanged: only the
     hold's first and last few frames are eased). Each frame's bone lengths are kept (bone directions from the
-    filtered dance, parents first), piece by piece (:func:`dancekit.motion.footlock.chunks`); a motion with
+    filtered dance, parents first), piece by piece (:func:`dancekit.motion.filters.chunks`); a motion with
     rotations has its rotations and root translation filtered instead (re-orthonormalised, whole-song, as
     :func:`smooth` does) and its positions recomputed from them, so a held foot moves a little there.
     ``ratio_target`` (and no ``cutoff``): the cut-off is chosen per dance, the highest of
-    :data:`dancekit.motion.footlock.CUTOFFS_HZ` that brings the dance's jitter-to-energy ratio to the target
-    (:func:`dancekit.motion.footlock.lowpass_cutoff`); a dance already at or under it is left alone.
+    :data:`dancekit.motion.jitter.CUTOFFS_HZ` that brings the dance's jitter-to-energy ratio to the target
+    (:func:`dancekit.motion.jitter.lowpass_cutoff`); a dance already at or under it is left alone.
     ``max_jitter`` (m/s; and no ``cutoff``): the cut-off is chosen per dance, the highest of
-    :data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ` that brings the dance's jitter under the cap
-    (:func:`dancekit.motion.footlock.jitter_cutoff`; a genre model drawn by the seed, issue 15); a dance
+    :data:`dancekit.motion.jitter.CAP_CUTOFFS_HZ` that brings the dance's jitter under the cap
+    (:func:`dancekit.motion.jitter.jitter_cutoff`; a genre model drawn by the seed, issue 15); a dance
     already under it is left alone, a filtered one gets a note. :func:`finish` runs this one *before* the foot
     lock (a cut-off down to 1 Hz after it would lift the planted feet)."""
     from dancekit.motion.filters import chunks, lowpass_kernel, lowpass_rows
@@ -593,7 +593,7 @@ def stage_lift_energy(result: DanceResult, config, ctx: StageContext) -> DanceRe
 
 def stage_jitter_cap(result: DanceResult, config: JitterCapConfig, ctx: StageContext) -> DanceResult | None:
     """A per-dance low-pass (:func:`settle`) that brings the dance's jitter under ``ctx.max_jitter`` (m/s): the
-    highest cut-off of :data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ` that does, or ``ctx.cap_cutoff`` on a
+    highest cut-off of :data:`dancekit.motion.jitter.CAP_CUTOFFS_HZ` that does, or ``ctx.cap_cutoff`` on a
     later pass; a dance under the cap is left alone. None (the stage does not apply) without a cap. Fps and
     frame count unchanged; bone lengths exact."""
     if ctx.max_jitter is None:
@@ -664,7 +664,7 @@ def finish(result: DanceResult, audio: Song | str | os.PathLike, config: StageCo
     checkpoint's :class:`~dancekit.pipelines.config.StageConfig` switched for this run (None: the defaults).
     With the jitter cap's ``to_end``, while the finished dance's jitter is over its cap the stages from the cap
     (or the lock) on run again from the same input with the next lower cut-off
-    (:data:`dancekit.motion.footlock.CAP_CUTOFFS_HZ`), down to the lowest. ``trace``: called as
+    (:data:`dancekit.motion.jitter.CAP_CUTOFFS_HZ`), down to the lowest. ``trace``: called as
     ``trace("input", result)``, then ``trace(name, result)`` after each stage that ran (with ``to_end``, the
     stages after the cap as last run)."""
     config = StageConfig() if config is None else config
