@@ -131,3 +131,123 @@ def test_prefix_kept_and_seam_continuous():
                                np.linalg.norm(b[:, None] - b[None], axis=-1), atol=1e-6)
     with pytest.raises(ParameterError, match="shorter"):
         edit.continue_from(p, pre, skeleton=SK, fps=FPS)
+
+
+# --- the edit stage through `dancekit dance` on a 4-s excerpt of a test song (the embedded models) -------------
+
+SONG = "Kevin_MacLeod_-_Vibe_Ace.ogg"
+EXCERPT = ["--start", "10", "--end", "14", "--format", "npz", "--quiet"]
+
+
+def _cli(music_dir, out, *flags, model="revolution"):
+    from dancekit.cli.main import main
+
+    return main(["dance", str(music_dir / SONG), "-o", str(out), "--model", model, *EXCERPT, *flags])
+
+
+def _positions(out):
+    from dancekit.motion.formats import read_motion
+
+    return read_motion(out / SONG.replace(".ogg", ".npz")).to_positions().astype(np.float64)
+
+
+@pytest.fixture(scope="module")
+def base(music_dir, tmp_path_factory):
+    """The unedited dance (seed 0) and a second one (seed 1) of the excerpt: positions (T, 23, 3) cm."""
+    root = tmp_path_factory.mktemp("edit_base")
+    assert _cli(music_dir, root / "s0") == 0 and _cli(music_dir, root / "s1", "--seed", "1") == 0
+    return root, _positions(root / "s0"), _positions(root / "s1")
+
+
+@pytest.fixture(scope="module")
+def music_dir():  # the conftest fixture's folder, for the module-scoped `base`
+    from conftest import MUSIC, _need
+
+    return _need(MUSIC)
+
+
+def test_cli_keyframes(base, music_dir, tmp_path):
+    root, p0, _ = base
+    lw = SK.joint_names.index("left_wrist")
+    want = p0[50, lw] + [10.0, 8.0, -5.0]
+    keys = _write(tmp_path, "keys.json", [{"time": 2.0, "pose": {"left_wrist": want.tolist()}}])
+    assert _cli(music_dir, tmp_path / "o", "--keyframes", str(keys)) == 0
+    p = _positions(tmp_path / "o")
+    np.testing.assert_allclose(p[50, lw], want, atol=1e-3)  # float32 output, cm
+    assert np.array_equal(p[:25], p0[:25]) and np.array_equal(p[76:], p0[76:])  # > 1 s from the key
+
+
+def test_cli_path(base, music_dir, tmp_path):
+    path = _write(tmp_path, "path.json", {"points": [[0, 0], [1, 0], [1, 1]]})
+    assert _cli(music_dir, tmp_path / "o", "--path", str(path)) == 0
+    p = _positions(tmp_path / "o")
+    pts, times = edit.read_path(path)
+    target = edit.path_positions(pts, times, num_frames=len(p), fps=FPS)
+    rms = float(np.sqrt(np.mean(np.sum((p[:, SK.root][:, [0, 2]] * SK.unit_scale - target) ** 2, axis=1))))
+    assert rms <= 0.10
+
+
+def test_cli_keep(base, music_dir, tmp_path):
+    root, p0, p1 = base
+    take = root / "s1" / SONG.replace(".ogg", ".npz")
+    assert _cli(music_dir, tmp_path / "o", "--keep", "upper", "--from", str(take)) == 0
+    p = _positions(tmp_path / "o")
+    j, r = list(edit.body_part_joints(SK, "upper")), SK.root
+    np.testing.assert_allclose(p[:, j] - p[:, r:r + 1], p1[:, j] - p1[:, r:r + 1], atol=1e-3)
+    legs = [k for k in range(SK.num_joints) if k not in j]
+    assert np.array_equal(p[:, legs], p0[:, legs])
+
+
+def test_cli_prefix(base, music_dir, tmp_path):
+    from dancekit.motion import Motion
+    from dancekit.motion.formats import write_motion
+
+    _, p0, p1 = base
+    pre = p1[:40] + [30.0, 0.0, -20.0]
+    write_motion(tmp_path / "pre.npz", Motion(skeleton=SK, fps=FPS, positions=pre.astype(np.float32)))
+    assert _cli(music_dir, tmp_path / "o", "--prefix", str(tmp_path / "pre.npz")) == 0
+    p = _positions(tmp_path / "o")
+    np.testing.assert_allclose(p[:40], pre, atol=1e-4)
+    assert len(p) == len(p0)
+    # no spike at the seam: the acceleration there no larger than the largest in either dance
+    acc = np.linalg.norm(np.diff(p, 2, axis=0), axis=-1).max(axis=1)
+    own = max(np.linalg.norm(np.diff(d, 2, axis=0), axis=-1).max() for d in (p0, p1))
+    assert acc[36:44].max() <= own
+
+
+@pytest.mark.parametrize("flags, words", [
+    (lambda t, take: ["--keep", "upper"], "go together"),
+    (lambda t, take: ["--prefix", take, "--path", str(_write(t, "p.json", {"points": [[0, 0], [1, 0]]}))],
+     "cannot be given with a path"),
+    (lambda t, take: ["--keep", "left_wrist", "--from", take, "--keyframes",
+                      str(_write(t, "k.json", [{"time": 1.0, "pose": {"left_wrist": [0, 100, 0]}}]))],
+     "keys on kept joints"),
+    (lambda t, take: ["--prefix", take], "not shorter than the dance"),
+    (lambda t, take: ["--path", str(_write(t, "far.json", {"points": [[0, 0], [0, 6]]}))], "far.json"),
+])
+def test_cli_contradictions_refused(base, music_dir, tmp_path, capsys, flags, words):
+    root, _, _ = base
+    take = str(root / "s1" / SONG.replace(".ogg", ".npz"))
+    out = tmp_path / "o"
+    code = _cli(music_dir, out, *flags(tmp_path, take))
+    err = capsys.readouterr().err
+    assert code != 0 and words in err and err.strip().count("\n") == 0, err
+    assert not out.exists() or list(out.iterdir()) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model", ["music2dance", "dual"])
+def test_cli_edit_other_models(music_dir, tmp_path, model):
+    """Keys and a path with the two other models: the stage works on any finished dance."""
+    assert _cli(music_dir, tmp_path / "u", model=model) == 0
+    p0 = _positions(tmp_path / "u")
+    lw = SK.joint_names.index("left_wrist")
+    want = p0[50, lw] + [5.0, 5.0, 5.0]
+    keys = _write(tmp_path, "keys.json", [{"time": 2.0, "pose": {"left_wrist": want.tolist()}}])
+    path = _write(tmp_path, "path.json", {"points": [[0, 0], [1, 1]]})
+    assert _cli(music_dir, tmp_path / "o", "--keyframes", str(keys), "--path", str(path), model=model) == 0
+    p = _positions(tmp_path / "o")
+    np.testing.assert_allclose(p[50, lw], want, atol=1e-3)
+    target = edit.path_positions(*edit.read_path(path), num_frames=len(p), fps=FPS)
+    root = p[:, SK.root][:, [0, 2]] * SK.unit_scale
+    assert float(np.sqrt(np.mean(np.sum((root - target) ** 2, axis=1)))) <= 0.10

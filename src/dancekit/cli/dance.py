@@ -163,12 +163,18 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0, edit=None) ->
         fix = load_foot_constraint(args.foot_constraint)  # before the dance: a bad name fails fast
     stages_on = {"beat_sync": args.beat_sync == "on", "cleanup": args.cleanup == "on"}
     extra = {k: None if v is None else v == "on" for k, v in (("foot_lock", args.foot_lock), ("smooth", args.smooth))}
-    own = fix is None and edit is None and all(v is None for v in extra.values())  # the pipeline runs the stages
+    own = fix is None and all(v is None for v in extra.values())  # the pipeline runs the stages itself
     seeds = [args.seed] if args.seeds is None else args.seeds
     prefetch.wait()
     results = pipe.dances(str(audio), seeds=seeds, start=args.start, end=args.end, genre=args.genre,
                           progress=not args.quiet,
                           **(stages_on if own else {"beat_sync": False, "cleanup": False}))
+    if own and edit is not None:  # the pipeline's own dances, then the edit stage as finish runs it last
+        from dancekit.pipelines.stages import Song, edit_dance
+
+        song = Song(str(audio), args.start, args.end)
+        config = pipe.stage_options(**stages_on)
+        results = [edit_dance(r, edit, song, config) for r in results]
     if not own:  # the foot model sees the model's own dance; the stages come after it
         import dataclasses
 

@@ -32,7 +32,7 @@ from dancekit.motion.analysis import heading_axes, horizontal_axes
 from dancekit.motion.cleanup import DEFAULT_RADIUS_M
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["CROSSFADE_S", "KEY_SUPPORT_S", "Key", "MAX_SPEED_M_S", "PATH_CUTOFF_HZ", "apply_keyframes",
+__all__ = ["CROSSFADE_S", "KEY_SUPPORT_S", "Key", "MAX_SPEED_M_S", "MAX_SWAY_M", "PATH_CUTOFF_HZ", "apply_keyframes",
            "body_part_joints", "continue_from", "follow_path", "keep_joints", "key_correction", "read_keyframes",
            "read_path", "wendland"]
 
@@ -42,6 +42,8 @@ MAX_SPEED_M_S = 5.0
 KEY_SUPPORT_S = 1.0
 #: The cut-off (Hz) below which the root's horizontal motion is the "slow trajectory" a path replaces.
 PATH_CUTOFF_HZ = 0.5
+#: The largest RMS (m) of the root's own sway kept around a path (a larger sway is scaled down to it).
+MAX_SWAY_M = 0.05
 #: The window (s) after a prefix over which the generated dance is faded onto the prefix's last pose.
 CROSSFADE_S = 0.5
 
@@ -235,22 +237,34 @@ def path_positions(points: np.ndarray, times: np.ndarray | None, *, num_frames: 
 
 
 def _lowpass(x: np.ndarray, *, fps: float, cutoff_hz: float) -> np.ndarray:
-    """Zero-phase Gaussian low-pass along axis 0 (sigma from the -3 dB cut-off), edges reflected."""
+    """Zero-phase Gaussian low-pass along axis 0 (sigma from the -3 dB cut-off); the edges padded by point
+    reflection (``2 x[0] - x[k]``), so a steady drift at an edge stays in the low-pass, not in the remainder."""
     from dancekit.motion._filters import gaussian_filter1d
 
     sigma = fps * math.sqrt(math.log(2.0)) / (math.sqrt(2.0) * math.pi * cutoff_hz)
-    return gaussian_filter1d(x, sigma, axis=0)
+    n = min(int(math.ceil(4 * sigma)), len(x) - 1)
+    if n < 1:
+        return np.array(x, np.float64)
+    head = 2 * x[0] - x[n:0:-1]
+    tail = 2 * x[-1] - x[-2:-n - 2:-1]
+    y = gaussian_filter1d(np.concatenate([head, x, tail]), sigma, axis=0)
+    return y[n:n + len(x)]
 
 
 def follow_path(positions: np.ndarray, *, skeleton: Skeleton, fps: float, points: np.ndarray,
-                times: np.ndarray | None = None, cutoff_hz: float = PATH_CUTOFF_HZ) -> np.ndarray:
+                times: np.ndarray | None = None, cutoff_hz: float = PATH_CUTOFF_HZ,
+                max_sway_m: float = MAX_SWAY_M) -> np.ndarray:
     """The dance moved (every joint by the same horizontal shift per frame) so that the root's slow horizontal
     trajectory (its ``cutoff_hz`` low-pass) is the path ``points`` (m, ``(N, 2)``, optional ``times`` s): the
-    root's own fast sway (root − its low-pass) is kept. Heights unchanged."""
+    root's own fast sway (root − its low-pass) is kept, scaled down to ``max_sway_m`` m RMS when larger (so
+    the root stays within that of the path). Heights unchanged."""
     p = np.array(positions, np.float64)
     a, b = horizontal_axes(skeleton)
     root = p[:, skeleton.root][:, [a, b]]
     sway = root - _lowpass(root, fps=fps, cutoff_hz=cutoff_hz)
+    rms = float(np.sqrt(np.mean(np.sum(sway ** 2, axis=1)))) * skeleton.unit_scale
+    if rms > max_sway_m:
+        sway *= max_sway_m / rms
     target = path_positions(points, times, num_frames=len(p), fps=fps) / skeleton.unit_scale + sway
     p[:, :, a] += (target - root)[:, None, 0]
     p[:, :, b] += (target - root)[:, None, 1]

@@ -60,7 +60,7 @@ from dancekit.pipelines.config import (  # noqa: F401 (the defaults, re-exported
 __all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "STAGES", "STAGE_NAMES", "Song",
            "StageContext", "beat_sync", "clean_up", "finish", "foot_lock", "genre_jitter_table", "jitter_cap_for",
            "lift_energy", "plausible_jitter_cap", "reground", "seed_trace", "settle", "smooth", "smoothing_target",
-           "song_beats_for"]
+           "song_beats_for", "edit_dance", "stage_edit"]
 
 #: The cut-off (Hz) of the light low-pass after the foot lock (:func:`settle`); 0: none.
 SETTLE_HZ = 0.0
@@ -724,6 +724,17 @@ def stage_edit(result: DanceResult, config: EditConfig, ctx: StageContext,
         notes.append(f"{len(keys)} keys from {Path(config.keyframes).name}")
     out = Motion(skeleton=sk, fps=fps, positions=p.astype(np.float32))
     return _with_note(dataclasses.replace(result, motion=out), "edited: " + "; ".join(notes))
+
+
+def edit_dance(result: DanceResult, edit: EditConfig, audio: Song | str | os.PathLike,
+               config: StageConfig | None = None) -> DanceResult:
+    """A finished dance (e.g. one of a pipeline's ``dances``) through the edit stage alone (:func:`stage_edit`),
+    as :func:`finish` runs it last with ``config.edit``: the path's foot lock with ``config``'s settings
+    when its foot lock is on (None: the defaults). ``audio``: the song (its beats, for keys given by beat)."""
+    config = StageConfig() if config is None else config
+    song = audio if isinstance(audio, Song) else Song(audio)
+    ctx = StageContext(song=song, genre_stats=config.genre_stats)
+    return stage_edit(result, edit, ctx, lock=config.foot_lock if "foot_lock" in config.order() else None)
 
 
 #: stage name → its function ``(result, its settings, StageContext) -> result`` (None: the stage does not apply)
