@@ -58,6 +58,13 @@ def test_keys_exact_smooth_and_local(tmp_path):
     assert np.abs(corr[:, wrist]).max() > 5  # the correction did something
 
 
+def test_key_correction_exact_where_bumps_overlap():
+    res = np.array([[10.0, 0.0], [-4.0, 2.0], [3.0, 3.0]])
+    c = edit.key_correction(120, np.array([40, 50, 58]), res, support=25.0)
+    np.testing.assert_allclose(c[[40, 50, 58]], res, atol=1e-9)
+    assert np.array_equal(c[:16], np.zeros((16, 2))) and np.array_equal(c[83:], np.zeros((37, 2)))
+
+
 def test_wendland_bump_known_values():
     np.testing.assert_allclose(edit.wendland(np.array([0.0, 0.5, 1.0, 2.0])), [1.0, 0.0625 * 3.0, 0.0, 0.0])
 
