@@ -258,3 +258,27 @@ def test_cli_edit_other_models(music_dir, tmp_path, model):
     target = edit.path_positions(*edit.read_path(path), num_frames=len(p), fps=FPS)
     root = p[:, SK.root][:, [0, 2]] * SK.unit_scale
     assert float(np.sqrt(np.mean(np.sum((root - target) ** 2, axis=1)))) <= 0.10
+
+
+def test_finish_runs_the_edit_stage_last(tmp_path):
+    """Python API: ``finish(result, song, dataclasses.replace(config, edit=EditConfig(...)))``."""
+    import dataclasses
+
+    from dancekit.motion import Motion
+    from dancekit.pipelines.base import DanceResult
+    from dancekit.pipelines.config import EditConfig, StageConfig
+    from dancekit.pipelines.stages import finish
+
+    p = _dance()
+    wrist = SK.joint_names.index("left_wrist")
+    want = (p[60, wrist] + [5.0, 5.0, 5.0]).tolist()
+    keys = _write(tmp_path, "keys.json", [{"frame": 60, "pose": {"left_wrist": want}}])
+    result = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32)), model="x", seed=0)
+    config = StageConfig().switched(beat_sync=False, cleanup=False)
+    names = []
+    out = finish(result, "no-song.wav", dataclasses.replace(config, edit=EditConfig(keyframes=str(keys))),
+                 trace=lambda name, r: names.append(name))
+    assert names[-1] == "edit" and out.notes[-1].startswith("edited: 1 keys")
+    np.testing.assert_allclose(out.motion.positions[60, wrist], want, atol=1e-3)
+    with pytest.raises(ParameterError, match="go together"):
+        EditConfig(keep="upper")
