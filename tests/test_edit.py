@@ -132,6 +132,10 @@ def test_prefix_kept_and_seam_continuous():
     step = np.linalg.norm(out[60] - out[59], axis=-1).max()
     assert step <= 1.5 * max(np.linalg.norm(np.diff(pre, axis=0), axis=-1).max(),
                              np.linalg.norm(np.diff(p, axis=0), axis=-1).max())
+    # and no kink: the acceleration across the seam no larger than the largest of the two dances (the
+    # velocity carried over; a pose-only fade leaves the velocity jump, a spike)
+    acc = np.linalg.norm(np.diff(out, 2, axis=0), axis=-1).max(axis=1)
+    assert acc[56:62].max() <= max(np.linalg.norm(np.diff(d, 2, axis=0), axis=-1).max() for d in (pre, p))
     # after the fade: the dance's own motion, moved rigidly (pairwise joint distances equal)
     a, b = out[150], p[150]
     np.testing.assert_allclose(np.linalg.norm(a[:, None] - a[None], axis=-1),

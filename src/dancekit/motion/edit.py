@@ -319,29 +319,31 @@ def continue_from(prefix: np.ndarray, positions: np.ndarray, *, skeleton: Skelet
     """The dance ``(T, J, 3)`` continuing ``prefix`` (``(P, J, 3)``, P < T, same skeleton and fps): frames
     ``[0, P)`` are the prefix exactly; frames ``[P, T)`` are the dance's, turned about the up axis and moved on
     the floor so that its frame ``P - 1`` has the prefix's last root position (horizontal) and heading, then
-    the remaining difference to the prefix's last pose faded out (smoothstep) over ``crossfade_s`` s after P."""
+    the remaining difference in pose and in velocity to the prefix's last frames faded out (a smoothstep, so
+    position and velocity continue across the seam) over ``crossfade_s`` s after P."""
     pre = np.asarray(prefix, np.float64)
     p = np.array(positions, np.float64)
     n = len(pre)
-    if not 0 < n < len(p):
-        raise ParameterError(f"the prefix ({n} frames) must be shorter than the dance ({len(p)} frames)")
+    if not 1 < n < len(p):
+        raise ParameterError(f"the prefix ({n} frames) must be at least 2 frames and shorter than the dance "
+                             f"({len(p)} frames)")
     a, b = horizontal_axes(skeleton)
     r = skeleton.root
     ang = _yaw(pre, skeleton, n - 1) - _yaw(p, skeleton, n - 1)
     c, s = math.cos(ang), math.sin(ang)
     pivot = p[n - 1, r].copy()
-    rel = p[n - 1:] - pivot
+    rel = p[n - 2:] - pivot  # from the frame before the seam's: rel[1] is frame n - 1
     xa, xb = rel[..., a].copy(), rel[..., b].copy()
-    rel[..., a] = c * xa - s * xb
-    rel[..., b] = s * xa + c * xb
-    rel[..., a] += pre[n - 1, r, a]
-    rel[..., b] += pre[n - 1, r, b]
+    rel[..., a] = c * xa - s * xb + pre[n - 1, r, a]
+    rel[..., b] = s * xa + c * xb + pre[n - 1, r, b]
     rel[..., skeleton.up_index] += pivot[skeleton.up_index]
-    gap = pre[n - 1] - rel[0]  # (J, 3) what is left after the rigid alignment
+    gap = pre[n - 1] - rel[1]  # (J, 3) the pose left to bridge after the rigid alignment
+    dv = (pre[n - 1] - pre[n - 2]) - (rel[1] - rel[0])  # (J, 3) and the velocity (per frame)
     w = max(int(round(crossfade_s * fps)), 1)
-    u = np.clip(np.arange(1, len(rel)) / w, 0.0, 1.0)
-    fade = 1.0 - u * u * (3.0 - 2.0 * u)
+    k = np.arange(1, len(rel) - 1, dtype=np.float64)  # frames after n - 1
+    u = np.clip(k / w, 0.0, 1.0)
+    fade = 1.0 - u * u * (3.0 - 2.0 * u)  # 1 with zero slope at the seam, 0 from w frames on
     out = np.empty_like(p)
     out[:n] = pre
-    out[n:] = rel[1:] + fade[:, None, None] * gap
+    out[n:] = rel[2:] + fade[:, None, None] * (gap[None] + k[:, None, None] * dv[None])
     return out
