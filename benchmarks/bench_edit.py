@@ -214,7 +214,7 @@ def _plot(path: Path, p0, p1, frames, root, target, *, sk, fps: float) -> None:
     d.text((M, 10), f"left wrist height (cm {lo:.0f}-{hi:.0f}) over {len(p0) / fps:.0f} s: unedited grey, "
                     "keyed blue, keys red", fill="black")
     allp = np.concatenate([root, target])
-    c, span = allp.mean(0), float(np.ptp(allp, axis=0).max()) + 0.4
+    c, span = (allp.min(0) + allp.max(0)) / 2, float(np.ptp(allp, axis=0).max()) + 0.4
     x0 = pw + M
 
     def top(q):  # one scale on both axes
