@@ -70,6 +70,12 @@ def _keys_file(path: Path, p: np.ndarray, real: np.ndarray, sk, fps: float) -> l
     return frames
 
 
+def _rel(x, joints: list[int], sk) -> np.ndarray:
+    """Positions of ``joints`` relative to the root, ``(T, n, 3)`` float64."""
+    x = np.asarray(x, np.float64)
+    return x[:, joints] - x[:, sk.root:sk.root + 1]
+
+
 def _acc(p: np.ndarray, sk, fps: float) -> np.ndarray:
     """Per frame, the largest joint acceleration (m/s^2), ``(T - 2,)``."""
     return np.linalg.norm(np.diff(p, 2, axis=0), axis=-1).max(axis=1) * fps * fps * sk.unit_scale
@@ -147,8 +153,7 @@ def main(argv=None) -> int:
                 write_motion(take, Motion(skeleton=sk, fps=fps, positions=real[: len(p0)].astype(np.float32)))
                 pk = edit_dance(r, EditConfig(keep="upper", take=str(take)), song, config).motion.to_positions()
                 j = list(edit.body_part_joints(sk, "upper"))
-                rel = lambda x: np.asarray(x, np.float64)[:, j] - np.asarray(x, np.float64)[:, sk.root:sk.root + 1]  # noqa: E731
-                per["keep"].append(float(np.abs(rel(pk) - rel(real[: len(p0)])).max()))
+                per["keep"].append(float(np.abs(_rel(pk, j, sk) - _rel(real[: len(p0)], j, sk)).max()))
                 pre_n = int(2 * fps)
                 pre = real[len(real) // 2: len(real) // 2 + pre_n]
                 pf = work / f"prefix_{si}_{k}.npz"

@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from dancekit.errors import ParameterError
-from dancekit.motion import get_skeleton
-from dancekit.motion import edit
+from dancekit.motion import edit, get_skeleton
 
 SK = get_skeleton("tang2018")  # centimetres, y up
 FPS = 25.0
