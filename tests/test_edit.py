@@ -285,3 +285,39 @@ def test_finish_runs_the_edit_stage_last(tmp_path):
     np.testing.assert_allclose(out.motion.positions[60, wrist], want, atol=1e-3)
     with pytest.raises(ParameterError, match="go together"):
         EditConfig(keep="upper")
+
+
+def test_keys_on_beats(tmp_path):
+    p = _dance()
+    f = _write(tmp_path, "beats.json", [{"beat": 2, "pose": {"head_right": p[40, 0].tolist()}}])
+    keys = edit.read_keyframes(f, skeleton=SK, fps=FPS, num_frames=len(p), beats=[0.5, 1.0, 1.52, 2.0])
+    assert [k.frame for k in keys] == [38]  # 1.52 s at 25 fps
+    with pytest.raises(ParameterError, match="beats.json.*beat 2 is not among the song's 2"):
+        edit.read_keyframes(f, skeleton=SK, fps=FPS, num_frames=len(p), beats=[0.5, 1.0])
+
+
+def test_path_sway_capped():
+    p = _dance(T=250)
+    p[:, :, 0] += 30.0 * np.sin(2 * math.pi * 2.0 * np.arange(250) / FPS)[:, None]  # a 21-cm RMS sway at 2 Hz
+    pts = np.array([[0.0, 0.0], [2.0, 0.0]])
+    out = edit.follow_path(p, skeleton=SK, fps=FPS, points=pts)
+    root = out[:, SK.root][:, [0, 2]] * SK.unit_scale
+    target = edit.path_positions(pts, None, num_frames=len(p), fps=FPS)
+    rms = float(np.sqrt(np.mean(np.sum((root - target) ** 2, axis=1))))
+    assert 0.045 <= rms <= 0.0501  # the sway kept, scaled to its 5-cm cap
+
+
+def test_prefix_without_rig_mapping_refused(tmp_path):
+    from dancekit.motion import Motion
+    from dancekit.motion.formats import write_motion
+    from dancekit.pipelines.base import DanceResult
+    from dancekit.pipelines.config import EditConfig
+    from dancekit.pipelines.stages import edit_dance
+
+    sk2 = get_skeleton("body25")
+    write_motion(tmp_path / "flat.npz", Motion(skeleton=sk2, fps=FPS, positions=np.ones((20, sk2.num_joints, 2),
+                                                                                        np.float32)))
+    result = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=_dance().astype(np.float32)), model="x",
+                         seed=0)
+    with pytest.raises(ParameterError, match="flat.npz.*no rig mapping"):
+        edit_dance(result, EditConfig(prefix=str(tmp_path / "flat.npz")), "no-song.wav")
