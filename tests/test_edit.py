@@ -290,8 +290,8 @@ def test_finish_runs_the_edit_stage_last(tmp_path):
 def test_keys_on_beats(tmp_path):
     p = _dance()
     f = _write(tmp_path, "beats.json", [{"beat": 2, "pose": {"head_right": p[40, 0].tolist()}}])
-    keys = edit.read_keyframes(f, skeleton=SK, fps=FPS, num_frames=len(p), beats=[0.5, 1.0, 1.52, 2.0])
-    assert [k.frame for k in keys] == [38]  # 1.52 s at 25 fps
+    keys = edit.read_keyframes(f, skeleton=SK, fps=FPS, num_frames=len(p), beats=[0.5, 1.0, 1.55, 2.0])
+    assert [k.frame for k in keys] == [39]  # 1.55 s at 25 fps: frame 38.75, the nearest 39
     with pytest.raises(ParameterError, match="beats.json.*beat 2 is not among the song's 2"):
         edit.read_keyframes(f, skeleton=SK, fps=FPS, num_frames=len(p), beats=[0.5, 1.0])
 
