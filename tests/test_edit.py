@@ -176,6 +176,7 @@ def music_dir():  # the conftest fixture's folder, for the module-scoped `base`
     return _need(MUSIC)
 
 
+@pytest.mark.shared
 def test_cli_keyframes(base, music_dir, tmp_path):
     root, p0, _ = base
     lw = SK.joint_names.index("left_wrist")
@@ -187,6 +188,7 @@ def test_cli_keyframes(base, music_dir, tmp_path):
     assert np.array_equal(p[:25], p0[:25]) and np.array_equal(p[76:], p0[76:])  # > 1 s from the key
 
 
+@pytest.mark.shared
 def test_cli_path(base, music_dir, tmp_path):
     path = _write(tmp_path, "path.json", {"points": [[0, 0], [1, 0], [1, 1]]})
     assert _cli(music_dir, tmp_path / "o", "--path", str(path)) == 0
@@ -197,6 +199,7 @@ def test_cli_path(base, music_dir, tmp_path):
     assert rms <= 0.10
 
 
+@pytest.mark.shared
 def test_cli_keep(base, music_dir, tmp_path):
     root, p0, p1 = base
     take = root / "s1" / SONG.replace(".ogg", ".npz")
@@ -208,6 +211,7 @@ def test_cli_keep(base, music_dir, tmp_path):
     assert np.array_equal(p[:, legs], p0[:, legs])
 
 
+@pytest.mark.shared
 def test_cli_prefix(base, music_dir, tmp_path):
     from dancekit.motion import Motion
     from dancekit.motion.formats import write_motion
@@ -225,6 +229,7 @@ def test_cli_prefix(base, music_dir, tmp_path):
     assert acc[36:44].max() <= own
 
 
+@pytest.mark.shared
 @pytest.mark.parametrize("flags, words", [
     (lambda t, take: ["--keep", "upper"], "go together"),
     (lambda t, take: ["--prefix", take, "--path", str(_write(t, "p.json", {"points": [[0, 0], [1, 0]]}))],
@@ -246,6 +251,7 @@ def test_cli_contradictions_refused(base, music_dir, tmp_path, capsys, flags, wo
 
 
 @pytest.mark.slow
+@pytest.mark.shared
 @pytest.mark.parametrize("model", ["music2dance", "dual"])
 def test_cli_edit_other_models(music_dir, tmp_path, model):
     """Keys and a path with the two other models: the stage works on any finished dance."""
