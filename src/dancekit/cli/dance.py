@@ -65,6 +65,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--smooth", choices=("on", "off"), default=None,
                    help="filter frame-to-frame jitter out of a jittery dance (a Savitzky-Golay filter whose window "
                         "is chosen per dance; a smooth dance is left alone; default: as --cleanup)")
+    e = p.add_argument_group("editing (docs/EDITING.md; applied to the finished dance, any model)")
+    e.add_argument("--prefix", default=None, metavar="FILE",
+                   help="a motion (npz, bvh, glb, pkl) kept exactly for its length; the dance continues from it "
+                        "(aligned to its last frame and faded over 0.5 s after it)")
+    e.add_argument("--keyframes", default=None, metavar="KEYS.json",
+                   help='poses at given times or beats: [{"time": s | "beat": i, "pose": FILE | {joint: [x, y, z]}}]; '
+                        "the dance passes exactly through them, smoothly corrected within 1 s around each")
+    e.add_argument("--path", default=None, metavar="PATH.json",
+                   help='a path on the floor {"points": [[x, z], ...] (m), "times": [...] (s, optional)}: the '
+                        "root follows it (its own sway kept), the feet held again by the foot lock")
+    e.add_argument("--keep", default=None, metavar="upper|lower|JOINTS",
+                   help="body part taken from --from: upper, lower or comma-separated joint names")
+    e.add_argument("--from", dest="take", default=None, metavar="TAKE",
+                   help="the take (npz, bvh, glb, pkl) whose --keep joints the dance keeps (mapped by role from "
+                        "another skeleton)")
     p.add_argument("--format", default=",".join(DEFAULT_FORMATS),
                    help=f"comma-separated outputs from {', '.join(FORMATS)}")
     p.add_argument("--bvh-rig", choices=("exact", "humanoid"), default="exact",
@@ -106,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     args.fps = output_fps(args.fps)
     if args.threads < 1:
         raise ParameterError(f"--threads must be at least 1, got {args.threads}")
+    edit = _edit_config(args)  # before the dance is made: a missing file or a contradiction fails fast
     clip = AudioClip(audio, args.start, args.end)
     options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
@@ -113,12 +129,21 @@ def run(args: argparse.Namespace) -> int:
     prefetch = prefetch_for_model(audio, args.checkpoint if args.checkpoint is not None else args.model,
                                   start=args.start, end=args.end)
     try:
-        return _dance(args, audio, clip, options, out, formats, prefetch, t0)
+        return _dance(args, audio, clip, options, out, formats, prefetch, t0, edit)
     finally:
         prefetch.cancel()
 
 
-def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
+def _edit_config(args):
+    """The :class:`~dancekit.pipelines.config.EditConfig` of the editing flags, or None without any."""
+    if all(v is None for v in (args.prefix, args.keyframes, args.path, args.keep, args.take)):
+        return None
+    from dancekit.pipelines.config import EditConfig
+
+    return EditConfig(prefix=args.prefix, keyframes=args.keyframes, path=args.path, keep=args.keep, take=args.take)
+
+
+def _dance(args, audio, clip, options, out, formats, prefetch, t0, edit=None) -> int:
     from dancekit.export import export_motion
     from dancekit.pipelines import load_pipeline
 
@@ -139,6 +164,12 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
     results = pipe.dances(str(audio), seeds=seeds, start=args.start, end=args.end, genre=args.genre,
                           progress=not args.quiet,
                           **(stages_on if own else {"beat_sync": False, "cleanup": False}))
+    if own and edit is not None:  # the pipeline's own dances, then the edit stage as finish runs it last
+        from dancekit.pipelines.stages import Song, edit_dance
+
+        song = Song(str(audio), args.start, args.end)
+        config = pipe.stage_options(**stages_on)
+        results = [edit_dance(r, edit, song, config) for r in results]
     if not own:  # the foot model sees the model's own dance; the stages come after it
         import dataclasses
 
@@ -146,6 +177,8 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0) -> int:
 
         song = Song(str(audio), args.start, args.end)  # its beats tracked once
         config = pipe.stage_options(**stages_on, **extra)  # the checkpoint's stage settings, as in pipe.dances
+        if edit is not None:
+            config = dataclasses.replace(config, edit=edit)
         results = [finish(dataclasses.replace(r, motion=r.motion if fix is None else fix(r.motion)), song, config)
                    for r in results]
     t_made = time.perf_counter()

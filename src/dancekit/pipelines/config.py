@@ -30,7 +30,7 @@ from typing import Any
 
 from dancekit.errors import CheckpointError, ParameterError
 
-__all__ = ["BeatSyncConfig", "CheckpointSettings", "CleanUpConfig", "DualSampling", "EnergyConfig",
+__all__ = ["BeatSyncConfig", "CheckpointSettings", "CleanUpConfig", "DualSampling", "EditConfig", "EnergyConfig",
            "FootLockConfig", "GenreStats", "JitterCapConfig", "Music2DanceSampling", "NoSampling",
            "RegroundConfig", "RevolutionSampling", "STAGE_NAMES", "SettleConfig", "SmoothConfig", "StageConfig",
            "SAMPLING_CONFIGS", "TOP_LEVEL_KEYS", "checkpoint_settings", "convert_old_layout", "parse_entry",
@@ -368,6 +368,54 @@ STAGE_CONFIGS: dict[str, type] = {"clean_up": CleanUpConfig, "smooth": SmoothCon
 
 
 @dataclass(frozen=True)
+class EditConfig:
+    """The edit stage (:func:`dancekit.pipelines.stages.stage_edit`, :mod:`dancekit.motion.edit`): the user's
+    constraints on one run, applied to the finished dance after every other stage (not a checkpoint setting).
+
+    ``prefix``: a motion file kept exactly for its length, the dance continuing from it; ``keyframes``: a
+    ``keys.json``; ``path``: a ``path.json``; ``keep``: ``"upper"``, ``"lower"`` or joint names (a tuple, or a
+    comma-separated string) taken from the motion file ``take``; ``support_s`` (s): half-width of a key's
+    correction; ``crossfade_s`` (s): the fade after the prefix; ``max_speed`` (m/s): keys needing a faster
+    joint are refused. A contradictory request (``keep`` without ``take``, a prefix with a path) is a
+    ParameterError; so is a file that does not exist."""
+
+    prefix: str | None = None
+    keyframes: str | None = None
+    path: str | None = None
+    keep: str | tuple[str, ...] | None = None
+    take: str | None = None
+    support_s: float = 1.0
+    crossfade_s: float = 0.5
+    max_speed: float = 5.0
+
+    def __post_init__(self):
+        for k in ("prefix", "keyframes", "path", "take"):
+            v = getattr(self, k)
+            if v is not None:
+                if not os.path.isfile(v):
+                    raise ParameterError(f"edit: {k} file not found: {v}")
+                _set(self, k, str(v))
+        if (self.keep is None) != (self.take is None):
+            raise ParameterError("edit: keep (--keep) and take (--from) go together")
+        if self.prefix is not None and self.path is not None:
+            raise ParameterError(f"edit: a prefix ({self.prefix}) fixes the root's path for its length; "
+                                 "it cannot be given with a path")
+        if self.prefix is not None and self.keep is not None:
+            raise ParameterError(f"edit: a prefix ({self.prefix}) fixes every joint for its length; "
+                                 "it cannot be given with kept body parts")
+        if isinstance(self.keep, list):
+            _set(self, "keep", tuple(self.keep))
+        _set(self, "support_s", _number("edit.support_s", self.support_s, lo=0, lo_open=True, unit="s"))
+        _set(self, "crossfade_s", _number("edit.crossfade_s", self.crossfade_s, lo=0, lo_open=True, unit="s"))
+        _set(self, "max_speed", _number("edit.max_speed", self.max_speed, lo=0, lo_open=True, unit="m/s"))
+
+    @property
+    def active(self) -> bool:
+        """Whether any constraint is given."""
+        return any(v is not None for v in (self.prefix, self.keyframes, self.path, self.keep))
+
+
+@dataclass(frozen=True)
 class StageConfig:
     """The offline stages of a checkpoint: one settings dataclass per stage (None: the stage is off for this
     checkpoint: no energy lift, jitter cap or regrounding), the per-genre statistics they compare a dance
@@ -384,6 +432,8 @@ class StageConfig:
     beat_sync: BeatSyncConfig = field(default_factory=BeatSyncConfig)
     genre_stats: GenreStats = field(default_factory=GenreStats)
     enabled: frozenset[str] = frozenset(STAGE_NAMES)
+    #: the user's edit of this run (:class:`EditConfig`), run after every other stage; None: no edit
+    edit: EditConfig | None = None
 
     def __post_init__(self):
         unknown = set(self.enabled) - set(STAGE_NAMES)

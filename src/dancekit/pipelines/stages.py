@@ -49,6 +49,7 @@ from dancekit.pipelines.config import (  # noqa: F401 (the defaults, re-exported
     SMOOTH_TARGET,
     SMOOTH_TARGET_NOISY,
     STAGE_NAMES,
+    EditConfig,
     FootLockConfig,
     GenreStats,
     JitterCapConfig,
@@ -59,7 +60,7 @@ from dancekit.pipelines.config import (  # noqa: F401 (the defaults, re-exported
 __all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "STAGES", "STAGE_NAMES", "Song",
            "StageContext", "beat_sync", "clean_up", "finish", "foot_lock", "genre_jitter_table", "jitter_cap_for",
            "lift_energy", "plausible_jitter_cap", "reground", "seed_trace", "settle", "smooth", "smoothing_target",
-           "song_beats_for"]
+           "song_beats_for", "edit_dance", "stage_edit"]
 
 #: The cut-off (Hz) of the light low-pass after the foot lock (:func:`settle`); 0: none.
 SETTLE_HZ = 0.0
@@ -637,6 +638,98 @@ def stage_beat_sync(result: DanceResult, config, ctx: StageContext) -> DanceResu
                      beats=ctx.song.song_beats() if needs else None, options=config.warp_options())
 
 
+def _edit_motion(file: str, skeleton, fps: float, what: str) -> np.ndarray:
+    """The positions ``(T, J, 3)`` of a motion file on ``skeleton`` at ``fps`` (mapped by role from another
+    skeleton, resampled from another frame rate)."""
+    from dancekit.motion.formats import read_motion
+
+    m = read_motion(file)
+    if not m.skeleton.same_as(skeleton):
+        from dancekit.motion.retarget import MAP_REQUIRED, map_by_role
+
+        missing = [r for r in MAP_REQUIRED if not m.skeleton.has(r)]
+        if missing or m.skeleton.dims != 3:
+            raise ParameterError(f"{file}: the {what} is on skeleton {m.skeleton.name!r}, which has no rig mapping "
+                                 f"to {skeleton.name!r} (missing roles: {', '.join(missing) or '3D'})")
+        m = map_by_role(m, skeleton)
+    if m.fps != fps:
+        m = m.resample(fps)
+    return np.asarray(m.to_positions(), np.float64)
+
+
+def stage_edit(result: DanceResult, config: EditConfig, ctx: StageContext,
+               lock: FootLockConfig | None = None) -> DanceResult:
+    """The user's edit (:class:`~dancekit.pipelines.config.EditConfig`, :mod:`dancekit.motion.edit`), in this
+    order: the prefix (kept exactly, the dance aligned and faded onto it), the path (then the feet held again
+    by :func:`foot_lock` with ``lock``, when the foot lock is on), the kept body parts, the keyframes (exact
+    at their frames, so last). Same fps and frame count; the result holds positions only (the edited joints
+    no longer follow the rotations). A contradiction (keys on kept joints, keys within the prefix or its
+    fade, a prefix not shorter than the dance) is a ParameterError naming the file."""
+    from dancekit.motion import edit
+
+    m = result.motion
+    if not _is_3d(m):
+        raise ParameterError("edit: only a 3D dance can be edited")
+    sk, fps = m.skeleton, m.fps
+    p = np.asarray(m.to_positions(), np.float64)
+    n_pre, notes = 0, []
+    if config.prefix is not None:
+        pre = _edit_motion(config.prefix, sk, fps, "prefix")
+        if len(pre) >= len(p):
+            raise ParameterError(f"{config.prefix}: the prefix ({len(pre) / fps:.2f} s) is not shorter than the "
+                                 f"dance ({len(p) / fps:.2f} s)")
+        p, n_pre = edit.continue_from(pre, p, skeleton=sk, fps=fps, crossfade_s=config.crossfade_s), len(pre)
+        notes.append(f"continued from {Path(config.prefix).name} ({n_pre / fps:.1f} s)")
+    if config.path is not None:
+        points, times = edit.read_path(config.path)
+        p = edit.follow_path(p, skeleton=sk, fps=fps, points=points, times=times)
+        if lock is not None:
+            moved = dataclasses.replace(result, motion=Motion(skeleton=sk, fps=fps, positions=p.astype(np.float32)))
+            p = np.asarray(foot_lock(moved, lock, ctx.genre_stats).motion.to_positions(), np.float64)
+        notes.append(f"on the path {Path(config.path).name}")
+    kept: tuple[int, ...] = ()
+    if config.keep is not None:
+        take = _edit_motion(config.take, sk, fps, "take")
+        if len(take) < len(p):
+            raise ParameterError(f"{config.take}: the take ({len(take) / fps:.2f} s) is shorter than the dance "
+                                 f"({len(p) / fps:.2f} s)")
+        kept = edit.body_part_joints(sk, config.keep)
+        p = edit.keep_joints(p, take, skeleton=sk, joints=kept)
+        notes.append(f"{config.keep if isinstance(config.keep, str) else ','.join(config.keep)} kept from "
+                     f"{Path(config.take).name}")
+    if config.keyframes is not None:
+        try:
+            wants_beats = '"beat"' in Path(config.keyframes).read_text()
+        except (OSError, UnicodeDecodeError):
+            wants_beats = False  # read_keyframes names the problem
+        beats = ctx.song.song_beats().times if wants_beats else None
+        keys = edit.read_keyframes(config.keyframes, skeleton=sk, fps=fps, num_frames=len(p), beats=beats,
+                                   max_speed=config.max_speed)
+        both = sorted({sk.joint_names[j] for k in keys for j in k.joints} & {sk.joint_names[j] for j in kept})
+        if both:
+            raise ParameterError(f"{config.keyframes}: keys on kept joints ({', '.join(both)}): the take fixes them")
+        support = config.support_s * fps
+        early = [k for k in keys if k.frame < n_pre + support] if n_pre else []
+        if early:
+            raise ParameterError(f"{config.keyframes}: a key at {early[0].frame / fps:.2f} s falls within the prefix "
+                                 f"or its {config.support_s:g} s after ({n_pre / fps:.2f} s)")
+        p = edit.apply_keyframes(p, keys=keys, fps=fps, support_s=config.support_s)
+        notes.append(f"{len(keys)} keys from {Path(config.keyframes).name}")
+    out = Motion(skeleton=sk, fps=fps, positions=p.astype(np.float32))
+    return _with_note(dataclasses.replace(result, motion=out), "edited: " + "; ".join(notes))
+
+
+def edit_dance(result: DanceResult, edit: EditConfig, audio: Song | str | os.PathLike,
+               config: StageConfig | None = None) -> DanceResult:
+    """A finished dance (e.g. one of a pipeline's ``dances``) through the edit stage alone (:func:`stage_edit`),
+    as :func:`finish` runs it last with ``config.edit``: the path's foot lock with ``config``'s settings
+    when its foot lock is on (None: the defaults). ``audio``: the song (its beats, for keys given by beat)."""
+    config = StageConfig() if config is None else config
+    song = audio if isinstance(audio, Song) else Song(audio)
+    ctx = StageContext(song=song, genre_stats=config.genre_stats)
+    return stage_edit(result, edit, ctx, lock=config.foot_lock if "foot_lock" in config.order() else None)
+
+
 #: stage name → its function ``(result, its settings, StageContext) -> result`` (None: the stage does not apply)
 STAGES: dict[str, Callable] = {"clean_up": stage_clean_up, "smooth": stage_smooth, "lift_energy": stage_lift_energy,
                                "jitter_cap": stage_jitter_cap, "foot_lock": stage_foot_lock, "settle": stage_settle,
@@ -692,6 +785,10 @@ def finish(result: DanceResult, audio: Song | str | os.PathLike, config: StageCo
                 del steps[kept:]
             ctx.cap_cutoff = c
             out = _run(head, order[split:], config, ctx, steps)
+    if config.edit is not None and config.edit.active:  # the user's constraints, after every other stage
+        out = stage_edit(out, config.edit, ctx, lock=config.foot_lock if "foot_lock" in order else None)
+        if steps is not None:
+            steps.append(("edit", out))
     if trace is not None:
         for name, r in steps:
             trace(name, r)
