@@ -239,7 +239,7 @@ def path_positions(points: np.ndarray, times: np.ndarray | None, *, num_frames: 
 def _lowpass(x: np.ndarray, *, fps: float, cutoff_hz: float) -> np.ndarray:
     """Zero-phase Gaussian low-pass along axis 0 (sigma from the -3 dB cut-off); the edges padded by point
     reflection (``2 x[0] - x[k]``), so a steady drift at an edge stays in the low-pass, not in the remainder."""
-    from dancekit.motion._filters import gaussian_filter1d
+    from dancekit.motion.filters import gaussian_filter1d
 
     sigma = fps * math.sqrt(math.log(2.0)) / (math.sqrt(2.0) * math.pi * cutoff_hz)
     n = min(int(math.ceil(4 * sigma)), len(x) - 1)
