@@ -324,9 +324,9 @@ def test_seed_sets_score_each_set_of_seeds_as_evaluate_scores_it_alone(tiny_chec
 
 def test_seed_sets_and_ablate_stages_flags_are_checked(tiny_checkpoint, data_with_audio, tmp_path, capsys):
     assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
-                 "--seeds", "4", "--seed-sets", "3", "-o", str(tmp_path / "x"), "--quiet"]) == 2
+                 "--seeds", "0-3", "--seed-sets", "3", "-o", str(tmp_path / "x"), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert "--seed-sets 3: --seeds 4 is not a multiple of 3" in err and len(err.strip().splitlines()) == 1
+    assert "--seed-sets 3: 4 seeds (--seeds) is not a multiple of 3" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()  # checked before any dance is written
     assert main(["evaluate", "--pred", str(tmp_path), "--ref", str(tmp_path), "--ablate-stages",
                  "-o", str(tmp_path / "r.json")]) == 2
@@ -340,7 +340,7 @@ def test_ablate_stages_ends_at_the_dances_evaluate_scores(tiny_checkpoint, data_
 
     out = tmp_path / "eval"
     assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
-                 "--seeds", "2", "--ablate-stages", "-o", str(out), "--quiet", "--no-style",
+                 "--seeds", "0-1", "--ablate-stages", "-o", str(out), "--quiet", "--no-style",
                  "--segment-seconds", "1"]) == 0
     assert "| FID after | raw | clean_up |" in capsys.readouterr().out
     report = json.loads((out / "report.json").read_text())

@@ -233,7 +233,7 @@ def _check_seed_sets(sets: int | None, seeds: int | None) -> None:
     if sets < 1:
         raise ParameterError(f"--seed-sets must be at least 1, got {sets}")
     if seeds is not None and seeds % sets:
-        raise ParameterError(f"--seed-sets {sets}: --seeds {seeds} is not a multiple of {sets}")
+        raise ParameterError(f"--seed-sets {sets}: {seeds} seeds (--seeds) is not a multiple of {sets}")
 
 
 def _print_stages(report: dict) -> None:

@@ -52,7 +52,8 @@ def stage_dances(pipe: Any, data: Any, split: str, *, seeds: int = 5, first_seed
     ``first_seed .. first_seed + seeds - 1`` of each song in turn.
 
     ``pipe`` is a dance pipeline with ``dances(audio, seeds=, start=, end=, beat_sync=, cleanup=)`` and
-    ``stage_options(result)`` (the per-dance settings its stages get, e.g. a jitter cap); ``data`` a
+    ``stage_options()`` (its checkpoint's :class:`~dancekit.pipelines.config.StageConfig`; each dance's jitter
+    cap follows from it and the dance's genre posterior, as in ``dances``); ``data`` a
     :class:`~dancekit.data.PreparedData`.
     """
     from dancekit.pipelines import stages as S
@@ -61,6 +62,7 @@ def stage_dances(pipe: Any, data: Any, split: str, *, seeds: int = 5, first_seed
         raise ParameterError(f"seeds must be at least 1, got {seeds}")
     rows = ("raw", *S.STAGE_NAMES)
     out: dict[str, list] = {n: [] for n in rows}
+    config = pipe.stage_options()  # the checkpoint's stage configuration, every stage on
     for name in data.names(split):
         ref = data.audio(name)
         beats = S.song_beats_for(ref.path, start=ref.start, end=ref.end)
@@ -72,7 +74,7 @@ def stage_dances(pipe: Any, data: Any, split: str, *, seeds: int = 5, first_seed
             def keep(stage: str, res: Any, _seen: dict = seen) -> None:
                 _seen["raw" if stage == "input" else stage] = res
 
-            S.finish(r, ref.path, start=ref.start, end=ref.end, beats=beats, **pipe.stage_options(r), trace=keep)
+            S.finish(r, S.Song(ref.path, ref.start, ref.end, beats), config, trace=keep)
             last = r
             for stage in rows:  # a stage that did not run passes the dance before it on
                 last = seen.get(stage, last)

@@ -333,8 +333,9 @@ class _Bf16Seq2Seq(nn.Module):
         self.net = net.to(torch.bfloat16)
         self.out_dim = net.out_dim
 
-    def generate(self, src: torch.Tensor, start: torch.Tensor) -> torch.Tensor:
-        return self.net.generate(src.to(torch.bfloat16), start.to(torch.bfloat16)).float()
+    def generate(self, src: torch.Tensor, start: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
+        cond = None if cond is None else cond.to(torch.bfloat16)  # G_M→D's projected latent (latent_dim > 0)
+        return self.net.generate(src.to(torch.bfloat16), start.to(torch.bfloat16), cond).float()
 
 
 # --------------------------------------------------------------------------------------------------
