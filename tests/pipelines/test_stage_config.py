@@ -4,9 +4,8 @@ the layout of the previous release is converted on reading; finish runs the conf
 
 from __future__ import annotations
 
-import importlib
-
 import copy
+import importlib
 import inspect
 import json
 import logging
