@@ -252,12 +252,17 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
               summary="a dance for a song: multipart file (or demo=true), model, genre, seeds, start, end, "
                       "figure, formats")
     async def create_dance(request: Request):
+        return await submit(request, "dance", _dance_job)
+
+    async def submit(request: Request, kind: str, job) -> JSONResponse:
+        """A job of ``kind`` from the multipart form: 429 when the queue is full (before the upload is read), then
+        ``job(form, stage)`` checks the options and stores the upload in the job's staging folder."""
         manager_full = _full(manager)
         if manager_full:
             fail(429, manager_full, headers={"Retry-After": "10"})
         form = await read_form(request)
         try:
-            return await _in_thread(create, "dance", lambda stage: _dance_job(form, stage))
+            return await _in_thread(create, kind, lambda stage: job(form, stage))
         finally:
             await form.close()
 
@@ -307,16 +312,9 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
         return stored, name, stem, options
 
     @app.post("/api/jobs/compose", status_code=202,
-              summary="music for a dance: multipart file (npz, bvh, AIST++ pkl), model, seed, tempo")
+              summary="music for a dance: multipart file (npz, bvh, glb, AIST++ pkl), model, seed, tempo")
     async def create_compose(request: Request):
-        manager_full = _full(manager)
-        if manager_full:
-            fail(429, manager_full, headers={"Retry-After": "10"})
-        form = await read_form(request)
-        try:
-            return await _in_thread(create, "compose", lambda stage: _compose_job(form, stage))
-        finally:
-            await form.close()
+        return await submit(request, "compose", _compose_job)
 
     def _compose_job(form, stage: Path):
         model = field(form, "model", table["compose_models"][0] if table["compose_models"] else "dual")
