@@ -55,7 +55,7 @@ def _threads_args(args: argparse.Namespace) -> list[str]:
     return [] if args.threads is None else ["--threads", str(args.threads)]
 
 
-def _spawn(cmd: list[str], env: dict) -> tuple[float, float, str]:
+def spawn(cmd: list[str], env: dict) -> tuple[float, float, str]:
     """Run ``cmd``; wall seconds, the child's CPU seconds (user + system) and its stdout."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
@@ -79,7 +79,7 @@ def cli_runs(args: argparse.Namespace) -> list[dict]:
             if args.model:
                 cmd[5:5] = ["--model", args.model]
             load = os.getloadavg()[0]
-            wall, cpu, out = _spawn(cmd, _env(os.path.join(tmp, "cache"), args.src))
+            wall, cpu, out = spawn(cmd, _env(os.path.join(tmp, "cache"), args.src))
             run = {"kind": "cli", "run": k, "wall_s": round(wall, 3), "cpu_s": round(cpu, 3),
                    "load1": round(load, 2), "said": out.strip().splitlines()[-1][-160:]}
             print(json.dumps(run), flush=True)
@@ -144,7 +144,7 @@ def breakdown(args: argparse.Namespace) -> dict:
         if args.model:
             cmd += ["--model", args.model]
         load = os.getloadavg()[0]
-        wall, _, out = _spawn(cmd, _env(os.path.join(tmp, "cache"), args.src))
+        wall, _, out = spawn(cmd, _env(os.path.join(tmp, "cache"), args.src))
         phases = json.loads(out.strip().splitlines()[-1])
         phases = {k: (round(v, 3) if isinstance(v, float) else v) for k, v in phases.items()}
         phases.update(kind="breakdown", wall_s=round(wall, 3), load1=round(load, 2))

@@ -24,30 +24,24 @@ import datetime
 import json
 import os
 import platform
-import resource
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+from bench_cold_start import spawn  # benchmarks/ is on the path when run as a script
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_SONG = ROOT.parent / "shared" / "music" / "Kevin_MacLeod_-_Vibe_Ace.ogg"
 
 
 def _spawn(argv: list[str], env: dict) -> tuple[float, float]:
-    """Run ``dancekit ARGV`` in a fresh interpreter: wall seconds and CPU seconds (user + system, children included)."""
-    cmd = [sys.executable, "-m", "dancekit.cli.main", *argv]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if proc.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stderr[-2000:]}")
-    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    """Run ``dancekit ARGV`` in a fresh interpreter (:func:`bench_cold_start.spawn`): wall seconds and CPU seconds
+    (user + system, children included)."""
+    wall, cpu, _ = spawn([sys.executable, "-m", "dancekit.cli.main", *argv], env)
+    return wall, cpu
 
 
 def _timed(name: str, argv: list[str], env: dict, repeats: int, per_minute: float | None = None) -> dict:
