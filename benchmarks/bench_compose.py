@@ -39,12 +39,10 @@ def _rss_mib() -> float:
     return float("nan")
 
 
-def child(args: argparse.Namespace) -> dict:
-    import torch
-
-    torch.set_num_threads(args.threads)
+def dance_excerpt(args: argparse.Namespace):
+    """``(name, motion)``: the first ``args.seconds`` of ``args.dance`` (default: the first test dance) of the
+    prepared dataset ``args.data``."""
     from dancekit.data import PreparedData
-    from dancekit.pipelines.dual import ComposePipeline
 
     data = PreparedData(args.data)
     name = args.dance or data.names("test")[0]
@@ -52,7 +50,17 @@ def child(args: argparse.Namespace) -> dict:
     n = int(round(args.seconds * motion.fps))
     if motion.num_frames < n:
         raise SystemExit(f"{name} has only {motion.num_frames / motion.fps:.1f} s of dance")
-    motion = motion.slice(0, n)
+    return name, motion.slice(0, n)
+
+
+def child(args: argparse.Namespace) -> dict:
+    import torch
+
+    torch.set_num_threads(args.threads)
+    from dancekit.pipelines.dual import ComposePipeline
+
+    name, motion = dance_excerpt(args)
+    n = motion.num_frames
     rss_before = _rss_mib()
     t0 = time.perf_counter()
     pipe = ComposePipeline.from_pretrained(args.checkpoint or args.model)
@@ -80,19 +88,13 @@ def cold(args: argparse.Namespace) -> int:
     import platform
     import statistics
 
-    from dancekit.data import PreparedData
     from dancekit.motion import write_motion
 
-    data = PreparedData(args.data)
-    name = args.dance or data.names("test")[0]
-    motion = data.motion(name)
-    n = int(round(args.seconds * motion.fps))
-    if motion.num_frames < n:
-        raise SystemExit(f"{name} has only {motion.num_frames / motion.fps:.1f} s of dance")
+    name, excerpt = dance_excerpt(args)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         dance = Path(tmp) / f"{name}.npz"
-        write_motion(dance, motion.slice(0, n))
+        write_motion(dance, excerpt)
         cmd = [sys.executable, "-m", "dancekit.cli.main", "compose", str(dance), "-o", str(Path(tmp) / "out"),
                "--no-video", "--render", "builtin", "--quiet", "--model", args.model]
         for k in range(args.cold):
