@@ -145,6 +145,10 @@ def test_compose_takes_dances_only(idle, tmp_path, song):
     assert job_dirs(tmp_path / "cache") == []
     r = idle.post("/api/jobs/compose", files={"file": ("../d.bvh", b"HIERARCHY\nROOT x\n", "text/plain")})
     assert r.status_code == 202 and r.json()["input"] == "upload.bvh" and r.json()["stem"] == "d"
+    # the composer's default, the dance's own tempo, can be asked for by name
+    r = idle.post("/api/jobs/compose", files={"file": ("d.bvh", b"HIERARCHY\nROOT x\n", "text/plain")},
+                  data={"tempo": "dance"})
+    assert r.status_code == 202, r.text
     # a glb (dancekit reads the glb files it writes) is a dance too, stored by its content's kind
     r = idle.post("/api/jobs/compose", files={"file": ("e.bin", b"glTF\x02\x00\x00\x00" + b"\0" * 100, "model/gltf-binary")})
     assert r.status_code == 202 and r.json()["input"] == "upload.glb" and r.json()["stem"] == "e"

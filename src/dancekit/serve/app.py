@@ -326,11 +326,11 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
         except ValueError:
             fail(400, f"seed must be an integer, got {seed_text!r}")
         tempo: str | float | None = field(form, "tempo", None)
-        if tempo not in (None, "auto", "periodic"):
+        if tempo not in (None, "dance", "auto", "periodic"):
             try:
                 tempo = float(tempo)
             except ValueError:
-                fail(400, f"tempo must be auto, periodic or a number of BPM, got {tempo!r}")
+                fail(400, f"tempo must be dance, auto, periodic or a number of BPM, got {tempo!r}")
             if not 20 <= tempo <= 400:
                 fail(400, f"tempo must be between 20 and 400 BPM, got {tempo:g}")
         stored, name, stem = store_upload(form, stage, DANCE_KINDS, what="a dance", default_stem="dance")
