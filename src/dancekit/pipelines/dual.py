@@ -164,10 +164,9 @@ class DualPipeline(DancePipeline):
         results = []
         song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
         config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
-        stages = config
         probs = {}  # the genres the music calls for, read only where the energy floor or the jitter cap needs them
-        if cleanup and self.genre_reader is not None and ((stages.lift_energy is not None and stages.genre_stats.energy)
-                                                          or stages.jitter_cap is not None):
+        if cleanup and self.genre_reader is not None and ((config.lift_energy is not None and config.genre_stats.energy)
+                                                          or config.jitter_cap is not None):
             probs = self.genre_reader(audio_path, start=start, end=end)
         for k, seed in enumerate(seeds):
             motion = decode_rot6d(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
