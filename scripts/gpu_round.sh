@@ -4,7 +4,7 @@
 #               cp -r src/dancekit/assets/models/revolution/music_attributes data/gpu/
 # then the device call runs `bash scripts/gpu_round.sh` with carry ["data/gpu"] (the tracked models must not
 # travel: the working tree's limit is 64 MiB); OUT holds each run's tar parts and log.txt.
-cd "$(dirname "$0")/../.."
+cd "$(dirname "$0")/.."
 export PYTHONUNBUFFERED=1
 nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
 python3 -c "import torch, sklearn; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" || exit 1

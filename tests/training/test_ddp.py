@@ -8,6 +8,7 @@ printed, that the ranks saw disjoint shares of the same global batches, that the
 from __future__ import annotations
 
 import dataclasses
+import datetime
 import json
 import math
 import os
@@ -43,7 +44,7 @@ def _torchrun(args: list[str], env: dict[str, str]) -> subprocess.CompletedProce
 def test_train_under_torchrun_two_ranks(tmp_path, rng):
     data = write_fake_prepared(tmp_path / "prepared", rng, dim=8)
     run, debug = tmp_path / "run", tmp_path / "debug"
-    env = {**os.environ, "DANCEKIT_DEBUG_DDP": str(debug), "OMP_NUM_THREADS": "1",
+    env = {**os.environ, "DANCEKIT_DEBUG_DDP": str(debug), "OMP_NUM_THREADS": "1", "GLOO_SOCKET_IFNAME": "lo",
            "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
     sets = [a for s in SETS for a in ("--set", s)]
     proc = _torchrun(["train", "revolution", "--data", str(data), "--out", str(run), "--quiet", *sets], env)
@@ -153,7 +154,7 @@ def test_mixed_precision_bf16_trains_and_fp16_needs_cuda(tmp_path):
         OptimConfig(precision="fp8")
 
 
-def test_objective_reads_a_wrapped_models_config_and_draws_on_the_generators_device(tmp_path, rng):
+def test_objective_reads_a_wrapped_models_config_and_draws_on_the_generators_device(tmp_path, rng, monkeypatch):
     """revolution_step on a DDP-style wrapper (gloo, one process) with genre and music dropout."""
     import torch.distributed as dist
 
@@ -161,9 +162,11 @@ def test_objective_reads_a_wrapped_models_config_and_draws_on_the_generators_dev
     from dancekit.training import StepContext, TrainConfig, revolution_step
     from dancekit.training.distributed import _DDP
 
-    os.environ.setdefault("MASTER_ADDR", "127.0.0.1")
-    os.environ.setdefault("MASTER_PORT", "29533")
-    dist.init_process_group("gloo", rank=0, world_size=1)
+    # A file store and the loopback interface: no port to collide on, no host name to resolve (a CI machine
+    # whose host name is not in /etc/hosts would otherwise wait on DNS), and a short timeout instead of 30 min.
+    monkeypatch.setenv("GLOO_SOCKET_IFNAME", "lo")
+    store = dist.FileStore(str(tmp_path / "store"), 1)
+    dist.init_process_group("gloo", store=store, rank=0, world_size=1, timeout=datetime.timedelta(seconds=60))
     try:
         model = _DDP(RevolutionModel(RevolutionConfig(music_dim=8, pose_dim=72, d_model=16, n_heads=2, d_ff=32,
                                                       window=6, decoder_hidden=16, n_genres=4)))
