@@ -1,25 +1,41 @@
 #!/usr/bin/env bash
-# One GPU round (issue 41): three trainings side by side on one GPU, each within BUDGET_S seconds.
-# Here, first:  python scripts/gpu_data.py slim data/tang2018 data/gpu/tang2018
-#               cp -r src/dancekit/assets/models/revolution/music_attributes data/gpu/
-# then the device call runs `bash scripts/gpu_round.sh` with carry ["data/gpu"] (the tracked models must not
-# travel: the working tree's limit is 64 MiB); OUT holds each run's tar parts and log.txt.
+# One GPU round (issue 41): five trainings side by side on one GPU, each sized to BUDGET_S seconds of steps.
+# Here, first:
+#   python scripts/gpu_data.py slim data/tang2018 data/gpu/tang2018
+#   cp -r src/dancekit/assets/models/revolution/music_attributes data/gpu/
+#   python -m pip download --no-deps --only-binary=:all: --python-version 3.12 ... -d .whl \
+#       soundfile==0.14.0 cffi==2.1.1 pycparser==3.12      # the one package the train path imports that the
+#                                                           # GPU image lacks (checked with imports blocked)
+# then the device call runs `bash scripts/gpu_round.sh` with carry ["data/gpu", ".whl"]; the tracked revolution
+# model (46 MB) is moved out of the working tree for the call (the tree's limit is 64 MiB) and put back after.
+# ROUND_S (500): seconds after the start by which every run stops and packs what it has (the device command's
+# limit must be above it). OUT holds each run's tar parts (OUT/NAME/FAMILY.tar.NN) and log.txt; unpack with
+#   cat NAME/FAMILY.tar.* | tar -x -C runs/gpu/NAME       # runs/gpu/NAME/run/{best,model,checkpoints,log.jsonl}
 cd "$(dirname "$0")/.."
 export PYTHONUNBUFFERED=1
+mkdir -p "$OUT"
+exec > >(tee -a "$OUT/log.txt") 2>&1
 nvidia-smi --query-gpu=name,memory.total --format=csv,noheader
-python3 -c "import torch, sklearn; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" || exit 1
+if [ -d .whl ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl \
+    && export PYTHONPATH=/tmp/site || exit 1
+fi
+python3 -c "import torch, sklearn, soundfile; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())" || exit 1
 T0=$(date +%s)
 python3 scripts/gpu_data.py rebuild data/gpu/tang2018 || exit 1
 echo "rebuild: $(( $(date +%s) - T0 )) s"
-export DATA=data/gpu/tang2018 BUDGET_S=${BUDGET_S:-400} KEEP_STATE=0 PRECISION=fp32
+export DATA=data/gpu/tang2018 BUDGET_S=${BUDGET_S:-330} DEADLINE=$(( T0 + ${ROUND_S:-500} )) KEEP_STATE=0 PRECISION=fp32 HALF=1 CKPTS=8
 run() {  # run NAME FAMILY STEPS [--set ...]
   local name=$1 family=$2 steps=$3; shift 3
-  scripts/train_gpu.sh "$family" "$steps" "$OUT/$name" "$@" 2>&1 | sed "s/^/[$name] /" >> "$OUT/log.txt"
+  scripts/train_gpu.sh "$family" "$steps" "$OUT/$name" "$@" 2>&1 | sed "s/^/[$name] /"
 }
-mkdir -p "$OUT"
-HALF=1 KEEP=8 CKPTS=8 run dual_a dual 6000 --set latent_dim=16 &
-HALF=1 KEEP=8 CKPTS=8 run dual_b dual 6000 --set latent_dim=16 --set kl_free_bits=0.5 --set dropout=0.2 &
-HALF=0 KEEP=10 CKPTS=10 run m2d music2dance 16000 --set fmap_checkpoint=data/gpu/music_attributes &
-wait
+FMAP="--set fmap_checkpoint=data/gpu/music_attributes"
+PIDS=()
+KEEP=4 run dual_a dual 30000 --set latent_dim=16 & PIDS+=($!)
+KEEP=4 run dual_b dual 30000 --set latent_dim=16 --set kl_free_bits=0.5 --set dropout=0.2 & PIDS+=($!)
+KEEP=4 run dual_c dual 30000 --set latent_dim=16 --set rollout_frames=40 --set rollout_weight=1 & PIDS+=($!)
+KEEP=8 run m2d_a music2dance 60000 $FMAP & PIDS+=($!)
+KEEP=5 run m2d_b music2dance 60000 $FMAP --set channels=64 --set skip_channels=128 & PIDS+=($!)
+wait "${PIDS[@]}"  # the runs only: a bare `wait` would also wait for the tee above, which never ends
+echo "round: $(( $(date +%s) - T0 )) s"
 ls -la "$OUT"/*
-tail -n 30 "$OUT/log.txt"

@@ -12,7 +12,7 @@
 #
 # Environment (defaults): DATA=data/tang2018 (a `dancekit prepare` folder), DEVICE=cuda, PRECISION=bf16,
 # BATCH=64, BUDGET_S=480 (seconds of training), KEEP=6 (checkpoints kept for select-checkpoint), CKPTS=12
-# (validations and checkpoints in the run), HALF=0 (1: the packed weights as float16, which the loader upcasts
+# (validations and checkpoints in the run), DEADLINE (unix seconds by which the run stops, optional), HALF=0 (1: the packed weights as float16, which the loader upcasts
 # to float32, as `scripts/embed_model.py --half` embeds them), KEEP_STATE=1 (0: no optimiser state packed,
 # the run then cannot be resumed), PYTHON=python3 (with torch; the package is taken
 # from src/). Unpack with `cat OUT/FAMILY.tar.* | tar -x -C DIR` (DIR/run/...).
@@ -64,8 +64,15 @@ echo "train_gpu: $FAMILY on $DEVICE ($PRECISION, batch $BATCH): ${SPS} s/step ->
 
 # 2. the run: validation and a checkpoint CKPTS times, the last KEEP checkpoints kept for select-checkpoint
 START=$(date +%s)
-train "$N" "$WORK/run" --set val_every="$EVERY" --set ckpt_every="$EVERY" --set keep_checkpoints="$KEEP" \
-  --set log_every=$(( EVERY / 4 > 1 ? EVERY / 4 : 1 )) "$@"
+# DEADLINE (unix seconds, optional): the run is stopped (SIGTERM) by then and packed as it stands, its last
+# periodic checkpoint included, so a run that outgrows its budget still brings its checkpoints back
+LIMIT=()
+if [ -n "${DEADLINE:-}" ]; then LIMIT=(timeout -s TERM $(( DEADLINE - $(date +%s) > 30 ? DEADLINE - $(date +%s) : 30 ))); fi
+"${LIMIT[@]}" "$PYTHON" -m dancekit.cli.main train "$FAMILY" --data "$DATA" --out "$WORK/run" --quiet \
+  --set device="$DEVICE" --set precision="$PRECISION" --set batch_size="$BATCH" --set steps="$N" \
+  --set val_every="$EVERY" --set ckpt_every="$EVERY" --set keep_checkpoints="$KEEP" \
+  --set log_every=$(( EVERY / 4 > 1 ? EVERY / 4 : 1 )) "$@" \
+  || echo "train_gpu: $FAMILY stopped (exit $?) before step $N: packing the checkpoints it wrote"
 WALL=$(( $(date +%s) - START ))
 "$PYTHON" - "$WORK/run/train.json" "$FAMILY" "$N" "$STEPS" "$WALL" "$DEVICE" "$PRECISION" "$BATCH" "$SPS" <<'EOF'
 import json, sys
