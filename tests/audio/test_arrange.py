@@ -103,8 +103,16 @@ def test_lock_beats_keeps_the_period_and_follows_the_phase():
     want = np.array([0.2 + period * k for k in range(10)] + [0.28 + period * k for k in range(10, 20)])
     np.testing.assert_allclose(times, want, atol=1e-9)
     np.testing.assert_allclose(np.diff(times)[:9], period, atol=1e-9)
+    # with max_shift the phase moves at most 0.1 period (0.06 s) a beat: after the 0.08-s step it is 0.02 s behind,
+    # within a frame of the dance's phase, where it holds
+    slow = lock_beats(np.array(frames), fps=FPS, period=period, max_shift=0.1)
+    assert np.abs(np.diff(slow) - period).max() <= 0.1 * period + 1e-9
+    np.testing.assert_allclose(slow[:10], want[:10], atol=1e-9)
+    np.testing.assert_allclose(slow[10:] - want[10:], -0.02, atol=1e-9)
     with pytest.raises(ParameterError, match="period"):
         lock_beats(np.array(frames), fps=FPS, period=0.0)
+    with pytest.raises(ParameterError, match="max_shift"):
+        lock_beats(np.array(frames), fps=FPS, period=period, max_shift=0.5)
 
 
 def test_comb_period_of_a_known_autocorrelation():

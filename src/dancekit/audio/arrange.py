@@ -67,6 +67,7 @@ COMB_SECONDS = 8.0
 COMB_SPAN = 0.08
 TIGHTNESS = 30.0
 LOCK_BEATS = 1
+LOCK_SHIFT: float | None = None
 BEAT_WIDTH = 0.04
 
 
@@ -279,7 +280,8 @@ def track_beats(pulse: np.ndarray, *, fps: float, bpm: float, tightness: float =
     return np.asarray(beats[::-1], np.int64)
 
 
-def lock_beats(frames: np.ndarray, *, fps: float, period: float, half_width: int = LOCK_BEATS) -> np.ndarray:
+def lock_beats(frames: np.ndarray, *, fps: float, period: float, half_width: int = LOCK_BEATS,
+               max_shift: float | None = LOCK_SHIFT) -> np.ndarray:
     """Beat times (s) exactly one ``period`` (s) apart, phased on tracked beat frames: beat ``k`` is at
     ``k × period + φ_k``. The tracked beats are numbered by their distance from the first in periods (a tracked
     beat on the number of the one before it is dropped, a skipped number filled); their phase is
@@ -287,11 +289,15 @@ def lock_beats(frames: np.ndarray, *, fps: float, period: float, half_width: int
     of ``k``, but it moves only when that median is more than a frame (``1 / fps``) from ``φ_{k-1}``: the
     tracked beats lie on whole frames, so their phase wanders within a frame at any tempo that is not a whole
     number of frames, and following that would make the intervals whole frames (a tempo up to half a frame
-    per beat off). So the intervals are the period except where the dance's phase really moves."""
+    per beat off). So the intervals are the period except where the dance's phase really moves; there, with
+    ``max_shift``, the phase moves by at most ``max_shift`` periods per beat (every interval within that share
+    of the period: the pulse stays clear, and catches up with the dance over a few beats)."""
     f = np.asarray(frames, np.float64).reshape(-1) / float(fps)
     if not (np.isfinite(period) and period > 0) or fps <= 0 or half_width < 0:
         raise ParameterError(f"lock_beats needs period > 0, fps > 0 and half_width >= 0, got {period}, {fps}, "
                              f"{half_width}")
+    if max_shift is not None and not 0 < max_shift < 0.5:
+        raise ParameterError(f"lock_beats' max_shift must be between 0 and 0.5 periods, got {max_shift}")
     if len(f) < 2:
         return f
     number = np.round((f - f[0]) / period).astype(np.int64)
@@ -308,8 +314,10 @@ def lock_beats(frames: np.ndarray, *, fps: float, period: float, half_width: int
     phi = np.empty(len(k))
     phi[0] = target[0]
     frame = 1.0 / float(fps)
+    step = np.inf if max_shift is None else float(max_shift) * period
     for i in range(1, len(k)):
-        phi[i] = target[i] if abs(target[i] - phi[i - 1]) > frame + 1e-9 else phi[i - 1]
+        move = target[i] - phi[i - 1]
+        phi[i] = phi[i - 1] + float(np.clip(move, -step, step)) if abs(move) > frame + 1e-9 else phi[i - 1]
     return k * period + phi
 
 
@@ -341,6 +349,7 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
                  prior_bpm: float = PRIOR_BPM, prior_octaves: float = PRIOR_OCTAVES,
                  fold_from: float | None = FOLD_FROM, phase_pulse: np.ndarray | None = None,
                  metre_pulse: np.ndarray | None = None, tightness: float = TIGHTNESS, lock: int = LOCK_BEATS,
+                 lock_shift: float | None = LOCK_SHIFT,
                  fallback_bpm: float = 120.0) -> DanceArrangement:
     """Music for a dance (see the module docstring).
 
@@ -359,6 +368,7 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
     metre_pulse : (T,) the curve the metre and the bars' downbeats are read from, or None: ``phase_pulse``
     tightness : :func:`track_beats`' penalty on uneven beats
     lock : :func:`lock_beats`' half width, beats (the tracked beats' phase is their median over ±``lock``)
+    lock_shift : :func:`lock_beats`' ``max_shift``: the most the phase moves per beat, periods (None: unlimited)
     fallback_bpm : the tempo of a pulse without periodicity (a still or very short dance)
 
     Returns
@@ -405,7 +415,7 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
         times = np.arange(0.0, duration, 60.0 / bpm)
     else:
         times = lock_beats(track_beats(q, fps=fps, bpm=float(bpm), tightness=tightness), fps=fps,
-                           period=60.0 / float(bpm), half_width=int(lock))
+                           period=60.0 / float(bpm), half_width=int(lock), max_shift=lock_shift)
         times = times[(times >= 0) & (times < duration)]
         if len(times) < 2:
             times = np.arange(0.0, duration, 60.0 / float(bpm))
