@@ -9,13 +9,15 @@ import pytest
 pytest.importorskip("pretty_midi")
 
 from dancekit.audio.arrange import (  # noqa: E402
+    beat_curve,
+    comb_period,
     dance_pulse,
     follow_dance,
     key_scale,
     key_triads,
+    lock_beats,
     pulse_metre,
     pulse_tempo,
-    smooth_beats,
     track_beats,
 )
 from dancekit.errors import ParameterError  # noqa: E402
@@ -43,11 +45,11 @@ def test_tempo_and_beats_of_a_known_pulse(bpm):
     p, truth = _pulse(bpm)
     assert pulse_tempo(p, fps=FPS, fold_from=None) == pytest.approx(bpm, rel=0.02)
     frames = track_beats(p, fps=FPS, bpm=bpm)
-    times = smooth_beats(frames, fps=FPS)
+    times = lock_beats(frames, fps=FPS, period=60.0 / bpm)
     assert beat_f1(times, truth, tolerance=0.05) > 0.95
-    # smoothing makes the intervals even to a fraction of a frame (the tracked frames are whole frames)
-    assert np.std(np.diff(times[2:-2])) < 0.25 / FPS
-    assert 60.0 / np.median(np.diff(times)) == pytest.approx(bpm, rel=0.01)
+    # locked to the tempo: the tracked frames are whole frames, their phase wanders within a frame; it is held
+    assert np.median(np.diff(times)) == pytest.approx(60.0 / bpm, abs=1e-9)
+    assert np.mean(np.abs(np.diff(times) - 60.0 / bpm) < 1e-9) > 0.8
 
 
 def test_the_prior_picks_the_metrical_level():
@@ -65,6 +67,71 @@ def test_the_prior_picks_the_metrical_level():
 def test_the_octave_rule_folds_into_86_to_172(bpm, folded):
     p, _ = _pulse(bpm, width=0.06)  # (bumps narrower than a frame alias at 180 BPM: 3 beats are 25 frames)
     assert pulse_tempo(p, fps=FPS) == pytest.approx(folded, rel=0.02)  # the default rule: [86, 172) BPM
+
+
+def _bars(bar, steps, seconds=60.0, *, start=0.23, noise=0.05, seed=0, width=0.05):
+    """A pulse with a bump (σ ``width`` s) at each of ``steps`` (s from the bar's start) in every bar of ``bar`` s,
+    plus noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * FPS)) / FPS
+    b = np.concatenate([k * bar + np.asarray(steps) for k in range(int(seconds / bar) + 1)]) + start
+    b = b[b < seconds]
+    return np.maximum(np.exp(-0.5 * ((t[:, None] - b[None]) / width) ** 2).sum(1) + rng.normal(0, noise, len(t)), 0.0)
+
+
+@pytest.mark.parametrize("steps", [(0.0, 0.74, 1.36), (0.0, 0.6, 1.3)])
+def test_the_comb_reads_the_tempo_of_uneven_steps_from_their_bars(steps):
+    """Three uneven steps to a 2-s bar (a waltz's long first step): the beat is 2 / 3 s, 90 BPM. The single
+    autocorrelation peak sits between the step intervals (off by more than 1 %); the comb over the multiples of the
+    period, whose every third one is a whole bar, reads 90 BPM."""
+    p = _bars(2.0, steps)
+    assert abs(pulse_tempo(p, fps=FPS, fold_from=None, comb_seconds=0) / 90.0 - 1) > 0.01
+    assert pulse_tempo(p, fps=FPS, fold_from=None) == pytest.approx(90.0, rel=0.005)
+
+
+def test_lock_beats_keeps_the_period_and_follows_the_phase():
+    """Tracked frames of a 0.6-s pulse (15 frames at 25 fps) whose phase moves by 2 frames at beat 10, with one
+    beat tracked a frame early, one missing and one doubled: the locked beats are every 0.6 s, phased on the
+    median of ±1 beat (the lone early beat is outvoted), the missing beat filled and the double dropped."""
+    period = 0.6
+    frames = [5 + 15 * k for k in range(10)] + [7 + 15 * k for k in range(10, 20)]
+    frames[4] -= 1  # one beat a frame early
+    del frames[15]  # one beat not tracked
+    frames.insert(7, frames[6] + 1)  # a second beat one frame after beat 6
+    times = lock_beats(np.array(frames), fps=FPS, period=period)
+    # (at the step, beats 8-10 have two beats of the old phase, beats 9-11 two of the new one)
+    want = np.array([0.2 + period * k for k in range(10)] + [0.28 + period * k for k in range(10, 20)])
+    np.testing.assert_allclose(times, want, atol=1e-9)
+    np.testing.assert_allclose(np.diff(times)[:9], period, atol=1e-9)
+    # with max_shift the phase moves at most 0.1 period (0.06 s) a beat: after the 0.08-s step it is 0.02 s behind,
+    # within a frame of the dance's phase, where it holds
+    slow = lock_beats(np.array(frames), fps=FPS, period=period, max_shift=0.1)
+    assert np.abs(np.diff(slow) - period).max() <= 0.1 * period + 1e-9
+    np.testing.assert_allclose(slow[:10], want[:10], atol=1e-9)
+    np.testing.assert_allclose(slow[10:] - want[10:], -0.02, atol=1e-9)
+    with pytest.raises(ParameterError, match="period"):
+        lock_beats(np.array(frames), fps=FPS, period=0.0)
+    with pytest.raises(ParameterError, match="max_shift"):
+        lock_beats(np.array(frames), fps=FPS, period=period, max_shift=0.5)
+
+
+def test_comb_period_of_a_known_autocorrelation():
+    """An autocorrelation with peaks at every multiple of 17.3 frames (and nothing else): from a start 5 % off,
+    the comb finds 17.3 within its step; with no multiple inside the curve it returns the start."""
+    lags = np.arange(300.0)
+    acf = np.exp(-0.5 * ((lags[:, None] - 17.3 * np.arange(1, 18)[None]) / 1.0) ** 2).sum(1)
+    assert comb_period(acf, 18.2, span=0.08, max_lag=200.0) == pytest.approx(17.3, abs=0.02)
+    assert comb_period(acf[:10], 18.2, span=0.08, max_lag=200.0) == 18.2
+
+
+def test_beat_curve_has_a_unit_bump_at_each_beat():
+    c = beat_curve(np.array([1.0, 2.0, 2.04]), num_frames=100, fps=FPS, width=0.04)
+    assert c[25] == pytest.approx(1.0 + 2 * np.exp(-0.5 * (1.0 / 0.04) ** 2))  # on the frame of the first beat
+    assert c[50] == pytest.approx(1.0 + np.exp(-0.5))  # 2.00 s, and 2.04 s one σ away
+    assert c[:15].max() == 0.0 and c[75:].max() == 0.0  # nothing beyond 5 σ of a beat
+    assert beat_curve(np.zeros(0), num_frames=10, fps=FPS).max() == 0.0
+    with pytest.raises(ParameterError, match="width"):
+        beat_curve(np.ones(1), num_frames=10, fps=FPS, width=0.0)
 
 
 @pytest.mark.parametrize("metre", [3, 4])
@@ -188,6 +255,41 @@ def test_compose_pipeline_follows_a_stepping_dance(tmp_path):
     arr = follow(Motion(skeleton=sk, fps=FPS, positions=pos), key=(2, True))
     assert arr.tempo == pytest.approx(100.0, rel=0.03) and arr.beats_per_bar == 4
     assert beat_f1(arr.beat_times, plants, tolerance=0.08) > 0.9
+
+
+def test_compose_pipeline_reads_the_tempo_and_metre_of_an_uneven_waltz_step():
+    """A synthetic waltz: the ankles plant three times a bar of 2 s at uneven times (0, 0.74, 1.36 s: a long first
+    step), the first plant deepest. The known answer is 90 BPM (three beats to 2 s) in bars of 3, and the beats
+    follow the plants (the kinematic beats) within the tolerance of the music scores."""
+    from dancekit.metrics.music_beats import beat_f1
+    from dancekit.motion import Motion, get_skeleton
+    from dancekit.motion.analysis import kinematic_beats
+    from dancekit.pipelines.compose import follow
+
+    sk = get_skeleton("tang2018")
+    T = int(40 * FPS)
+    t = np.arange(T) / FPS
+    plants = np.concatenate([k * 2.0 + np.array([0.0, 0.74, 1.36]) for k in range(20)]) + 0.3
+    plants = plants[plants < 39.5]
+    depth = np.where(np.arange(len(plants)) % 3 == 0, 1.0, 0.6)
+    speed = 1.0 - (depth[None] * np.exp(-0.5 * ((t[:, None] - plants[None]) / 0.06) ** 2)).sum(1)
+    x = np.cumsum(speed) / FPS * 20.0
+    pos = np.zeros((T, sk.num_joints, 3), np.float32)
+    pos[:, :, 1] = 50.0 + np.arange(sk.num_joints)
+    for j in (sk.index("left_ankle"), sk.index("right_ankle")):
+        pos[:, j, 0] = x
+    motion = Motion(skeleton=sk, fps=FPS, positions=pos)
+    arr = follow(motion, key=(7, False))
+    assert arr.tempo == pytest.approx(90.0, rel=0.01) and arr.beats_per_bar == 3
+    kb = kinematic_beats(motion.to_positions(), fps=FPS)
+    assert beat_f1(arr.beat_times, kb, tolerance=0.1) > 0.75
+    # the beats are tracked on the kinematic beats, every one a bump of the same height (not on how deep the dip is)
+    from dancekit.pipelines.compose import phase_pulse_of
+
+    curve = phase_pulse_of(motion)
+    frames = np.round(kb * FPS).astype(int)
+    np.testing.assert_allclose(curve[frames], 1.0, atol=1e-3)
+    assert len(kb) >= len(plants) - 2 and curve.max() == pytest.approx(1.0, abs=1e-3)
 
 
 def test_a_given_tempo_is_kept_exactly_and_phased_on_the_pulse():

@@ -15,7 +15,12 @@ from dancekit import registry
 from dancekit.checkpoints import declare_components, load_pretrained, save_pretrained
 from dancekit.cli.main import main
 from dancekit.errors import CheckpointError, ParameterError
-from dancekit.models.music_attributes import MusicAttributeClassifier, MusicAttributeConfig
+from dancekit.models.music_attributes import (
+    MusicAttributeClassifier,
+    MusicAttributeConfig,
+    log_lag_autocorrelation,
+    rhythm_lags,
+)
 from dancekit.training import TrainConfig, train
 
 
@@ -66,6 +71,128 @@ def test_predict_song_is_the_mean_log_probability_of_half_overlapping_windows():
     np.testing.assert_allclose(model.predict_song(x[:25].numpy()), short, rtol=1e-5, atol=1e-7)
     with pytest.raises(ParameterError, match="at least"):
         model.predict_song(x[:3].numpy())
+
+
+# ---- the rhythm periodicity: tempo and metre ------------------------------------------------------------
+
+
+def _impulses(n: int, period: int) -> torch.Tensor:
+    x = torch.zeros(n, dtype=torch.float64)
+    x[::period] = 1.0
+    return x
+
+
+def test_log_lag_autocorrelation_of_an_impulse_train_has_known_values():
+    """Impulses every P frames, centred: r(k)/r(0) is 1 at multiples of P (n - k a multiple of P) and about
+    -1/(P - 1) at the other lags (per whole period: two impulse × background pairs and P - 2 background pairs);
+    each value is the brute-force sum of the definition, and a fractional lag reads the straight line between
+    its two whole lags."""
+    n, period = 400, 10
+    x = _impulses(n, period)
+    xc = (x - x.mean()).numpy()
+
+    def brute(k: int) -> float:
+        return float(np.mean(xc[: n - k] * xc[k:]) / np.mean(xc * xc))
+
+    got = log_lag_autocorrelation(x[None], torch.tensor([10.0, 20.0, 7.0, 9.5, 3.25], dtype=torch.float64))[0]
+    want = [1.0, 1.0, brute(7), (brute(9) + brute(10)) / 2, 0.75 * brute(3) + 0.25 * brute(4)]
+    torch.testing.assert_close(got, torch.tensor(want, dtype=torch.float64))
+    assert got[0] == pytest.approx(1.0) and got[2] == pytest.approx(-1 / 9, abs=2e-3)
+
+
+def test_log_lag_autocorrelation_ignores_scale_and_offset_and_reads_zero_where_it_cannot(rng):
+    x = torch.from_numpy(rng.normal(size=(3, 120)))
+    lags = torch.tensor([1.0, 4.5, 30.0, 118.5, 119.0, 500.0], dtype=torch.float64)
+    a = log_lag_autocorrelation(x, lags)
+    torch.testing.assert_close(log_lag_autocorrelation(3.0 * x - 7.0, lags), a)
+    assert (a[:, -2:] == 0).all() and (a[:, :-2].abs() <= 1.5).all()  # lags >= n - 1 read 0
+    flat = log_lag_autocorrelation(torch.full((2, 50), 4.0, dtype=torch.float64), lags)
+    assert (flat == 0).all()
+    with pytest.raises(ParameterError, match=r"x \(B, n\)"):
+        log_lag_autocorrelation(x[0], lags)
+
+
+def test_rhythm_lags_are_log_spaced_between_the_configured_ends():
+    lags = rhythm_lags(MusicAttributeConfig(rhythm_bins=5, rhythm_min_lag=4.0, rhythm_max_lag=64.0))
+    torch.testing.assert_close(lags, torch.tensor([4.0, 8.0, 16.0, 32.0, 64.0]))
+
+
+def test_rhythm_only_classifier_reads_the_onset_column_alone():
+    model = tiny(frontend="none", rhythm_bins=8, rhythm_max_lag=30.0).eval()
+    assert model.lstm is None and len(model.convs) == 0 and model.min_frames() == 2
+    assert sum(p.numel() for p in model.parameters()) == 8 * 3 + 3  # one linear layer on the 8 lags
+    x = torch.randn(2, 40, 5)
+    y = x.clone()
+    y[:, :, 1:] = torch.randn(2, 40, 4)  # every column but the onset strength (column 0) changes
+    with torch.no_grad():
+        torch.testing.assert_close(model(y), model(x))
+        assert not torch.allclose(model(x), model(torch.randn(2, 40, 5)))
+    both = tiny(rhythm_bins=8)  # the paper's trunk and the rhythm periodicity side by side
+    assert both.head.in_features == 2 * 32 + 8 and both(x).shape == (2, 3)
+    with pytest.raises(ParameterError, match="rhythm_bins > 0"):
+        MusicAttributeConfig(frontend="none")
+    with pytest.raises(ParameterError, match="rhythm_min_lag"):
+        MusicAttributeConfig(rhythm_bins=4, rhythm_min_lag=10.0, rhythm_max_lag=10.0)
+    with pytest.raises(ParameterError, match="rhythm_column"):
+        MusicAttributeConfig(music_dim=5, rhythm_column=5)
+
+
+class _Metre(torch.utils.data.Dataset):
+    """Onset tracks of bars of 3 (class 0) or 4 (class 1) beats: a strong onset on each downbeat, weaker ones on the
+    other beats (each a bump of 2 frames' standard deviation, as an onset-strength envelope), noise; a beat period
+    of 14-16 frames and a phase drawn per track (the same tempi for both classes, so only the metre tells them
+    apart); 5 columns, the onset strength first, the rest noise."""
+
+    def __init__(self, n: int, seed: int, frames: int = 200):
+        g = torch.Generator().manual_seed(seed)
+        self.y = torch.arange(n) % 2
+        self.x = torch.randn(n, frames, 5, generator=g) * 0.3
+        for i in range(n):
+            period = int(torch.randint(14, 17, (1,), generator=g))
+            bar = 3 + int(self.y[i])
+            beats = torch.arange(int(torch.randint(0, period, (1,), generator=g)), frames, period)
+            down = (torch.arange(len(beats)) % bar) == int(torch.randint(0, bar, (1,), generator=g))
+            t = torch.arange(frames, dtype=torch.float32)[:, None]
+            bumps = torch.exp(-0.5 * ((t - beats[None].float()) / 2.0) ** 2)  # (frames, beats)
+            self.x[i, :, 0] += bumps @ torch.where(down, 3.0, 1.0)
+
+    def __len__(self) -> int:
+        return len(self.y)
+
+    def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
+        return {"music": self.x[i], "genre": self.y[i]}
+
+
+def test_the_rhythm_periodicity_tells_three_beat_from_four_beat_bars(tmp_path):
+    """A known answer the chords cannot give: trained on synthetic onset tracks, the rhythm-only classifier
+    separates bars of 3 from bars of 4 beats on held-out tracks at tempi drawn anew."""
+    torch.manual_seed(0)
+    model = MusicAttributeClassifier(MusicAttributeConfig(music_dim=5, n_classes=2, window=200, frontend="none",
+                                                          rhythm_bins=32, rhythm_min_lag=6.0, rhythm_max_lag=100.0))
+    config = TrainConfig(steps=150, batch_size=16, lr=1e-2, warmup_steps=5, val_every=150, ckpt_every=150,
+                         log_every=50, threads=1)
+    train(model, _Metre(64, seed=0), None, config, step_fn=registry.get("music_attributes").load("objective"),
+          out_dir=tmp_path / "run", progress=False)
+    held_out = _Metre(60, seed=1)
+    with torch.no_grad():
+        acc = (model.eval()(held_out.x).argmax(-1) == held_out.y).float().mean().item()
+    assert acc >= 0.9
+
+
+def test_music2dance_fmap_starts_from_a_trunk_with_rhythm_but_not_from_a_rhythm_only_classifier(tmp_path):
+    from dancekit.models.music2dance import Music2DanceConfig, Music2DanceModel
+    from dancekit.training.m2d import load_fmap
+
+    stats = {"music_mean": np.zeros(15, np.float32), "music_std": np.ones(15, np.float32)}
+    for name, kw in (("both", {"rhythm_bins": 8}), ("none", {"rhythm_bins": 8, "frontend": "none"})):
+        clf = MusicAttributeClassifier(MusicAttributeConfig(n_classes=4, window=100, **kw))
+        save_pretrained(tmp_path / name, clf, clf.config, stats=stats,
+                        extra={"fps": 25.0, "preset": "music2dance", "genres": ["waltz", "rumba", "chacha", "tango"]})
+    model = Music2DanceModel(Music2DanceConfig(music_dim=15, pose_dim=20, n_layers=2, channels=8, skip_channels=8))
+    load_fmap(model, str(tmp_path / "both"))
+    assert int(model.fmap_loaded) == 1
+    with pytest.raises(CheckpointError, match="does not fit"):
+        load_fmap(Music2DanceModel(model.config), str(tmp_path / "none"))
 
 
 class _Toy(torch.utils.data.Dataset):

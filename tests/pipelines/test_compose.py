@@ -31,6 +31,10 @@ def test_cached_rollout_is_the_rollout(layers):
     assert got.shape == want.shape == (2, 12, 13)
     torch.testing.assert_close(got, want, atol=2e-6, rtol=1e-5)
     assert not torch.allclose(got[:, 1:], start[:, None].expand(-1, 11, -1))  # it does decode something
+    with torch.no_grad():
+        fast = net.rollout_numpy(memory, start, 12)  # the same in NumPy (what composing runs)
+    assert fast.dtype == torch.float32 and fast.shape == want.shape
+    torch.testing.assert_close(fast, want, atol=2e-6, rtol=1e-5)
 
 
 def test_generate_music_uses_the_cache_over_windows():

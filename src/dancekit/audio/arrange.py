@@ -6,16 +6,21 @@ the caller from the motion, :func:`dance_pulse`) and, optionally, what the dual 
 the dance (chroma and beat activation per frame), and writes a ``pretty_midi`` arrangement:
 
 * **tempo** (:func:`pulse_tempo`): the autocorrelation of the pulse curve (the steps: the ankles' speed
-  dips), weighted by a broad log-normal tempo prior, then doubled or halved into ``[86, 172)`` BPM (the
-  octave rule; it and every other setting here were chosen on the 5 tang2018 validation dances only,
-  docs/DUAL.md, "Music that follows the dance");
+  dips), weighted by a broad log-normal tempo prior; the period of that peak is then refined by a comb, the
+  mean autocorrelation over all its multiples up to 8 s (an uneven step pattern, slow-quick-quick or a
+  waltz's long first step, biases the single peak; the bars' repeats do not), and the tempo is doubled or
+  halved into ``[86, 172)`` BPM (the octave rule; it and every other setting here were chosen on the
+  tang2018 validation dances, with the training dances as a second check, docs/DUAL.md, "Music that
+  follows the dance");
 * **phase** (:func:`track_beats`, :func:`smooth_beats`): a dynamic-programming beat tracker (Ellis 2007)
-  at that tempo on a second curve, ``phase_pulse`` (the caller passes the whole body's speed dips, whose
-  minima are the dance's kinematic beats), so the beats fall on the kinematic beats where the tempo allows;
-  the tracked beat frames are then smoothed (a local straight line over ±4 beats) to sub-frame times, so
-  the pulse is even;
-* **metre**: ``beats_per_bar`` beats to a bar (3 or 4; :func:`pulse_metre` compares the pulse's
-  periodicity at 3 and 4 beats);
+  at that tempo on a second curve, ``phase_pulse`` (the caller passes the dance's kinematic beats as a train
+  of bumps, :func:`beat_curve`), so the beats fall on the kinematic beats where the tempo allows; the
+  tracked beats are then locked to the tempo (:func:`lock_beats`: every beat one period after the last, its
+  phase the median of the tracked beats' phases over ±1 beat, held until it moves by more than a frame), so
+  the pulse keeps the dance's tempo and follows its kinematic beats;
+* **metre**: ``beats_per_bar`` beats to a bar (3 or 4; :func:`pulse_metre` compares the periodicity of a
+  third curve, ``metre_pulse``, at 3 and 4 beats: the caller passes the whole body's speed dips, deeper on
+  the strong beats);
 * **key and chords**: every chord is a major or minor triad of the printed key's (natural) scale (I ii iii
   IV V vi in major, i III iv v VI VII in minor); one chord per bar, changing only on the bars' downbeats;
   which chord a bar gets is G_D→M's: the triad of the scale nearest (cosine) the composed chroma of the
@@ -51,13 +56,19 @@ DIATONIC_TRIADS = {
 PIANO, BASS = 0, 33
 KICK, SNARE, HIHAT = 36, 38, 42
 
-#: Chosen on the 5 validation dances (docs/DUAL.md): a broad prior (the dance's strongest periodicity wins),
-#: then folded into [86, 172) BPM; beats tracked with tightness 30 and smoothed over ±4 beats.
+#: Chosen on the validation dances (docs/DUAL.md): a broad prior (the dance's strongest periodicity wins), its
+#: period refined by the comb over multiples up to 8 s within ±8 %, then folded into [86, 172) BPM; beats tracked
+#: with tightness 30 on the kinematic beats (bumps of σ 0.04 s) and locked to the tempo, their phase the median over
+#: ±1 beat (LOCK_BEATS).
 PRIOR_BPM = 90.0
 PRIOR_OCTAVES = 2.0
 FOLD_FROM: float | None = 86.0
+COMB_SECONDS = 8.0
+COMB_SPAN = 0.08
 TIGHTNESS = 30.0
-SMOOTH_BEATS = 4
+LOCK_BEATS = 1
+LOCK_SHIFT: float | None = None
+BEAT_WIDTH = 0.04
 
 
 @dataclass
@@ -133,6 +144,39 @@ def dance_pulse(speed: np.ndarray, *, fps: float, window: float = 1.0) -> np.nda
     return np.maximum(mean - s, 0.0) / np.maximum(mean, 1e-9)
 
 
+def beat_curve(times: np.ndarray, *, num_frames: int, fps: float, width: float = BEAT_WIDTH) -> np.ndarray:
+    """A curve ``(num_frames,)`` at ``fps`` with a Gaussian bump of height 1 and standard deviation ``width`` s at
+    each of ``times`` (s), summed: every beat counts the same, however deep the dip that made it."""
+    t = np.arange(int(num_frames)) / float(fps)
+    b = np.asarray(times, np.float64).reshape(-1)
+    if fps <= 0 or width <= 0:
+        raise ParameterError(f"beat_curve needs fps > 0 and width > 0, got {fps}, {width}")
+    out = np.zeros(len(t))
+    reach = 5.0 * width
+    for x in b:  # each bump touches ±5σ only
+        a, z = np.searchsorted(t, [x - reach, x + reach])
+        out[a:z] += np.exp(-0.5 * ((t[a:z] - x) / width) ** 2)
+    return out
+
+
+def comb_period(acf: np.ndarray, lag: float, *, span: float, max_lag: float, step: float = 0.02) -> float:
+    """The period (frames) within ``lag × (1 ± span)`` whose multiples ``k × period ≤ max_lag`` (``k ≥ 1``) have the
+    highest mean autocorrelation ``acf`` (lags 0..n-1, read by linear interpolation), searched in ``step``-frame
+    steps; ``lag`` itself when no multiple fits."""
+    a = np.asarray(acf, np.float64)
+    n = len(a)
+    grid = np.arange(lag * (1.0 - span), lag * (1.0 + span) + step / 2, step)
+    best, best_score = float(lag), -np.inf
+    for period in grid:
+        k = np.arange(1, int(min(max_lag, n - 2) // period) + 1)
+        if not len(k):
+            continue
+        score = float(np.interp(k * period, np.arange(n), a).mean())
+        if score > best_score:
+            best, best_score = float(period), score
+    return best
+
+
 def _acf(x: np.ndarray) -> np.ndarray:
     """Unbiased autocorrelation of a centred signal (lags 0..n-1), by FFT."""
     n = len(x)
@@ -143,13 +187,16 @@ def _acf(x: np.ndarray) -> np.ndarray:
 
 def pulse_tempo(pulse: np.ndarray, *, fps: float, min_bpm: float = 40.0, max_bpm: float = 240.0,
                 prior_bpm: float = PRIOR_BPM, prior_octaves: float = PRIOR_OCTAVES,
-                fold_from: float | None = FOLD_FROM) -> float:
+                fold_from: float | None = FOLD_FROM, comb_seconds: float = COMB_SECONDS,
+                comb_span: float = COMB_SPAN) -> float:
     """The tempo (BPM) of a pulse curve: the autocorrelation peak (lags of ``60 / max_bpm`` to ``60 / min_bpm``
     s) weighted by a log-normal prior centred on ``prior_bpm`` with ``prior_octaves`` standard deviation
     (the rule that picks the metrical level, i.e. doubled or halved tempi), refined to a sub-frame lag by a
-    parabola through the peak and its neighbours; then, unless ``fold_from`` is None, doubled or halved
-    into ``[fold_from, 2 * fold_from)`` BPM. NaN for a flat curve or one shorter than two periods of
-    ``min_bpm``."""
+    parabola through the peak and its neighbours; then, with ``comb_seconds > 0``, refined again by
+    :func:`comb_period` (within ±``comb_span`` of that lag, all its multiples up to ``comb_seconds`` s: a
+    pattern of uneven steps moves the single peak, not the repeats of the whole pattern); then, unless
+    ``fold_from`` is None, doubled or halved into ``[fold_from, 2 * fold_from)`` BPM. NaN for a flat curve or
+    one shorter than two periods of ``min_bpm``."""
     x = np.asarray(pulse, np.float64).reshape(-1)
     if not 0 < min_bpm < max_bpm or fps <= 0 or prior_bpm <= 0 or prior_octaves <= 0:
         raise ParameterError(f"pulse_tempo needs 0 < min_bpm < max_bpm, fps > 0 and a positive prior; got "
@@ -171,6 +218,10 @@ def pulse_tempo(pulse: np.ndarray, *, fps: float, min_bpm: float = 40.0, max_bpm
     den = y0 - 2 * y1 + y2
     if den < 0:
         lag += float(np.clip(0.5 * (y0 - y2) / den, -0.5, 0.5))
+    if comb_seconds > 0:
+        if not 0 < comb_span < 0.5:
+            raise ParameterError(f"comb_span must be between 0 and 0.5, got {comb_span}")
+        lag = comb_period(acf, lag, span=comb_span, max_lag=comb_seconds * fps)
     bpm = 60.0 * fps / lag
     if fold_from is not None:
         if not fold_from > 0:
@@ -229,21 +280,45 @@ def track_beats(pulse: np.ndarray, *, fps: float, bpm: float, tightness: float =
     return np.asarray(beats[::-1], np.int64)
 
 
-def smooth_beats(frames: np.ndarray, *, fps: float, half_width: int = 4) -> np.ndarray:
-    """Beat times (s) from tracked beat frames: each beat moved onto the straight line fitted (least squares,
-    time against beat number) to the beats within ``half_width`` beats of it, so the pulse is even to a
-    fraction of a frame and still follows a slow drift of the dance."""
+def lock_beats(frames: np.ndarray, *, fps: float, period: float, half_width: int = LOCK_BEATS,
+               max_shift: float | None = LOCK_SHIFT) -> np.ndarray:
+    """Beat times (s) exactly one ``period`` (s) apart, phased on tracked beat frames: beat ``k`` is at
+    ``k × period + φ_k``. The tracked beats are numbered by their distance from the first in periods (a tracked
+    beat on the number of the one before it is dropped, a skipped number filled); their phase is
+    ``time - number × period``. ``φ_k`` is the median phase of the tracked beats numbered within ``half_width``
+    of ``k``, but it moves only when that median is more than a frame (``1 / fps``) from ``φ_{k-1}``: the
+    tracked beats lie on whole frames, so their phase wanders within a frame at any tempo that is not a whole
+    number of frames, and following that would make the intervals whole frames (a tempo up to half a frame
+    per beat off). So the intervals are the period except where the dance's phase really moves; there, with
+    ``max_shift``, the phase moves by at most ``max_shift`` periods per beat (every interval within that share
+    of the period: the pulse stays clear, and catches up with the dance over a few beats)."""
     f = np.asarray(frames, np.float64).reshape(-1) / float(fps)
-    n = len(f)
-    if n < 3 or half_width < 1:
+    if not (np.isfinite(period) and period > 0) or fps <= 0 or half_width < 0:
+        raise ParameterError(f"lock_beats needs period > 0, fps > 0 and half_width >= 0, got {period}, {fps}, "
+                             f"{half_width}")
+    if max_shift is not None and not 0 < max_shift < 0.5:
+        raise ParameterError(f"lock_beats' max_shift must be between 0 and 0.5 periods, got {max_shift}")
+    if len(f) < 2:
         return f
-    out = np.empty(n)
-    idx = np.arange(n, dtype=np.float64)
-    for i in range(n):
-        a, b = max(0, i - half_width), min(n, i + half_width + 1)
-        slope, icpt = np.polyfit(idx[a:b], f[a:b], 1)
-        out[i] = slope * i + icpt
-    return out
+    number = np.round((f - f[0]) / period).astype(np.int64)
+    keep = np.concatenate([[True], np.diff(number) > 0])
+    f, number = f[keep], number[keep]
+    phase = f - number * period
+    k = np.arange(number[0], number[-1] + 1)
+    lo = np.searchsorted(number, k - half_width, side="left")
+    hi = np.searchsorted(number, k + half_width, side="right")
+    have = hi > lo
+    target = np.array([np.median(phase[a:b]) if b > a else np.nan for a, b in zip(lo, hi)])
+    if not have.all():  # a gap wider than the window: the phase of the nearest numbers on either side, interpolated
+        target = np.interp(k, k[have], target[have])
+    phi = np.empty(len(k))
+    phi[0] = target[0]
+    frame = 1.0 / float(fps)
+    step = np.inf if max_shift is None else float(max_shift) * period
+    for i in range(1, len(k)):
+        move = target[i] - phi[i - 1]
+        phi[i] = phi[i - 1] + float(np.clip(move, -step, step)) if abs(move) > frame + 1e-9 else phi[i - 1]
+    return k * period + phi
 
 
 # ---------------------------------------------------------------------------------------------- the music
@@ -273,7 +348,8 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
                  activation: np.ndarray | None = None, bpm: float | None = None, beats_per_bar: int | None = None,
                  prior_bpm: float = PRIOR_BPM, prior_octaves: float = PRIOR_OCTAVES,
                  fold_from: float | None = FOLD_FROM, phase_pulse: np.ndarray | None = None,
-                 tightness: float = TIGHTNESS, smooth: int = SMOOTH_BEATS,
+                 metre_pulse: np.ndarray | None = None, tightness: float = TIGHTNESS, lock: int = LOCK_BEATS,
+                 lock_shift: float | None = LOCK_SHIFT,
                  fallback_bpm: float = 120.0) -> DanceArrangement:
     """Music for a dance (see the module docstring).
 
@@ -287,10 +363,12 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
     bpm : a tempo kept exactly (a regular grid phased on ``phase_pulse``), or None: :func:`pulse_tempo`'s
         tempo and beats tracked at it
     beats_per_bar : 3 or 4, or None: :func:`pulse_metre`
-    prior_bpm, prior_octaves, fold_from : the tempo rule (:func:`pulse_tempo`)
-    phase_pulse : (T,) the curve the beats are tracked on (and the bars found on), or None: ``pulse``
+    prior_bpm, prior_octaves, fold_from : the tempo rule (:func:`pulse_tempo`; its comb at the module's defaults)
+    phase_pulse : (T,) the curve the beats are tracked on, or None: ``pulse``
+    metre_pulse : (T,) the curve the metre and the bars' downbeats are read from, or None: ``phase_pulse``
     tightness : :func:`track_beats`' penalty on uneven beats
-    smooth : :func:`smooth_beats`' half width, beats (0: the tracked frames)
+    lock : :func:`lock_beats`' half width, beats (the tracked beats' phase is their median over ±``lock``)
+    lock_shift : :func:`lock_beats`' ``max_shift``: the most the phase moves per beat, periods (None: unlimited)
     fallback_bpm : the tempo of a pulse without periodicity (a still or very short dance)
 
     Returns
@@ -314,6 +392,9 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
     q = p if phase_pulse is None else np.asarray(phase_pulse, np.float64).reshape(-1)
     if len(q) != T:
         raise ParameterError(f"phase_pulse must have the pulse's {T} frames, got {len(q)}")
+    mq = q if metre_pulse is None else np.asarray(metre_pulse, np.float64).reshape(-1)
+    if len(mq) != T:
+        raise ParameterError(f"metre_pulse must have the pulse's {T} frames, got {len(mq)}")
     tonic, minor = int(key[0]) % 12, bool(key[1])
     duration = T / float(fps)
     fixed = bpm is not None
@@ -333,17 +414,17 @@ def follow_dance(pulse: np.ndarray, *, fps: float, key: tuple[int, bool], chroma
         bpm = float(fallback_bpm)
         times = np.arange(0.0, duration, 60.0 / bpm)
     else:
-        times = smooth_beats(track_beats(q, fps=fps, bpm=float(bpm), tightness=tightness), fps=fps,
-                             half_width=int(smooth))
+        times = lock_beats(track_beats(q, fps=fps, bpm=float(bpm), tightness=tightness), fps=fps,
+                           period=60.0 / float(bpm), half_width=int(lock), max_shift=lock_shift)
         times = times[(times >= 0) & (times < duration)]
         if len(times) < 2:
             times = np.arange(0.0, duration, 60.0 / float(bpm))
     period = 60.0 / float(bpm) if fixed else (float(np.median(np.diff(times))) if len(times) >= 2 else 60.0 / float(bpm))
-    bpb = beats_per_bar or pulse_metre(q, fps=fps, bpm=60.0 / period)
+    bpb = beats_per_bar or pulse_metre(mq, fps=fps, bpm=60.0 / period)
     ends = np.append(times[1:], min(duration, times[-1] + period))
     # bars: the first downbeat is the beat where the pulse is strongest over the bar phases
     frame = np.clip(np.round(times * fps).astype(int), 0, T - 1)
-    first = int(np.argmax([q[frame[ph::bpb]].mean() if len(frame[ph::bpb]) else -1.0 for ph in range(bpb)]))
+    first = int(np.argmax([mq[frame[ph::bpb]].mean() if len(frame[ph::bpb]) else -1.0 for ph in range(bpb)]))
     starts = sorted(set([0] + list(range(first, len(times), bpb))))
     bar_of_beat = np.searchsorted(starts, np.arange(len(times)), side="right") - 1
     spans = []

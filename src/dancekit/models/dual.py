@@ -63,6 +63,7 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -357,8 +358,8 @@ class Seq2Seq(nn.Module):
         """:meth:`rollout` for inference (eval mode, no gradient), faster: the cross-attention keys and values
         of ``memory`` are projected once per layer, and each new frame's self-attention key and value are
         projected once and appended to a per-layer cache (:meth:`rollout` re-projects the whole prefix and the
-        whole memory at every frame). The same function to float rounding (tests/audio/test_arrange.py); G_D→M's
-        composing uses it (:meth:`DualModel.generate_music`)."""
+        whole memory at every frame). The same function to float rounding (tests/pipelines/test_compose.py);
+        :meth:`rollout_numpy` is it in NumPy."""
         import torch.nn.functional as F
 
         B, _, d = memory.shape
@@ -393,6 +394,71 @@ class Seq2Seq(nn.Module):
             y = self.head(self.decoder.norm(h))
             frames.append(torch.sigmoid(y) if self.sigmoid else y)
         return torch.cat(frames, dim=1)
+
+    @torch.no_grad()
+    def rollout_numpy(self, memory: torch.Tensor, start: torch.Tensor, n: int) -> torch.Tensor:
+        """:meth:`rollout_cached` in NumPy float32 (inference on the CPU, eval mode): the same projections,
+        caches and attention, each frame a few dozen NumPy products on (B, d) rows instead of torch calls, whose
+        per-call overhead is most of the cost at G_D→M's width. The same function to float rounding
+        (tests/models/test_dual.py); G_D→M's composing uses it (:meth:`DualModel.generate_music`)."""
+        def a32(t: torch.Tensor) -> np.ndarray:
+            return np.ascontiguousarray(t.detach().cpu().numpy(), dtype=np.float32)
+
+        mem = a32(memory)  # (B, T, d)
+        B, T, d = mem.shape
+        layers = list(self.decoder.layers)
+        H = layers[0].self_attn.num_heads
+        dh = d // H
+        scale = np.float32(1.0 / math.sqrt(dh))
+        pe = a32(sinusoidal_encoding(n, d))  # (n, d)
+
+        def norm(mod: nn.LayerNorm):
+            return a32(mod.weight), a32(mod.bias), np.float32(mod.eps)
+
+        mean = np.full((d, 1), 1.0 / d, np.float32)  # a row's mean as a product (cheaper than ndarray.mean here)
+
+        def layer_norm(x: np.ndarray, p) -> np.ndarray:
+            c = x - x @ mean
+            return c / np.sqrt((c * c) @ mean + p[2]) * p[0] + p[1]
+
+        def attend(q: np.ndarray, k: np.ndarray, v: np.ndarray) -> np.ndarray:  # (B, H, 1, dh), (B, H, L, dh) x 2
+            s = (q @ k.transpose(0, 1, 3, 2)) * scale  # (B, H, 1, L)
+            s = np.exp(s - np.maximum.reduce(s, axis=-1, keepdims=True))
+            return ((s / np.add.reduce(s, axis=-1, keepdims=True)) @ v).reshape(B, d)  # (B, d)
+
+        params = []
+        for layer in layers:
+            sa, ca = layer.self_attn, layer.multihead_attn
+            w, b = a32(ca.in_proj_weight), a32(ca.in_proj_bias)
+            kc = (mem @ w[d:2 * d].T + b[d:2 * d]).reshape(B, T, H, dh).transpose(0, 2, 1, 3)  # (B, H, T, dh)
+            vc = (mem @ w[2 * d:].T + b[2 * d:]).reshape(B, T, H, dh).transpose(0, 2, 1, 3)
+            params.append(dict(n1=norm(layer.norm1), n2=norm(layer.norm2), n3=norm(layer.norm3),
+                               qkv=(a32(sa.in_proj_weight).T.copy(), a32(sa.in_proj_bias)),
+                               out=(a32(sa.out_proj.weight).T.copy(), a32(sa.out_proj.bias)),
+                               qc=(w[:d].T.copy(), b[:d]), kc=kc, vc=vc,
+                               outc=(a32(ca.out_proj.weight).T.copy(), a32(ca.out_proj.bias)),
+                               ff1=(a32(layer.linear1.weight).T.copy(), a32(layer.linear1.bias)),
+                               ff2=(a32(layer.linear2.weight).T.copy(), a32(layer.linear2.bias)),
+                               keys=np.zeros((B, H, n, dh), np.float32), values=np.zeros((B, H, n, dh), np.float32)))
+        emb = (a32(self.tgt_embed.weight).T.copy(), a32(self.tgt_embed.bias))
+        head = (a32(self.head.weight).T.copy(), a32(self.head.bias))
+        final = norm(self.decoder.norm)
+        frames = [a32(start)]  # (B, out) each
+        for t in range(n - 1):
+            h = frames[-1] @ emb[0] + emb[1] + pe[t]  # (B, d)
+            for p in params:
+                qkv = layer_norm(h, p["n1"]) @ p["qkv"][0] + p["qkv"][1]  # (B, 3d)
+                q, k, v = qkv[:, :d], qkv[:, d: 2 * d], qkv[:, 2 * d:]
+                p["keys"][:, :, t], p["values"][:, :, t] = k.reshape(B, H, dh), v.reshape(B, H, dh)
+                a = attend(q.reshape(B, H, 1, dh), p["keys"][:, :, : t + 1], p["values"][:, :, : t + 1])
+                h = h + a @ p["out"][0] + p["out"][1]
+                qc = layer_norm(h, p["n2"]) @ p["qc"][0] + p["qc"][1]
+                h = h + attend(qc.reshape(B, H, 1, dh), p["kc"], p["vc"]) @ p["outc"][0] + p["outc"][1]
+                f = np.maximum(layer_norm(h, p["n3"]) @ p["ff1"][0] + p["ff1"][1], 0.0)
+                h = h + f @ p["ff2"][0] + p["ff2"][1]
+            y = layer_norm(h, final) @ head[0] + head[1]
+            frames.append(1.0 / (1.0 + np.exp(-y)) if self.sigmoid else y)
+        return torch.from_numpy(np.stack(frames, axis=1)).to(memory.dtype)
 
     def generate_full(self, src: torch.Tensor, start: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
         """:meth:`generate` by re-decoding the whole prefix at every step (the reference for its tests)."""
@@ -566,7 +632,7 @@ class DualModel(nn.Module):
     def _generate(self, net: Seq2Seq, src: torch.Tensor, start: torch.Tensor, *, cached: bool = False,
                   generator: torch.Generator | None = None, latent: bool = False) -> torch.Tensor:
         """Windows of T frames overlapping by one; each starts from the last generated frame of the previous.
-        ``cached``: decode with :meth:`Seq2Seq.rollout_cached` (G_D→M) instead of :meth:`Seq2Seq.generate`.
+        ``cached``: decode with :meth:`Seq2Seq.rollout_numpy` (G_D→M) instead of :meth:`Seq2Seq.generate`.
 
         Runs on one torch thread (restored after): the incremental decoding's attention rounds differently
         with 2 threads than with 1 (1e-6 of a unit per window on the embedded model), and one thread is as fast
@@ -588,7 +654,7 @@ class DualModel(nn.Module):
                 if latent:
                     z = torch.randn(B, self.config.latent_dim, generator=generator)  # (B, Z) from the prior
                     cond = self.m2d_latent(z.to(src.device, src.dtype))  # (B, d)
-                y = (net.rollout_cached(net.encode(chunk), prev, chunk.shape[1]) if cached
+                y = (net.rollout_numpy(net.encode(chunk), prev, chunk.shape[1]) if cached
                      else net.generate(chunk, prev, cond))  # (B, ≤T, out)
                 out.append(y[:, 1:])
                 prev, s = y[:, -1], s + chunk.shape[1] - 1

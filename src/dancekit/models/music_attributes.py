@@ -15,6 +15,15 @@ Architecture (paper §4.3, Fig. 5)
 The paper's baseline (Table 1, "FC+Bi-LSTM") is ``frontend="fc"``: the temporal convolutions replaced by
 per-frame fully connected layers of the same widths (no temporal context before the BiLSTM, no stride).
 
+Rhythm periodicity (``rhythm_bins > 0``, not in the paper): the autocorrelation of one input column (the
+onset strength of the ``music2dance`` preset) over the window, read at ``rhythm_bins`` log-spaced lags from
+``rhythm_min_lag`` to ``rhythm_max_lag`` frames (:func:`log_lag_autocorrelation`), joins the BiLSTM's mean
+before the fully connected layer. It carries the tempo and the metre (a waltz's onsets repeat every 3 beats,
+a rumba's every 4), the strongest cues to a ballroom dance type; it has no weights, so the trunk (the
+convolutions and the BiLSTM) keeps the paper's layout and Music2Dance's F_map can still start from it.
+``frontend="none"`` drops the trunk: the fully connected layer reads the rhythm periodicity alone (a linear
+classifier of it, with nothing to learn a song's chords by; F_map cannot start from such a classifier).
+
 A whole song is classified by :meth:`MusicAttributeClassifier.predict_song`: the mean log-probability of
 its windows (hop half a window); a song shorter than a window is classified in one piece.
 """
@@ -31,7 +40,7 @@ from torch import nn
 
 from dancekit.errors import ParameterError
 
-FRONTENDS = ("conv", "fc")
+FRONTENDS = ("conv", "fc", "none")
 
 
 @dataclass
@@ -45,7 +54,11 @@ class MusicAttributeConfig:
     lstm_hidden: int = 32  # per direction
     dropout: float = 0.1
     window: int = 750  # frames per classified window (30 s at 25 fps)
-    frontend: str = "conv"  # conv (the paper's model) | fc (its FC+Bi-LSTM baseline)
+    frontend: str = "conv"  # conv (the paper's model) | fc (its FC+Bi-LSTM baseline) | none (rhythm only)
+    rhythm_bins: int = 0  # log-spaced lags of the onset autocorrelation fed to the head (0: the paper's model)
+    rhythm_min_lag: float = 6.0  # frames, shortest lag read (0.24 s at 25 fps)
+    rhythm_max_lag: float = 100.0  # frames, longest lag read (4 s at 25 fps)
+    rhythm_column: int = 0  # input column whose periodicity is read (the music2dance preset's onset strength)
 
     def __post_init__(self) -> None:
         self.channels = tuple(int(c) for c in self.channels)
@@ -61,6 +74,48 @@ class MusicAttributeConfig:
             raise ParameterError(f"MusicAttributeConfig.frontend must be one of {FRONTENDS}, got {self.frontend!r}")
         if not 0.0 <= self.dropout < 1.0:
             raise ParameterError(f"MusicAttributeConfig.dropout must be in [0, 1), got {self.dropout}")
+        if isinstance(self.rhythm_bins, bool) or not isinstance(self.rhythm_bins, int) or self.rhythm_bins < 0:
+            raise ParameterError(f"MusicAttributeConfig.rhythm_bins must be an integer >= 0, got {self.rhythm_bins!r}")
+        if not 1.0 <= float(self.rhythm_min_lag) < float(self.rhythm_max_lag):
+            raise ParameterError(f"MusicAttributeConfig needs 1 <= rhythm_min_lag < rhythm_max_lag (frames), got "
+                                 f"{self.rhythm_min_lag!r}, {self.rhythm_max_lag!r}")
+        if self.frontend == "none" and not self.rhythm_bins:
+            raise ParameterError("MusicAttributeConfig: frontend 'none' needs rhythm_bins > 0 (the head would read nothing)")
+        if not 0 <= int(self.rhythm_column) < self.music_dim:
+            raise ParameterError(f"MusicAttributeConfig.rhythm_column must be a column 0..{self.music_dim - 1}, got "
+                                 f"{self.rhythm_column!r}")
+
+
+def rhythm_lags(config: MusicAttributeConfig) -> torch.Tensor:
+    """The ``rhythm_bins`` lags (frames, float) read by the rhythm periodicity: log-spaced from
+    ``rhythm_min_lag`` to ``rhythm_max_lag`` inclusive."""
+    c = config
+    return torch.logspace(float(np.log10(c.rhythm_min_lag)), float(np.log10(c.rhythm_max_lag)), c.rhythm_bins,
+                          dtype=torch.float64).float()
+
+
+def log_lag_autocorrelation(x: torch.Tensor, lags: torch.Tensor) -> torch.Tensor:
+    """Normalised autocorrelation of each row of ``x`` (B, n) at fractional ``lags`` (K,) frames → (B, K).
+
+    Each row is centred; its unbiased autocorrelation ``r(k) = sum_t x_t x_{t+k} / (n - k)`` (by FFT) is divided
+    by ``r(0)`` (so 1 at lag 0 and the same for any affine rescaling of the row) and read at each lag by linear
+    interpolation between whole lags; a lag the row is too short for (``>= n - 1``) reads 0, as does a
+    constant row."""
+    if x.dim() != 2 or lags.dim() != 1:
+        raise ParameterError(f"need x (B, n) and lags (K,), got {tuple(x.shape)} and {tuple(lags.shape)}")
+    B, n = x.shape
+    xc = x - x.mean(dim=1, keepdim=True)
+    f = torch.fft.rfft(xc, 2 * n, dim=1)
+    r = torch.fft.irfft(f * f.conj(), 2 * n, dim=1)[:, :n] / torch.arange(n, 0, -1, dtype=x.dtype, device=x.device)
+    r = r / torch.clamp(r[:, :1], min=1e-12)  # (B, n)
+    lags = lags.to(x.device, x.dtype)
+    lo = torch.clamp(lags.floor().long(), 0, max(n - 2, 0))
+    frac = (lags - lo.to(x.dtype)).clamp(0.0, 1.0)
+    hi = torch.clamp(lo + 1, max=n - 1)
+    out = r[:, lo] * (1 - frac) + r[:, hi] * frac  # (B, K)
+    out = torch.where((lags < n - 1)[None, :], out, torch.zeros_like(out))
+    flat = (xc.abs().amax(dim=1, keepdim=True) <= 1e-12)
+    return torch.where(flat, torch.zeros_like(out), out)
 
 
 class MusicAttributeClassifier(nn.Module):
@@ -79,7 +134,7 @@ class MusicAttributeClassifier(nn.Module):
         super().__init__()
         self.config = c = config
         convs, width = [], c.music_dim
-        for i, out in enumerate(c.channels):
+        for i, out in enumerate(c.channels if c.frontend != "none" else ()):
             if c.frontend == "fc":  # a per-frame linear layer, as a kernel-1 convolution
                 convs.append(nn.Conv1d(width, out, 1))
             else:
@@ -87,12 +142,14 @@ class MusicAttributeClassifier(nn.Module):
                 convs.append(nn.Conv1d(width, out, c.kernel, stride=stride))
             width = out
         self.convs = nn.ModuleList(convs)
-        self.lstm = nn.LSTM(width, c.lstm_hidden, batch_first=True, bidirectional=True)
-        self.head = nn.Linear(2 * c.lstm_hidden, c.n_classes)
+        trunk = 0 if c.frontend == "none" else 2 * c.lstm_hidden
+        self.lstm = nn.LSTM(width, c.lstm_hidden, batch_first=True, bidirectional=True) if trunk else None
+        self.head = nn.Linear(trunk + c.rhythm_bins, c.n_classes)
+        self.register_buffer("lags", rhythm_lags(c), persistent=False)  # (rhythm_bins,) frames
 
     def min_frames(self) -> int:
         """Shortest input (frames) that leaves at least one step after the convolutions."""
-        n = 1
+        n = 1 if self.lstm is not None else 2  # the rhythm periodicity alone: any two frames
         for conv in reversed(self.convs):
             n = (n - 1) * conv.stride[0] + conv.kernel_size[0]
         return n
@@ -104,11 +161,16 @@ class MusicAttributeClassifier(nn.Module):
             raise ParameterError(f"music must be (B, n, {c.music_dim}), got {tuple(music.shape)}")
         if music.shape[1] < self.min_frames():
             raise ParameterError(f"music needs at least {self.min_frames()} frames, got {music.shape[1]}")
-        h = music.transpose(1, 2)  # (B, D, n)
-        for conv in self.convs:
-            h = F.dropout(F.relu(conv(h)), c.dropout, self.training)  # (B, C_i, n_i)
-        h, _ = self.lstm(h.transpose(1, 2))  # (B, n', 2 * hidden)
-        return self.head(h.mean(dim=1))  # (B, n_classes)
+        parts = []
+        if self.lstm is not None:
+            h = music.transpose(1, 2)  # (B, D, n)
+            for conv in self.convs:
+                h = F.dropout(F.relu(conv(h)), c.dropout, self.training)  # (B, C_i, n_i)
+            h, _ = self.lstm(h.transpose(1, 2))  # (B, n', 2 * hidden)
+            parts.append(h.mean(dim=1))  # (B, 2 * hidden)
+        if c.rhythm_bins:
+            parts.append(log_lag_autocorrelation(music[:, :, c.rhythm_column], self.lags))  # (B, rhythm_bins)
+        return self.head(torch.cat(parts, dim=-1))  # (B, n_classes)
 
     @torch.no_grad()
     def predict_song(self, music: np.ndarray | torch.Tensor) -> np.ndarray:

@@ -4,7 +4,8 @@
 its output with the dance to :func:`follow`, which measures the dance's pulse (:func:`pulse_of`) and arranges
 the music with :func:`dancekit.audio.arrange.follow_dance`. What comes from where:
 
-* from the **dance** (no model): the tempo, the beats' phase and the metre (the dance's pulse curve);
+* from the **dance** (no model): the tempo (the ankles' steps), the beats' phase (its kinematic beats) and the
+  metre (the whole body's speed dips);
 * from **G_D→M**: each bar's chord within the key (its composed chroma), the accents and the piano's
   density (its beat activation); the key is the start chord G_D→M was given;
 * from the **arranger**: the voicing, the bass line and the drum pattern.
@@ -14,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dancekit.audio.arrange import DanceArrangement, dance_pulse, follow_dance
+from dancekit.audio.arrange import DanceArrangement, beat_curve, dance_pulse, follow_dance
 from dancekit.motion import Motion
-from dancekit.motion.analysis import mean_joint_speed
+from dancekit.motion.analysis import kinematic_beats, mean_joint_speed
 
 #: the joints whose speed makes the tempo's pulse: the ankles (the steps)
 PULSE_ROLES = ("left_ankle", "right_ankle")
@@ -39,9 +40,19 @@ def pulse_of(motion: Motion) -> np.ndarray:
 
 
 def phase_pulse_of(motion: Motion) -> np.ndarray:
-    """The curve the beats are tracked on ``(T,)``: :func:`~dancekit.audio.arrange.dance_pulse` of the mean
-    joint speed (:func:`dancekit.motion.analysis.mean_joint_speed`, whose local minima are the dance's
-    kinematic beats)."""
+    """The curve the beats are tracked on ``(T,)``: the dance's kinematic beats
+    (:func:`dancekit.motion.analysis.kinematic_beats`, the local minima of the mean joint speed), each a
+    bump of the same height (:func:`~dancekit.audio.arrange.beat_curve`)."""
+    if motion.num_frames < 3:
+        return np.zeros(motion.num_frames)
+    kb = kinematic_beats(motion.to_positions(), fps=motion.fps)
+    return beat_curve(kb, num_frames=motion.num_frames, fps=motion.fps)
+
+
+def metre_pulse_of(motion: Motion) -> np.ndarray:
+    """The curve the metre and the downbeats are read from ``(T,)``: :func:`~dancekit.audio.arrange.dance_pulse`
+    of the mean joint speed (:func:`dancekit.motion.analysis.mean_joint_speed`), deeper where the body slows
+    down more (the strong beats)."""
     if motion.num_frames < 3:
         return np.zeros(motion.num_frames)
     return dance_pulse(mean_joint_speed(motion.to_positions(), fps=motion.fps), fps=motion.fps)
@@ -50,7 +61,7 @@ def phase_pulse_of(motion: Motion) -> np.ndarray:
 def follow(motion: Motion, *, key: tuple[int, bool], chroma: np.ndarray | None = None,
            activation: np.ndarray | None = None, bpm: float | None = None) -> DanceArrangement:
     """Music for ``motion`` (at the fps of ``chroma`` / ``activation``, one row per frame): the tempo of its
-    steps (:func:`pulse_of`; or ``bpm``), beats on its kinematic beats (:func:`phase_pulse_of`) and its metre;
-    chords of ``key`` chosen by ``chroma``; accents from ``activation``."""
+    steps (:func:`pulse_of`; or ``bpm``), beats on its kinematic beats (:func:`phase_pulse_of`), its metre
+    (:func:`metre_pulse_of`); chords of ``key`` chosen by ``chroma``; accents from ``activation``."""
     return follow_dance(pulse_of(motion), fps=motion.fps, key=key, chroma=chroma, activation=activation, bpm=bpm,
-                        phase_pulse=phase_pulse_of(motion))
+                        phase_pulse=phase_pulse_of(motion), metre_pulse=metre_pulse_of(motion))
