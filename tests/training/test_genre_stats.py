@@ -1,5 +1,6 @@
 """The per-genre tables of the embedded checkpoints ("genre_stats") recomputed from the raw tang2018 dances of
-their training split (dancekit.training.genre_stats)."""
+their training split as `dancekit prepare` makes them (dancekit.training.genre_stats.tang2018_genre_stats), which
+is what `dancekit train` writes from the prepared dataset."""
 
 from __future__ import annotations
 
@@ -12,6 +13,17 @@ import pytest
 from dancekit.training.genre_stats import tang2018_genre_stats
 
 ASSETS = Path(__file__).resolve().parents[2] / "src" / "dancekit" / "assets" / "models"
+
+#: the tables each embedded model carries: the ones its stages read (revolution: the genre draw's and the jitter
+#: cap's jitter, the energy lift's floor, the foot lock's planted share, the smoothing targets; music2dance: the
+#: jitter cap and the smoothing; dual: the jitter cap and the energy lift)
+TABLES = {"revolution": ("jitter", "energy", "planted_share", "smoothing"),
+          "music2dance": ("jitter", "smoothing"),
+          "dual": ("jitter", "energy")}
+
+
+def _stored(model: str) -> dict:
+    return json.loads((ASSETS / model / "config.json").read_text())["genre_stats"]
 
 
 @functools.lru_cache(maxsize=1)
@@ -28,21 +40,12 @@ def recomputed(tang2018_dir):
     return _recompute(Path(tang2018_dir))
 
 
+@pytest.mark.parametrize("model", sorted(TABLES))
+def test_each_model_carries_the_tables_its_stages_read(model):
+    assert set(_stored(model)) == set(TABLES[model])
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("model", ["revolution", "music2dance", "dual"])
-@pytest.mark.parametrize("table", ["jitter", "energy", "smoothing"])
+@pytest.mark.parametrize("model,table", [(m, t) for m, tables in TABLES.items() for t in tables])
 def test_the_embedded_tables_are_the_training_dances_statistics(recomputed, model, table):
-    stored = json.loads((ASSETS / model / "config.json").read_text())["genre_stats"].get(table)
-    if stored is None:
-        pytest.skip(f"{model} has no {table} table")
-    assert stored == recomputed[table]  # to the 3 decimals stored
-
-
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the planted-share table (revolution's, 2026-11, issue 15 round 29) was made "
-                   "with the benchmark's planted-share measure of the time; today's footlock.planted_share reads "
-                   "0.286 / 0.369 / 0.253 / 0.085 for the same training dances (and 0.2595 for C_2, which "
-                   "docs/BENCHMARKS.md's table gives as 0.258), so the stored 0.284 / 0.367 / 0.25 / 0.086 are kept")
-def test_the_planted_share_table_is_the_training_dances_mean(recomputed):
-    stored = json.loads((ASSETS / "revolution" / "config.json").read_text())["genre_stats"]["planted_share"]
-    assert stored == recomputed["planted_share"]
+    assert _stored(model)[table] == recomputed[table]  # to the 3 decimals stored
