@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from dancekit._checks import check_fps
-from dancekit._io import atomic_dir, atomic_path
+from dancekit._io import atomic_dir
 from dancekit.errors import DatasetError, ParameterError
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
