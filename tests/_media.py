@@ -15,7 +15,7 @@ from dancekit.render._ffmpeg import ffmpeg_exe
 def stream_info(path) -> dict:
     """``{"video": codec or None, "audio": codec or None, "size": (w, h), "video_s", "audio_s"}`` by decoding."""
     exe = ffmpeg_exe()
-    head = subprocess.run([exe, "-hide_banner", "-i", str(path)], capture_output=True, text=True).stderr
+    head = subprocess.run([exe, "-hide_banner", "-i", str(path)], capture_output=True, text=True, timeout=120).stderr
     info = {"video": None, "audio": None, "size": None, "video_s": None, "audio_s": None}
     if m := re.search(r"Stream #0:\d.*?: Video: (\w+).*?, (\d+)x(\d+)", head):
         info["video"], info["size"] = m.group(1), (int(m.group(2)), int(m.group(3)))
@@ -28,7 +28,7 @@ def stream_info(path) -> dict:
             [exe, "-hide_banner", "-i", str(path), "-map", f"0:{kind[0]}:0", "-f", "null", "-"],
             capture_output=True,
             text=True,
-            check=True,
+            check=True, timeout=120,
         )
         h, mi, s = re.findall(r"time=\s*(\d+):(\d\d):(\d\d\.\d+)", r.stderr)[-1]
         info[f"{kind}_s"] = int(h) * 3600 + int(mi) * 60 + float(s)

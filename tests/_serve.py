@@ -46,7 +46,9 @@ def free_port() -> int:
 
 
 class Server:
-    """``dancekit serve`` in a subprocess on 127.0.0.1 (a free port), started and waited for."""
+    """``dancekit serve`` in a subprocess on 127.0.0.1 (a free port), started and waited for (at most ``timeout``
+    seconds). It runs in a session of its own with its output in a file (no pipe to fill or to block a read while
+    a job process still holds it); :meth:`stop` ends the server with its job processes, in bounded time."""
 
     def __init__(self, cache: Path, *args: str, timeout: float = 120.0):
         import httpx
@@ -55,13 +57,16 @@ class Server:
         self.url = f"http://127.0.0.1:{self.port}"
         src = str(Path(__file__).resolve().parents[1] / "src")
         env = {**os.environ, "PYTHONPATH": src + os.pathsep + os.environ.get("PYTHONPATH", "")}
-        self.proc = subprocess.Popen([sys.executable, "-m", "dancekit.cli.main", "serve", "--port", str(self.port),
-                                      "--cache", str(cache), *args], env=env, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True)
+        self.log = Path(cache).parent / f"serve-{self.port}.log"
+        self.log.parent.mkdir(parents=True, exist_ok=True)
+        with open(self.log, "wb") as log:
+            self.proc = subprocess.Popen([sys.executable, "-m", "dancekit.cli.main", "serve", "--port", str(self.port),
+                                          "--cache", str(cache), *args], env=env, stdout=log,
+                                         stderr=subprocess.STDOUT, start_new_session=True)
         deadline = time.monotonic() + timeout
         while True:
             if self.proc.poll() is not None:
-                raise RuntimeError(f"dancekit serve exited with {self.proc.returncode}: {self.proc.stdout.read()}")
+                raise RuntimeError(f"dancekit serve exited with {self.proc.returncode}: {self.output()}")
             try:
                 if httpx.get(self.url + "/api/options", timeout=2).status_code == 200:
                     break
@@ -69,18 +74,25 @@ class Server:
                 pass
             if time.monotonic() > deadline:
                 self.stop()
-                raise RuntimeError("dancekit serve did not answer in time")
+                raise RuntimeError(f"dancekit serve did not answer in {timeout:g} s: {self.output()}")
             time.sleep(0.3)
 
+    def output(self) -> str:
+        """What the server printed so far."""
+        return self.log.read_text(errors="replace") if self.log.exists() else ""
+
     def stop(self) -> str:
+        """Stop the server (SIGTERM, then after 30 s SIGKILL to its whole process group); its output."""
+        from _proc import kill_group
+
         if self.proc.poll() is None:
             self.proc.terminate()
             try:
                 self.proc.wait(timeout=30)
             except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.stdout.read() if self.proc.stdout else ""
+                pass
+        kill_group(self.proc, grace=5.0)  # any job process left behind
+        return self.output()
 
     def pids(self) -> list[int]:
         """The server's process and its children (the workers)."""

@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
-import numpy as np
-import pytest
+# One thread per process for torch and the BLAS (set before either is imported; child processes inherit it): the
+# tests' models and arrays are small, so a second thread costs more in synchronisation and idle spinning than it
+# saves (as for `dancekit dance --threads`, whose default is 1), and every test sees the same thread count (an
+# in-process `dancekit dance` sets torch's to 1 for the rest of the session, whichever test runs it first).
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 # the tests live in one folder per layer (tests/motion/, tests/pipelines/, ...); their shared helpers

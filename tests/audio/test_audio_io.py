@@ -287,7 +287,7 @@ def test_m4a_through_ffmpeg(tmp_path):
                 str(m4a),
             ],
             check=True,
-            capture_output=True,
+            capture_output=True, timeout=120,
         )
     except (subprocess.CalledProcessError, OSError, RuntimeError) as exc:
         pytest.skip(f"cannot encode m4a with the bundled ffmpeg: {exc}")

@@ -22,7 +22,7 @@ def test_mp3_frame_length_known_answers():
 def test_every_cut_inside_a_frame_is_truncated_and_the_whole_file_is_not(tmp_path):
     save_wav(tmp_path / "a.wav", click_track(bpm=120, duration=2.0, sr=22050), sr=22050)
     subprocess.run([ffmpeg_exe(), "-nostdin", "-v", "error", "-i", str(tmp_path / "a.wav"), "-c:a", "libmp3lame",
-                    str(tmp_path / "a.mp3")], check=True, capture_output=True)
+                    str(tmp_path / "a.mp3")], check=True, capture_output=True, timeout=120)
     data = (tmp_path / "a.mp3").read_bytes()
     assert not _mp3_truncated(tmp_path / "a.mp3")
     cut = tmp_path / "cut.mp3"

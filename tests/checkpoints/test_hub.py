@@ -264,7 +264,7 @@ def test_refuses_a_repository_that_is_not_a_dancekit_model(hub_env):
         resolve_model("hf:bob/missing")
 
 
-def test_no_network_is_one_clear_line(tmp_path, monkeypatch):
+def test_no_network_is_one_clear_line(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("HF_ENDPOINT", _closed_port_url())
     monkeypatch.setenv("DANCEKIT_MODELS", str(tmp_path / "models"))
     monkeypatch.setenv("HF_HOME", str(tmp_path / "hf_home"))
@@ -272,21 +272,19 @@ def test_no_network_is_one_clear_line(tmp_path, monkeypatch):
     with pytest.raises(CheckpointError, match=r"^cannot download hf:alice/m2d from http://127\.0\.0\.1:\d+ \(") as e:
         resolve_model("hf:alice/m2d")
     assert "\n" not in str(e.value)
-    # the CLI: one line on stderr, exit 2, nothing else
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-    p = subprocess.run([sys.executable, "-m", "dancekit.cli.main", "dance", str(tmp_path / "song.wav"),
-                        "-o", str(tmp_path / "out"), "--model", "hf:alice/m2d"], env=env, capture_output=True,
-                       text=True, timeout=120)
-    assert p.returncode == 2, p.stderr
-    assert len(p.stderr.strip().splitlines()) == 1, p.stderr
-    assert "audio file not found" in p.stderr  # the song is checked first: no download for a bad song
+    # the CLI (in-process: the same main() the console script runs): one line on stderr, exit 2, nothing else
+    from dancekit.cli.main import main
+
+    capsys.readouterr()
+    assert main(["dance", str(tmp_path / "song.wav"), "-o", str(tmp_path / "out"), "--model", "hf:alice/m2d"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "audio file not found" in err  # the song is checked first: no download for a bad song
     song = tmp_path / "song.wav"
     _write_wav(song)
-    p = subprocess.run([sys.executable, "-m", "dancekit.cli.main", "dance", str(song), "-o", str(tmp_path / "out"),
-                        "--model", "hf:alice/m2d", "--quiet"], env=env, capture_output=True, text=True, timeout=300)
-    assert p.returncode == 2, p.stderr
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1 and "cannot download hf:alice/m2d" in lines[0], p.stderr
+    assert main(["dance", str(song), "-o", str(tmp_path / "out"), "--model", "hf:alice/m2d", "--quiet"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "cannot download hf:alice/m2d" in lines[0], lines
     assert not (tmp_path / "out").exists()
 
 

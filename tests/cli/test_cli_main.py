@@ -27,5 +27,5 @@ def test_no_verb_is_an_error():
 
 
 def test_console_script_runs():
-    r = subprocess.run([sys.executable, "-m", "dancekit.cli.main", "--version"], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "dancekit.cli.main", "--version"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and "dancekit" in r.stdout

@@ -39,7 +39,7 @@ def _write(path: Path, y: np.ndarray, sr: int, subtype: str = "PCM_16") -> Path:
 
 def _ffmpeg(src: Path, dst: Path, *args: str) -> Path:
     subprocess.run([ffmpeg_exe(), "-nostdin", "-y", "-v", "error", "-i", str(src), *args, str(dst)],
-                   check=True, capture_output=True)
+                   check=True, capture_output=True, timeout=120)
     return dst
 
 
@@ -48,7 +48,7 @@ def _video(d: Path, ext: str, acodec: str) -> Path:
     dst = d / f"clip.{ext}"
     subprocess.run([ffmpeg_exe(), "-nostdin", "-y", "-v", "error", "-f", "lavfi", "-i", "color=c=blue:s=64x48:d=3:r=10",
                     "-i", str(song), "-shortest", "-c:v", "mpeg4", "-c:a", acodec, str(dst)], check=True,
-                   capture_output=True)
+                   capture_output=True, timeout=120)
     song.unlink()
     return dst
 
@@ -68,10 +68,10 @@ def _mp3_with_cover_art(d: Path) -> Path:
     song, cover, dst = _wav(d / "a.wav", 3.0), d / "cover.png", d / "covered.mp3"
     exe = ffmpeg_exe()
     subprocess.run([exe, "-nostdin", "-v", "error", "-f", "lavfi", "-i", "testsrc=s=320x320:d=1", "-frames:v", "1",
-                    str(cover)], check=True, capture_output=True)
+                    str(cover)], check=True, capture_output=True, timeout=120)
     subprocess.run([exe, "-nostdin", "-v", "error", "-i", str(song), "-i", str(cover), "-map", "0:a", "-map", "1:v",
                     "-c:a", "libmp3lame", "-c:v", "png", "-disposition:v", "attached_pic", "-write_xing", "0",
-                    "-id3v2_version", "3", str(dst)], check=True, capture_output=True)
+                    "-id3v2_version", "3", str(dst)], check=True, capture_output=True, timeout=120)
     song.unlink()
     cover.unlink()
     return dst

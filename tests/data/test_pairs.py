@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -75,11 +73,8 @@ def test_prepare_pairs_then_train_then_dance(pairs_folder, tmp_path, capsys):
     assert (run / "model" / "model.safetensors").is_file()
 
     dance = tmp_path / "danced"
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-    proc = subprocess.run([sys.executable, "-m", "dancekit.cli.main", "dance", str(pairs_folder / "lonely.wav"),
-                           "--checkpoint", str(run / "model"), "-o", str(dance), "--format", "npz,bvh",
-                           "--quiet", "--end", "4"], env=env, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr
+    assert main(["dance", str(pairs_folder / "lonely.wav"), "--checkpoint", str(run / "model"), "-o", str(dance),
+                 "--format", "npz,bvh", "--quiet", "--end", "4"]) == 0
     assert sorted(p.name for p in dance.iterdir()) == ["lonely.bvh", "lonely.npz"]
     pos = np.load(dance / "lonely.npz")["positions"]
     assert pos.shape[1] == prepared.skeleton.num_joints and np.isfinite(pos).all()
@@ -102,7 +97,6 @@ def test_prepare_pairs_with_workers_and_nothing_usable(pairs_folder, tmp_path):
 def test_workers_get_one_thread_each_and_the_environment_is_restored(monkeypatch):
     """prepare's worker processes inherit one thread each (N workers on N cores); a value the user set is
     kept, and the parent's environment is as before afterwards."""
-    import os
 
     from dancekit.data import pairs
 

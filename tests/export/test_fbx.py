@@ -98,16 +98,15 @@ def test_fbx_at_60_fps_and_on_the_humanoid_rig(danced, tmp_path, rig):
         assert "Hips" in ref.skeleton.joint_names and "LeftUpLeg" in ref.skeleton.joint_names
 
 
-def test_without_blender_the_error_is_one_line(tmp_path, monkeypatch):
+def test_without_blender_the_error_is_one_line(tmp_path, monkeypatch, capsys):
+    from dancekit.cli.main import main
+
     monkeypatch.setenv("PATH", str(tmp_path / "empty"))
     monkeypatch.delenv("DANCEKIT_BLENDER", raising=False)
     song = _song(tmp_path / "song.wav", 2.0)
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-    p = subprocess.run([sys.executable, "-m", "dancekit.cli.main", "dance", str(song), "-o", str(tmp_path / "out"),
-                        "--format", "npz,fbx"], env=env, capture_output=True, text=True, timeout=300)
-    assert p.returncode == 2
-    lines = p.stderr.strip().splitlines()
-    assert len(lines) == 1, p.stderr
+    assert main(["dance", str(song), "-o", str(tmp_path / "out"), "--format", "npz,fbx"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
     assert "--format fbx needs Blender" in lines[0] and "apt-get install blender" in lines[0]
     assert not (tmp_path / "out").exists()  # refused before the dance
 

@@ -293,7 +293,7 @@ def test_pose_stream_client_reads_frames_with_increasing_timestamps(song):
             feeder.start()
             while len(got) < 40:
                 got.append(json.loads(ws.recv(timeout=20)))
-            feeder.join()
+            feeder.join(timeout=60)
     finally:
         server.stop()
     assert hello["type"] == "hello" and len(hello["parents"]) == len(hello["joint_names"]) == s.skeleton.num_joints

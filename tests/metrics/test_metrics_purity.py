@@ -50,6 +50,6 @@ def test_importing_metrics_loads_no_model_data_or_io_layer():
             "print(' '.join(sorted(m for m in sys.modules if m == 'torch' or m.startswith('dancekit.'))))")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(METRICS.parents[1]), os.environ.get("PYTHONPATH", "")])}
     loaded = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,
-                            env=env).stdout.split()
+                            env=env, timeout=120).stdout.split()
     assert "torch" not in loaded
     assert all(m.split(".")[1] in ("metrics", "motion", "errors", "_checks") for m in loaded), loaded

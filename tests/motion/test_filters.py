@@ -149,5 +149,5 @@ print(",".join(bad))
     src = str(Path(dancekit.__file__).resolve().parents[1])  # the dancekit under test, in the child too
     env = dict(os.environ, PYTHONPATH=src + os.pathsep + os.environ.get("PYTHONPATH", ""))
     out = subprocess.run([sys.executable, "-c", code, str(golden)], capture_output=True, text=True, check=True,
-                         env=env)
+                         env=env, timeout=120)
     assert out.stdout.strip() == ""

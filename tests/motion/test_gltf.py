@@ -177,7 +177,7 @@ def _validator() -> tuple[str, str] | None:
     npm = shutil.which("npm")
     if node is None or npm is None:
         return None
-    root = subprocess.run([npm, "root", "-g"], capture_output=True, text=True).stdout.strip()
+    root = subprocess.run([npm, "root", "-g"], capture_output=True, text=True, timeout=120).stdout.strip()
     for base in (Path(root), Path.cwd() / "node_modules"):
         if (base / "gltf-validator" / "package.json").is_file():
             return node, str(base)
@@ -205,7 +205,7 @@ def test_glb_passes_the_khronos_validator(tmp_path, skeleton):
     script = tmp_path / "validate.js"
     script.write_text(_VALIDATE_JS)
     res = subprocess.run([node, str(script), str(tmp_path / "d.glb")], capture_output=True, text=True,
-                         env={"NODE_PATH": modules, "PATH": ""}, check=True)
+                         env={"NODE_PATH": modules, "PATH": ""}, check=True, timeout=120)
     issues = json.loads(res.stdout)
     print(f"gltf-validator: {issues['numErrors']} errors, {issues['numWarnings']} warnings, "
           f"{issues['numInfos']} infos")

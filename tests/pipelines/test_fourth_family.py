@@ -49,7 +49,7 @@ class TinyPipeline(DancePipeline):
 
     family = "tiny"
 
-    def generate(self, audio_path, *, seeds, start=None, end=None, genre=None, progress=False):
+    def generate_batch(self, audio_path, *, seeds, choices, start=None, end=None, progress=False, spread=0.3):
         from dancekit.motion.representations import decode_motion
         from dancekit.pipelines.base import clean_motion
 
@@ -57,7 +57,7 @@ class TinyPipeline(DancePipeline):
         out = []
         for seed in seeds:
             g = torch.Generator().manual_seed(int(seed))
-            y = self.model.proj(x) + 0.3 * torch.randn(self.model.config.pose_dim, generator=g)  # (T, pose_dim)
+            y = self.model.proj(x) + spread * torch.randn(self.model.config.pose_dim, generator=g)  # (T, pose_dim)
             poses = self.stats.denormalize_dance(y.detach().numpy())
             out.append(clean_motion(decode_motion(poses, self.skeleton, self.fps, "positions3d")))
         return out
@@ -125,6 +125,12 @@ def test_a_fourth_family_dances_through_load_pipeline_and_the_cli(tiny_checkpoin
     assert results[0].model == str(tiny_checkpoint) and "beat-synced" in results[0].summary()
     raw = pipe.dances(song, seeds=[0], beat_sync=False, cleanup=False)[0]
     assert not np.array_equal(raw.motion.positions, m.positions)  # the stages ran on it
+    # the family's own option reaches its generation step through dances() and __call__; another is refused
+    still = pipe(song, seed=0, spread=0.0, beat_sync=False, cleanup=False).motion.positions
+    assert not np.array_equal(still, raw.motion.positions)
+    np.testing.assert_array_equal(still, pipe(song, seed=1, spread=0.0, beat_sync=False, cleanup=False).motion.positions)
+    with pytest.raises(TypeError, match="temperature"):
+        pipe(song, seed=0, temperature=1.0)
     assert load_pipeline(tiny_checkpoint, precision="fp32").precision == "fp32"
     out = tmp_path / "out"
     assert main(["dance", str(song), "-o", str(out), "--model", str(tiny_checkpoint), "--quiet", "--format", "npz",
@@ -153,5 +159,5 @@ def test_the_architecture_doc_lists_what_this_file_touches():
     items = [" ".join(i.split()) for i in re.findall(r"^\d+\. (.+?)(?=^\d+\. |\Z)", section, flags=re.M | re.S)]
     assert len(items) == 3, items
     assert "config" in items[0] and "nn.Module" in items[0]
-    assert "DancePipeline" in items[1] and "generate" in items[1]
+    assert "DancePipeline" in items[1] and "generate_batch" in items[1]
     assert "registry" in items[2] and "register" in items[2]

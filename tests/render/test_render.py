@@ -84,7 +84,7 @@ def decode_audio(path, sr: int = 22050) -> np.ndarray:
             "pipe:1",
         ],
         capture_output=True,
-        check=True,
+        check=True, timeout=120,
     )
     return np.frombuffer(r.stdout, dtype="<f4")
 
@@ -108,7 +108,7 @@ def video_frame(path, t: float, size: tuple[int, int]) -> np.ndarray:
             "pipe:1",
         ],
         capture_output=True,
-        check=True,
+        check=True, timeout=120,
     )
     return np.frombuffer(r.stdout, np.uint8).reshape(size[1], size[0], 3)
 

@@ -108,7 +108,7 @@ def test_mp4_colours_are_the_rgb_frames(tmp_path):
     sc = prepare_scene(pos, parents=PARENTS, fps=FPS, unit_scale=1.0, sides=SIDES, head=2)
     want = np.asarray(FrameRenderer(sc, width=160, height=120).render(12)).astype(np.float64)
     raw = subprocess.run([ffmpeg_exe(), "-v", "error", "-i", str(out), "-f", "rawvideo", "-pix_fmt", "rgb24", "-"],
-                         capture_output=True, check=True).stdout
+                         capture_output=True, check=True, timeout=120).stdout
     got = np.frombuffer(raw, np.uint8).reshape(-1, 120, 160, 3)[12].astype(np.float64)
     err = np.abs(got - want).mean(axis=(0, 1))
     # x264 at crf 12 and the 4:2:0 chroma: about 2 levels per channel (the RGB pipe of release 0.2 gave the same)

@@ -48,7 +48,7 @@ def test_twenty_concurrent_submissions_to_one_worker(tmp_path):
         answers: list = [None] * N_SUBMISSIONS
 
         def submit(i: int) -> None:
-            barrier.wait()
+            barrier.wait(timeout=60)
             r = httpx.post(srv.url + "/api/jobs/dance", files={"file": ("ode.wav", body, "audio/wav")},
                            data={"seeds": str(SEEDS[i % len(SEEDS)]), "formats": "npz"}, timeout=60)
             answers[i] = (r.status_code, r.json())
@@ -57,7 +57,7 @@ def test_twenty_concurrent_submissions_to_one_worker(tmp_path):
         for t in threads:
             t.start()
         for t in threads:
-            t.join()
+            t.join(timeout=120)  # each post has its own 60-s timeout
         codes = [a[0] for a in answers]
         assert set(codes) <= {202, 429}, codes
         accepted = {a[1]["id"]: SEEDS[i % len(SEEDS)] for i, a in enumerate(answers) if a[0] == 202}
@@ -76,7 +76,7 @@ def test_twenty_concurrent_submissions_to_one_worker(tmp_path):
         assert listed == set(accepted)  # none lost, none made up
     finally:
         stop.set()
-        sampler.join()
+        sampler.join(timeout=10)
         srv.stop()
     print(f"\n{len(accepted)} accepted, {codes.count(429)} answered 429; peak memory of server + worker "
           f"{peak['total'] / 1e6:.0f} MB")

@@ -16,6 +16,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import _proc
 import pytest
 import torch
 from _prepared import write_fake_prepared
@@ -35,9 +36,11 @@ SETS = ["steps=4", "batch_size=4", "seq_len=20", "stride=5", "log_every=1", "val
 
 
 def _torchrun(args: list[str], env: dict[str, str]) -> subprocess.CompletedProcess:
+    # the rendezvous on a free loopback port (--standalone) and the node's address given (--local-addr), so no
+    # host name is looked up; a timeout ends torchrun with its two ranks (_proc.run: the process group)
     cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2",
-           "-m", "dancekit.cli.main", *args]
-    return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120, cwd=ROOT)
+           "--local-addr=127.0.0.1", "-m", "dancekit.cli.main", *args]
+    return _proc.run(cmd, env=env, capture_output=True, text=True, timeout=120, cwd=ROOT)
 
 
 @pytest.mark.slow

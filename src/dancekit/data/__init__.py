@@ -4,6 +4,7 @@ How a dance becomes a model's vector lives in :mod:`dancekit.motion.representati
 statistics in :mod:`dancekit.checkpoints.stats` (they travel with checkpoints).
 """
 
+from dancekit.data.pairs import prepare_pairs
 from dancekit.data.prepared import (
     DEFAULT_PRESETS,
     GENRES,
@@ -13,7 +14,6 @@ from dancekit.data.prepared import (
     split_by_genre,
     tang2018_genre,
 )
-from dancekit.data.pairs import prepare_pairs
 from dancekit.data.windows import WindowDataset, compute_stats, load_pairs
 
 __all__ = [

@@ -29,11 +29,12 @@ import os
 import random
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from dancekit._checks import check_fps
-from dancekit._io import atomic_dir, atomic_path
+from dancekit._io import atomic_dir
 from dancekit.errors import DatasetError, ParameterError
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.analysis import floor_curve
@@ -83,6 +84,29 @@ def split_by_genre(
     return {k: sorted(v) for k, v in out.items()}
 
 
+def level_tang2018(folder: str | os.PathLike, *, fps: float = 25.0) -> tuple[Motion, Any, np.ndarray]:
+    """A raw tang2018 dance (``DANCE_<G>_<n>/``) as :func:`prepare_tang2018` writes its motion: read, resampled to
+    ``fps`` when recorded at another rate, and moved along the up axis frame by frame so that its floor
+    (:func:`~dancekit.motion.analysis.floor_curve`) is at 0 (the module docstring says why).
+
+    Returns
+    -------
+    ``(motion, audio, floor)``: the dance (positions only, ``(T, J, 3)`` float32, skeleton units, at ``fps``), its
+    song (``audio.path``, ``audio.start`` s) as :func:`~dancekit.motion.formats.read_tang2018` gives it, and the
+    removed floor curve ``(T,)`` float64 (skeleton units).
+    """
+    from dancekit.motion.formats import read_tang2018
+
+    motion, audio = read_tang2018(folder)
+    if abs(motion.fps - fps) > 1e-6:
+        motion = motion.resample(fps)
+    skel = motion.skeleton
+    positions = motion.to_positions().astype(np.float64)  # (T, J, 3)
+    floor = floor_curve(positions, skel, fps=fps)  # (T,)
+    positions[..., skel.up_index] -= floor[:, None]
+    return Motion(skeleton=skel, fps=fps, positions=positions.astype(np.float32)), audio, floor
+
+
 def prepare_tang2018(
     src: str | os.PathLike,
     out: str | os.PathLike,
@@ -109,7 +133,7 @@ def prepare_tang2018(
     from tqdm import tqdm
 
     from dancekit.features import PRESET_DIMS, extract_file
-    from dancekit.motion.formats import read_tang2018, write_motion
+    from dancekit.motion.formats import write_motion
 
     src = Path(src)
     if not src.is_dir():
@@ -130,14 +154,9 @@ def prepare_tang2018(
         for folder in bar:
             bar.set_postfix_str(folder.name)
             genre = tang2018_genre(folder.name)
-            motion, audio = read_tang2018(folder)
-            if abs(motion.fps - fps) > 1e-6:
-                motion = motion.resample(fps)
+            motion, audio, floor = level_tang2018(folder, fps=fps)
             skel = motion.skeleton
-            positions = motion.to_positions().astype(np.float64)
-            floor = floor_curve(positions, skel, fps=fps)
-            up = skel.up_index
-            positions[..., up] -= floor[:, None]
+            positions = motion.positions
             T = len(positions)
             start = float(audio.start)
             end = start + T / fps
@@ -153,8 +172,7 @@ def prepare_tang2018(
                 feats[preset] = fs
                 raw_frames = len(f)
                 T = min(T, len(f))
-            positions = positions[:T].astype(np.float32)
-            motion = Motion(skeleton=skel, fps=fps, positions=positions).with_rotations()
+            motion = Motion(skeleton=skel, fps=fps, positions=positions[:T]).with_rotations()
             dance_dir = tmp / "dances" / folder.name
             dance_dir.mkdir(parents=True)
             write_motion(dance_dir / "motion.npz", motion)

@@ -10,8 +10,8 @@ from torch.utils.data import Dataset
 
 from dancekit.checkpoints.stats import NormStats
 from dancekit.data.prepared import PreparedData
-from dancekit.motion.representations import encode_motion
 from dancekit.errors import ParameterError
+from dancekit.motion.representations import encode_motion
 
 
 def load_pairs(

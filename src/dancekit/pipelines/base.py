@@ -9,7 +9,6 @@ Inference only: nothing here (or in any pipeline) imports the training or datase
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -207,25 +206,6 @@ def clean_motion(motion: Motion) -> Motion:
     positions = np.asarray(normalize_bone_lengths(motion.to_positions(), skeleton), np.float64)  # (T, J, 3)
     positions[..., skeleton.up_index] -= floor_curve(positions, skeleton, fps=motion.fps)[:, None]
     return Motion(skeleton=skeleton, fps=motion.fps, positions=positions.astype(np.float32))
-
-
-def calm_if_not_music(result: DanceResult, audio_path: str | os.PathLike, *, fps: float, preset: str,
-                      hop_length: int, start: float | None = None, end: float | None = None) -> DanceResult:
-    """``result`` with the song's beat strength recorded, and its dance calmed when the input does not look
-    like music (beat strength below :data:`dancekit.features.MUSIC_BEAT_STRENGTH`: silence, noise, speech,
-    a bird or a whale): :func:`calm_motion` then :func:`clean_motion`, so the dance becomes positions only
-    (rest bone lengths, feet on the floor; exports solve rotations from them). The summary line says so.
-    For the pipelines whose models have no calm input of their own (music2dance, dual); the features come
-    from the cache the pipeline just filled."""
-    from dancekit import features
-
-    strength = song_feature_set(audio_path, fps=fps, preset=preset, hop_length=hop_length, start=start,
-                                end=end).beat_strength
-    if strength is None or not np.isfinite(strength):
-        return result
-    music = not strength < features.MUSIC_BEAT_STRENGTH
-    motion = result.motion if music else clean_motion(calm_motion(result.motion))
-    return dataclasses.replace(result, motion=motion, beat_strength=float(strength), looks_like_music=music)
 
 
 def song_feature_set(audio_path: str | os.PathLike, *, fps: float, preset: str, hop_length: int,

@@ -123,14 +123,14 @@ def _set(obj, name: str, value) -> None:
 @dataclass(frozen=True)
 class GenreStats:
     """Per genre, the median (the planted share: the mean) of one measure over the real training dances
-    (``genre_stats`` of a checkpoint, :func:`dancekit.data.genre_stats.genre_stats`); each a tuple of
+    (``genre_stats`` of a checkpoint, :func:`dancekit.training.genre_stats.genre_stats`); each a tuple of
     ``(genre, value)`` pairs in the checkpoint's order (``{}`` in JSON), empty when the checkpoint has none.
 
     * ``jitter``: the speed (m/s) a 5-frame average removes (:func:`dancekit.metrics.stability.jitter`);
     * ``energy``: the smoothed energy (m/s, :func:`dancekit.metrics.smoothed_energy`);
-    * ``planted_share``: the share of frames with a planted foot (:func:`dancekit.motion.footlock.planted_share`),
+    * ``planted_share``: the share of frames with a planted foot (:func:`dancekit.motion.floor.planted_share`),
       in (0, 1];
-    * ``smoothing``: the jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`), in (0, 10).
+    * ``smoothing``: the jitter-to-energy ratio (:func:`dancekit.motion.jitter.smoothing_window`), in (0, 10).
     """
 
     jitter: tuple[tuple[str, float], ...] = ()

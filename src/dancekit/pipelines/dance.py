@@ -3,19 +3,27 @@
 :class:`DancePipeline` does what every dance family shares: :meth:`~DancePipeline.from_pretrained` (the folder
 resolved, the model, its statistics, its components and its settings loaded, the stage configuration parsed
 once, the decoding precision set), :meth:`~DancePipeline.features`, :meth:`~DancePipeline.read_genre`,
-:meth:`~DancePipeline.stage_options` and :meth:`~DancePipeline.dances` (the genre read once, the family's
-generation step, a dance that does not look like music calmed, the stages of
-:func:`~dancekit.pipelines.stages.finish` per dance). A family writes its generation step,
-:meth:`~DancePipeline.generate` ``(audio_path, *, seeds, start, end, genre, progress) -> list[Motion]``, and
-names its ``family``, its ``sampling_config`` and the ``components`` it understands; a family whose generation
-is tied to its genre handling (revolution's genre models, music2dance's per-genre sampling, dual's start poses)
-overrides :meth:`~DancePipeline.dances` as well.
+:meth:`~DancePipeline.stage_options`, and :meth:`~DancePipeline.dances` / ``__call__``: the song's features and
+beat strength once, the genre read once and chosen per seed, one call of the family's generation step per batch
+of seeds that dance alike, a dance of an input that does not look like music calmed, then the stages of
+:func:`~dancekit.pipelines.stages.finish` per dance.
+
+A family writes its generation step, :meth:`~DancePipeline.generate_batch` ``(audio_path, *, seeds, choices,
+start, end, progress, **options) -> list[Motion]`` (its own keyword options, e.g. a sampling temperature, are
+arguments of it, and ``dances`` / ``__call__`` take them), and names its ``family``, its ``sampling_config`` and
+the ``components`` it understands. Where its genres work otherwise than "read the most likely genre from the
+music for ``"auto"``", it overrides the small hooks the steps call: :meth:`~DancePipeline.reads_genre` (when the
+music's genre is read), :meth:`~DancePipeline.choose_genre` (what a seed dances: revolution's seed draws its
+genre), :meth:`~DancePipeline.batch_key` (which seeds share a generation call), :meth:`~DancePipeline.danced_by`
+and :meth:`~DancePipeline.calm`.
 """
 
 from __future__ import annotations
 
+import inspect
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -26,11 +34,37 @@ from dancekit.checkpoints import NormStats, components, load_pretrained, resolve
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.precision import check_precision, to_precision
 from dancekit.motion import Motion, Skeleton
-from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
+from dancekit.pipelines.base import (
+    DanceResult,
+    calm_motion,
+    check_seeds,
+    clean_motion,
+    song_feature_set,
+    song_features,
+)
 from dancekit.pipelines.config import CheckpointSettings, NoSampling, StageConfig, checkpoint_settings
 from dancekit.pipelines.stages import Song, finish, seed_trace
 
-__all__ = ["DancePipeline"]
+__all__ = ["DancePipeline", "GenreChoice"]
+
+
+@dataclass(frozen=True)
+class GenreChoice:
+    """What one seed of a :meth:`DancePipeline.dances` call dances (:meth:`DancePipeline.choose_genre`).
+
+    Attributes
+    ----------
+    requested : the genre asked for: "auto", "none" or a genre of the model
+    genre : the genre danced (None: the model alone)
+    drawn_p : the probability with which the seed drew ``genre`` (None: not drawn)
+    probs : the music's genre probabilities the dance carries (``DanceResult.genre_probs``; the stages read them)
+    """
+
+    requested: str
+    genre: str | None = None
+    drawn_p: float | None = None
+    probs: dict[str, float] = field(default_factory=dict)
+
 
 
 class DancePipeline:
@@ -141,19 +175,57 @@ class DancePipeline:
 
     def read_genre(self, audio_path: str | os.PathLike, *, start: float | None = None,
                    end: float | None = None) -> dict[str, float]:
-        """The probability of each genre for the song (excerpt) read by the ``genre_reader`` (renormalised over
-        its genres); empty without a reader."""
-        if self.genre_reader is None:
+        """The probability of each of :attr:`genres` for the song (excerpt) read by the ``genre_reader``,
+        renormalised over them; empty without a reader or without genres to dance."""
+        if self.genre_reader is None or not self.genres:
             return {}
         probs = self.genre_reader(audio_path, start=start, end=end)
+        probs = {g: probs[g] for g in self.genres if g in probs}
         total = sum(probs.values())
         return {g: p / total for g, p in probs.items()} if total > 0 else {}
 
-    def generate(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
-                 end: float | None = None, genre: str | None = None, progress: bool = False) -> list[Motion]:
-        """The family's generation step: one :class:`~dancekit.motion.Motion` per seed (the model's own dance,
-        on :attr:`skeleton` at :attr:`fps`, one frame per feature frame), the same for a seed alone and in a batch."""
-        raise NotImplementedError(f"{type(self).__name__} must define generate()")
+    # --- the hooks of dances(): a family overrides those where its genres work otherwise ---------------------
+
+    def reads_genre(self, requested: list[str], *, music: bool, config: StageConfig) -> bool:
+        """Whether :meth:`dances` reads the music's genre (:meth:`read_genre`, once per call): ``requested`` the
+        genre asked for per seed, ``music`` whether the input looks like music, ``config`` the stages that will
+        run. Here: when a seed asks for "auto" and the input looks like music (no genre is read from what is not)."""
+        return music and "auto" in requested
+
+    def choose_genre(self, requested: str, probs: dict[str, float], *, seed: int) -> GenreChoice:
+        """What the seed ``seed`` dances when ``requested`` ("auto", "none" or one of :attr:`genres`, checked
+        already) was asked for and the music's genre probabilities are ``probs`` (empty: not read). Here: "auto"
+        dances the most likely genre (the model alone without ``probs``) and carries ``probs``; "none" the model
+        alone; a genre that genre."""
+        if requested == "auto":
+            return GenreChoice(requested, max(probs, key=probs.get) if probs else None, None, probs)
+        return GenreChoice(requested, None if requested == "none" else requested)
+
+    def batch_key(self, choice: GenreChoice) -> Hashable:
+        """The seeds whose choices have one key are generated in one :meth:`generate_batch` call (in the order of
+        the keys' first seeds). Here: one batch per genre danced."""
+        return choice.genre
+
+    def danced_by(self, genre: str | None) -> str:
+        """The folder of the model that dances ``genre`` (``DanceResult.danced_by``). Here: this checkpoint's."""
+        return self.folder
+
+    def calm(self, motion: Motion, **options) -> Motion:
+        """The dance of an input that does not look like music, calmed: :func:`~dancekit.pipelines.base.calm_motion`
+        (40 % of the movement) then :func:`~dancekit.pipelines.base.clean_motion` (positions only, rest bone
+        lengths, feet on the floor). ``options``: the call's options of :meth:`generate_batch`."""
+        return clean_motion(calm_motion(motion))
+
+    def generate_batch(self, audio_path: str | os.PathLike, *, seeds: list[int], choices: list[GenreChoice],
+                       start: float | None = None, end: float | None = None, progress: bool = False,
+                       **options) -> list[Motion]:
+        """The family's generation step: one :class:`~dancekit.motion.Motion` per seed of ``seeds`` (the model's
+        own dance, on :attr:`skeleton` at :attr:`fps`, one frame per feature frame; the same for a seed alone and in
+        a batch), ``choices[k]`` what seed ``seeds[k]`` dances (all of one :meth:`batch_key`). A family's own
+        keyword options (e.g. a sampling temperature) are keyword arguments here; :meth:`dances` passes them."""
+        raise NotImplementedError(f"{type(self).__name__} must define generate_batch()")
+
+    # --- the shared skeleton ---------------------------------------------------------------------------------
 
     @torch.no_grad()
     def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, **kwargs) -> DanceResult:
@@ -162,33 +234,92 @@ class DancePipeline:
 
     @torch.no_grad()
     def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
-               end: float | None = None, genre: str | None = None, progress: bool = False, beat_sync: bool = True,
-               cleanup: bool = True,
-               stage_trace: Callable[[int, str, DanceResult], None] | None = None) -> list[DanceResult]:
-        """One dance per seed for the song (excerpt ``[start, end)`` s): the genre read once (``genre`` "auto" or
-        None, with a ``genre_reader``), :meth:`generate`, a dance of an input that does not look like music
-        calmed (:func:`~dancekit.pipelines.base.calm_if_not_music`), then the stages switched by ``beat_sync`` /
-        ``cleanup`` (:func:`~dancekit.pipelines.stages.finish`, ``stage_trace(k, name, result)`` per stage).
+               end: float | None = None, genre: str | list[str | None] | None = None, progress: bool = False,
+               beat_sync: bool = True, cleanup: bool = True,
+               stage_trace: Callable[[int, str, DanceResult], None] | None = None, **options) -> list[DanceResult]:
+        """One dance per seed for the song (excerpt ``[start, end)`` s); ``dances(song, seeds=[0, 1, 2])[k]`` is bit
+        for bit ``pipe(song, seed=[0, 1, 2][k])``.
+
+        The steps: the song's features and beat strength once; the music's genre read once where
+        :meth:`reads_genre` says so and chosen per seed (:meth:`choose_genre`); :meth:`generate_batch` once per
+        :meth:`batch_key`; a dance of an input that does not look like music (beat strength below
+        :data:`dancekit.features.MUSIC_BEAT_STRENGTH`: silence, noise, speech, birdsong) calmed (:meth:`calm`);
+        then the checkpoint's stages switched by ``beat_sync`` / ``cleanup``
+        (:func:`~dancekit.pipelines.stages.finish`, the song's beats tracked once).
+
+        Parameters
+        ----------
+        seeds : the seeds (a seed may repeat)
+        start, end : the excerpt in seconds (None: from the beginning / to the end)
+        genre : "auto" or None (the genre read from the music where the model has a music attribute classifier,
+            else the model alone), "none" (the model alone), one of :attr:`genres`, or a list of those, one per seed
+        progress : a progress bar over the generation
+        beat_sync, cleanup : the shared stages (:mod:`dancekit.pipelines.stages`): the warp onto the song's beats;
+            the clean-up, smoothing, energy lift, jitter cap and foot lock
+        stage_trace : called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
+            :func:`~dancekit.pipelines.stages.finish` (``"input"``, then each stage that ran)
+        options : the family's own options, the keyword arguments of its :meth:`generate_batch`
 
         Raises
         ------
         ParameterError
-            For an empty ``seeds`` or a genre the model does not know."""
+            For no seeds, a genre the model does not know, or a bad option.
+        TypeError
+            For an option the family does not have.
+        """
+        from dancekit.features import MUSIC_BEAT_STRENGTH
+
         seeds = check_seeds(seeds)
-        requested = "auto" if genre is None else str(genre)
-        if requested not in ("auto", "none") and requested not in self.genres:
-            raise ParameterError(f"unknown genre {requested!r} for this model; choose from "
-                                 f"{', '.join(self.genres) or 'none (it has no genres)'}, auto or none")
-        probs = self.read_genre(audio_path, start=start, end=end) if requested == "auto" else {}
-        danced = requested if requested in self.genres else None
-        motions = self.generate(audio_path, seeds=seeds, start=start, end=end, genre=danced, progress=progress)
-        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
+        wanted = list(genre) if isinstance(genre, (list, tuple)) else [genre] * len(seeds)
+        if len(wanted) != len(seeds):
+            raise ParameterError(f"{len(wanted)} genres for {len(seeds)} seeds")
+        requested = ["auto" if g is None else str(g) for g in wanted]
+        for g in dict.fromkeys(requested):
+            self._check_genre(g)
+        self._check_options(options)
+        strength = song_feature_set(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
+                                    start=start, end=end).beat_strength
+        measured = strength is not None and bool(np.isfinite(strength))
+        music = not (measured and strength < MUSIC_BEAT_STRENGTH)  # not measured: as music
         config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
+        probs = (self.read_genre(audio_path, start=start, end=end)
+                 if self.reads_genre(requested, music=music, config=config) else {})
+        choices = [self.choose_genre(r, probs, seed=s) for r, s in zip(requested, seeds)]
+        keys = [self.batch_key(c) for c in choices]
+        motions: list[Motion | None] = [None] * len(seeds)
+        for key in dict.fromkeys(keys):
+            rows = [k for k, x in enumerate(keys) if x == key]
+            done = self.generate_batch(audio_path, seeds=[seeds[k] for k in rows], choices=[choices[k] for k in rows],
+                                       start=start, end=end, progress=progress, **options)
+            if len(done) != len(rows):
+                raise RuntimeError(f"{type(self).__name__}.generate_batch gave {len(done)} dances for {len(rows)} seeds")
+            for k, motion in zip(rows, done):
+                motions[k] = motion
+        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
         results = []
-        for k, (seed, motion) in enumerate(zip(seeds, motions)):
-            result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
-                                 genre=danced, genre_probs=dict(probs), danced_by=self.folder)
-            result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
-                                       hop_length=self.hop_length, start=start, end=end)
+        for k, (seed, choice, motion) in enumerate(zip(seeds, choices, motions)):
+            result = DanceResult(motion=motion if music else self.calm(motion, **options), model=self.folder,
+                                 seed=seed, genre_requested=choice.requested, genre=choice.genre,
+                                 genre_probs=dict(choice.probs), danced_by=self.danced_by(choice.genre),
+                                 beat_strength=float(strength) if measured else None, looks_like_music=music,
+                                 genre_drawn_p=choice.drawn_p)
             results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
         return results
+
+    def _check_genre(self, genre: str) -> None:
+        if genre in ("auto", "none") or genre in self.genres:
+            return
+        if not self.genres:
+            raise ParameterError(f"this {self.family or type(self).__name__} model has no genres; cannot dance "
+                                 f"{genre!r} (use --genre auto or none)")
+        raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}, "
+                             "auto or none")
+
+    def _check_options(self, options: dict[str, Any]) -> None:
+        params = inspect.signature(self.generate_batch).parameters
+        if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+            return
+        named = {"seeds", "choices", "start", "end", "progress"}
+        unknown = [k for k in options if k not in params or k in named]
+        if unknown:
+            raise TypeError(f"{type(self).__name__}.dances() got an unexpected keyword argument {unknown[0]!r}")

@@ -12,7 +12,6 @@ dance stay raw (``music_raw_from`` / ``dance_raw_from`` of the model configurati
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,10 +24,8 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.dual import PITCH_CLASSES, DualModel, chord_token
 from dancekit.motion import Motion, Skeleton
 from dancekit.motion.representations import decode_rot6d, encode_motion
-from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds, song_features
-from dancekit.pipelines.config import CheckpointSettings, DualSampling, checkpoint_settings
-from dancekit.pipelines.dance import DancePipeline
-from dancekit.pipelines.stages import Song, finish, seed_trace
+from dancekit.pipelines.config import CheckpointSettings, DualSampling, StageConfig, checkpoint_settings
+from dancekit.pipelines.dance import DancePipeline, GenreChoice
 
 
 def _load(folder: str | os.PathLike, device: str) -> tuple[DualModel, dict[str, Any], NormStats, Path]:
@@ -58,25 +55,23 @@ def _checked(model, meta: dict[str, Any], stats: NormStats, folder) -> tuple[Dua
 
 
 class DualPipeline(DancePipeline):
-    """Music → dance with G_M→D: a song → :class:`~dancekit.pipelines.DanceResult`."""
+    """Music → dance with G_M→D: a song → :class:`~dancekit.pipelines.DanceResult`.
+
+    ``pipe(song, seed=0, start=None, end=None, beat_sync=True, cleanup=True, start_pose=None, smooth_frames=None,
+    lowpass_hz=None)`` and ``pipe.dances(song, seeds=[...], ...)`` (:meth:`DancePipeline.dances
+    <dancekit.pipelines.dance.DancePipeline.dances>`); this family's own options are those of
+    :meth:`generate_batch`. The model has no genre input: ``genre`` must be None, "auto" or "none"; ``seed`` draws
+    the start pose from the model's pool unless ``start_pose`` is given."""
 
     family = "dual"
     sampling_config = DualSampling
 
     def __init__(self, model: DualModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
                  genre_reader=None, settings: CheckpointSettings | None = None):
-        self.model, self.meta, self.stats, self.folder = model, meta, stats, str(folder)
-        #: the checkpoint's stage settings and sampling (:func:`~dancekit.pipelines.config.checkpoint_settings`)
-        self.settings = settings if settings is not None else checkpoint_settings(meta, folder=folder,
-                                                                                  sampling=DualSampling)
-        #: a :class:`~dancekit.pipelines.music_attributes.MusicAttributePipeline` (the checkpoint's
-        #: ``"genre_reader"`` component) or None: the model has no genre input, but the energy stage's floor
-        #: follows the genre the music calls for (``stages.energy_floor``)
-        self.genre_reader = genre_reader
-        self.fps = float(meta["fps"])
-        self.hop_length = int(meta.get("hop_length", 512))
-        self.preset = str(meta.get("preset", "dual"))
-        self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        #: ``genre_reader``: a :class:`~dancekit.pipelines.music_attributes.MusicAttributePipeline` (the
+        #: checkpoint's ``"genre_reader"`` component) or None: the model has no genre input, but the energy stage's
+        #: floor and the jitter cap follow the genres the music calls for (:meth:`reads_genre`)
+        super().__init__(model, meta=meta, stats=stats, folder=folder, settings=settings, genre_reader=genre_reader)
         sampling = self.settings.sampling
         self.smooth_frames = sampling.smooth_frames  # the checkpoint's sampling setting
         #: the checkpoint's low-pass cut-off (Hz); when set, used instead of smooth_frames
@@ -98,13 +93,6 @@ class DualPipeline(DancePipeline):
             reader = MusicAttributePipeline.from_pretrained(parts["genre_reader"], device=device)
         return cls(model, meta=meta, stats=stats, folder=str(folder), genre_reader=reader, settings=settings)
 
-    def features(self, audio_path: str | os.PathLike, *, start: float | None = None,
-                 end: float | None = None) -> np.ndarray:
-        """The song's ``dual`` features (T, 53), MFCC blocks normalised, chroma + beat raw."""
-        feats = song_features(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
-                              music_dim=self.model.config.music_dim, start=start, end=end)
-        return self.stats.normalize_music(feats)
-
     def start_pose(self, pose: Motion | np.ndarray | None, seed: int) -> torch.Tensor:
         """The decoder's start token (P,): the first frame of ``pose`` (a Motion on the model's skeleton, or a
         rot6d vector), else a start pose drawn from the model's pool with ``seed``."""
@@ -117,43 +105,42 @@ class DualPipeline(DancePipeline):
             raise ParameterError(f"a start pose must have {self.model.config.pose_dim} rot6d values, got {x.shape}")
         return torch.from_numpy(self.stats.normalize_dance(x))
 
+    def reads_genre(self, requested: list[str], *, music: bool, config: StageConfig) -> bool:
+        """The model has no genre input; the music's genres are read (for any input, whatever genre is asked for)
+        where a stage follows them: the energy lift with a ``genre_stats.energy`` table, or the jitter cap."""
+        if self.genre_reader is None:
+            return False
+        energy = "lift_energy" in config.enabled and config.lift_energy is not None and bool(config.genre_stats.energy)
+        return energy or ("jitter_cap" in config.enabled and config.jitter_cap is not None)
+
+    def read_genre(self, audio_path: str | os.PathLike, *, start: float | None = None,
+                   end: float | None = None) -> dict[str, float]:
+        """The classifier's probability of each genre it knows for the song (excerpt), as it gives them."""
+        return {} if self.genre_reader is None else self.genre_reader(audio_path, start=start, end=end)
+
+    def choose_genre(self, requested: str, probs: dict[str, float], *, seed: int) -> GenreChoice:
+        """The model alone (it has no genres), carrying the music's genre probabilities for the stages."""
+        return GenreChoice(requested, None, None, probs)
+
     @torch.no_grad()
-    def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
-                 end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
-                 smooth_frames: int | None = None, lowpass_hz: float | None = None, progress: bool = False,
-                 beat_sync: bool = True, cleanup: bool = True) -> DanceResult:
-        """A dance for the song (excerpt ``[start, end)`` s), one frame per feature frame.
+    def generate_batch(self, audio_path: str | os.PathLike, *, seeds: list[int], choices: list[GenreChoice],
+                       start: float | None = None, end: float | None = None, progress: bool = False,
+                       start_pose: Motion | np.ndarray | None = None, smooth_frames: int | None = None,
+                       lowpass_hz: float | None = None) -> list[Motion]:
+        """G_M→D's dances of ``seeds`` (the features once, each seed from its start pose on its own), filtered over
+        time (:meth:`output_filter`) and decoded from rot6d.
 
-        ``beat_sync``, ``cleanup``: the shared pipeline stages (:mod:`dancekit.pipelines.stages`).
-
-        ``seed`` draws the start pose from the model's pool (the paper's diverse generation) unless
-        ``start_pose`` is given. The model has no genre input: ``genre`` must be None, "auto" or "none".
-        ``smooth_frames``: a centred moving average of that many frames over G_M→D's output (translation and
-        6D columns; the 6D are re-orthonormalised when decoded), 1 = none; default: the checkpoint's
-        ``smooth_frames`` (chosen on the validation songs, docs/DUAL.md), else 1.
-        ``lowpass_hz``: instead of the moving average, a zero-phase 4th-order Butterworth low-pass with this
-        cut-off (Hz, :func:`lowpass`) over G_M→D's output; default: the checkpoint's ``lowpass_hz``. Giving
-        ``smooth_frames`` alone uses the moving average; giving both is an error.
+        Parameters
+        ----------
+        start_pose : the first pose of every dance (a Motion on the model's skeleton, or a rot6d vector); None: each
+            seed draws its start pose from the model's pool (the paper's diverse generation)
+        smooth_frames : a centred moving average of that many frames over G_M→D's output (translation and 6D
+            columns; the 6D are re-orthonormalised when decoded), 1 = none; default: the checkpoint's
+            ``smooth_frames`` (chosen on the validation songs, docs/DUAL.md), else 1
+        lowpass_hz : instead of the moving average, a zero-phase 4th-order Butterworth low-pass with this cut-off
+            (Hz, :func:`lowpass`) over G_M→D's output; default: the checkpoint's ``lowpass_hz``. Giving
+            ``smooth_frames`` alone uses the moving average; giving both is an error.
         """
-        return self.dances(audio_path, seeds=[seed], start=start, end=end, genre=genre, start_pose=start_pose,
-                           smooth_frames=smooth_frames, lowpass_hz=lowpass_hz, progress=progress,
-                           beat_sync=beat_sync, cleanup=cleanup)[0]
-
-    @torch.no_grad()
-    def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
-               end: float | None = None, genre: str | None = None, start_pose: Motion | np.ndarray | None = None,
-               smooth_frames: int | None = None, lowpass_hz: float | None = None, progress: bool = False,
-               beat_sync: bool = True, cleanup: bool = True,
-               stage_trace: Callable[[int, str, DanceResult], None] | None = None) -> list[DanceResult]:
-        """One dance per seed for the song (the features and the song's beats once, G_M→D from each start pose
-        on its own, the stages per dance): ``dances(song, seeds=[0, 1])[k]`` is bit for bit
-        ``pipe(song, seed=[0, 1][k])``. Arguments as :meth:`__call__` (a ``start_pose``
-        starts every dance from it).
-        ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
-        :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran)."""
-        if genre not in (None, "auto", "none"):
-            raise ParameterError(f"the dual-learning model has no genres; cannot dance {genre!r} (use --genre auto)")
-        seeds = check_seeds(seeds)
         feats = torch.from_numpy(self.features(audio_path, start=start, end=end))[None]  # (1, T, 53)
         s = torch.stack([self.start_pose(start_pose, seed) for seed in seeds])  # (B, P)
         # each seed on its own, as a batch of one: the batched products round differently for every batch size
@@ -161,22 +148,8 @@ class DualPipeline(DancePipeline):
         y = np.stack([self.model.generate_dance(feats, start=s[k : k + 1],
                                                 generator=torch.Generator().manual_seed(int(seed)))[0].cpu().numpy()
                       for k, seed in enumerate(seeds)])  # (B, T, P)
-        results = []
-        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
-        config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
-        probs = {}  # the genres the music calls for, read only where the energy floor or the jitter cap needs them
-        if cleanup and self.genre_reader is not None and ((config.lift_energy is not None and config.genre_stats.energy)
-                                                          or config.jitter_cap is not None):
-            probs = self.genre_reader(audio_path, start=start, end=end)
-        for k, seed in enumerate(seeds):
-            motion = decode_rot6d(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
-                                  self.skeleton, self.fps, root_decode=self.root_decode)
-            result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_probs=dict(probs),
-                                 genre_requested="auto" if genre is None else str(genre), danced_by=self.folder)
-            result = calm_if_not_music(result, audio_path, fps=self.fps, preset=self.preset,
-                                       hop_length=self.hop_length, start=start, end=end)
-            results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
-        return results
+        return [decode_rot6d(self.stats.denormalize_dance(self.output_filter(y[k], smooth_frames, lowpass_hz)),
+                             self.skeleton, self.fps, root_decode=self.root_decode) for k in range(len(seeds))]
 
     def output_filter(self, y: np.ndarray, smooth_frames: int | None = None,
                       lowpass_hz: float | None = None) -> np.ndarray:

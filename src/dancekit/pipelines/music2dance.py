@@ -21,7 +21,6 @@ neither sinks nor floats away however long the song.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -30,18 +29,22 @@ import torch
 from dancekit.checkpoints import NormStats
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.music2dance import Music2DanceModel
-from dancekit.motion import Motion, Skeleton
+from dancekit.motion import Motion
 from dancekit.motion.analysis import floor_curve
 from dancekit.motion.root_delta import decode_rootdelta
-from dancekit.pipelines.base import DanceResult, calm_if_not_music, check_seeds
-from dancekit.pipelines.config import CheckpointSettings, Music2DanceSampling, checkpoint_settings
-from dancekit.pipelines.dance import DancePipeline
+from dancekit.pipelines.config import CheckpointSettings, Music2DanceSampling
+from dancekit.pipelines.dance import DancePipeline, GenreChoice
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import Song, finish, seed_trace
 
 
 class Music2DancePipeline(DancePipeline):
     """Generate a dance for a whole song with a trained :class:`Music2DanceModel`.
+
+    ``pipe(song, seed=0, genre="auto", start=None, end=None, beat_sync=True, cleanup=True, temperature=None,
+    genre_scale=None)`` and ``pipe.dances(song, seeds=[...], ...)`` (:meth:`DancePipeline.dances
+    <dancekit.pipelines.dance.DancePipeline.dances>`, ``genre`` also a list: one dance type per seed); this family's
+    own options are those of :meth:`generate_batch` (``temperature``, ``genre_scale``, ``music``). The dance has one
+    frame per feature frame, rotations on the skeleton's rig and world positions (skeleton units), feet on the floor.
 
     Parameters
     ----------
@@ -65,17 +68,8 @@ class Music2DancePipeline(DancePipeline):
         if meta.get("representation", "rotations_rootdelta") != "rotations_rootdelta":
             raise CheckpointError(f"checkpoint {folder}: a Music2Dance model needs the rotations_rootdelta "
                                   f"representation, not {meta.get('representation')!r}")
-        self.model = model.eval()
-        self.meta, self.folder, self.stats = meta, str(folder), stats
-        self.fps = float(meta["fps"])
-        self.preset = str(meta.get("preset", "music2dance"))
-        self.hop_length = int(meta.get("hop_length", 512))
-        self.skeleton = Skeleton.from_dict(meta["skeleton"])
+        super().__init__(model, meta=meta, stats=stats, folder=folder, settings=settings, genre_reader=genre_reader)
         self._genres = tuple(meta.get("genres", ()))[: model.config.n_genres]
-        self.genre_reader = genre_reader
-        #: the checkpoint's stage settings and sampling (:func:`~dancekit.pipelines.config.checkpoint_settings`)
-        self.settings = settings if settings is not None else checkpoint_settings(meta, folder=folder,
-                                                                                  sampling=Music2DanceSampling)
         sampling = self.settings.sampling
         #: sampling temperature when a call names none: the checkpoint's ``"sampling": {"temperature": t}``
         #: (chosen on the validation songs for the embedded model), else 1 (the mixture as trained)
@@ -109,89 +103,40 @@ class Music2DancePipeline(DancePipeline):
         """The dance types of the model's genre condition (in its order)."""
         return self._genres
 
-    def _genre(self, genre: str | None, audio_path, start, end) -> tuple[str, str | None, dict[str, float]]:
-        requested = "auto" if genre is None else str(genre)
-        if requested == "none":
-            return requested, None, {}
-        if requested == "auto":
-            if self.genre_reader is None or not self.genres:
-                return requested, None, {}
-            probs = self.genre_reader(audio_path, start=start, end=end)
-            probs = {g: probs[g] for g in self.genres if g in probs}
-            total = sum(probs.values())
-            if total <= 0:
-                return requested, None, {}
-            probs = {g: p / total for g, p in probs.items()}
-            return requested, max(probs, key=probs.get), probs
-        if requested not in self.genres:
-            known = ", ".join(self.genres) or "none (the model has no dance-type condition)"
-            raise ParameterError(f"unknown genre {requested!r} for this model; choose from {known}, auto or none")
-        return requested, requested, {}
+    def reads_genre(self, requested: list[str], *, music: bool, config) -> bool:
+        """When a seed asks for "auto" (the dance type is read from any input, music or not)."""
+        return "auto" in requested
+
+    def batch_key(self, choice: GenreChoice) -> str | None:
+        """Seeds whose genre is named and has its own sampling (:attr:`genre_sampling`) are one batch per such
+        genre; all others one batch (each row with its own dance type)."""
+        return choice.requested if choice.requested in self.genre_sampling else None
 
     @torch.no_grad()
-    def __call__(self, audio_path: str | os.PathLike, *, seed: int = 0, genre: str | None = None,
-                 temperature: float | None = None, start: float | None = None, end: float | None = None,
-                 progress: bool = False, beat_sync: bool = True, cleanup: bool = True,
-                 genre_scale: float | None = None) -> DanceResult:
-        """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
+    def generate_batch(self, audio_path: str | os.PathLike, *, seeds: list[int], choices: list[GenreChoice],
+                       start: float | None = None, end: float | None = None, progress: bool = False,
+                       temperature: float | None = None, genre_scale: float | None = None,
+                       music: np.ndarray | None = None) -> list[Motion]:
+        """The dances of ``seeds`` (each seed's frame loop on its own, one dance type per row), sampled with the
+        settings of the batch's named genre (:attr:`genre_sampling`) over the plain ones.
 
         Parameters
         ----------
-        seed : seeds the mixture sampling; the same seed gives the same dance
-        genre : a dance type of :attr:`genres`; "auto"/None: read from the music by the folder's classifier when
-            it has one (else "none"); "none": no dance type (the model's own learned "none" condition)
         temperature : scales the sampled variances (and sharpens the mixture weights); 0 takes the means;
-            None: the checkpoint's default (:attr:`temperature`)
-        start, end : excerpt in seconds
-        beat_sync, cleanup : the shared pipeline stages (:mod:`dancekit.pipelines.stages`)
+            None: the checkpoint's (:attr:`temperature`, or the named genre's)
         genre_scale : guidance α of the dance type (``g_∅ + α (g - g_∅)``, see
-            :meth:`Music2DanceModel.guided_genre_vector`); None: the checkpoint's default (:attr:`genre_scale`)
-
-        Returns
-        -------
-        :class:`DanceResult` whose ``.motion`` has one frame per feature frame, rotations on the skeleton's
-        rig and world positions (skeleton units), feet on the floor.
+            :meth:`Music2DanceModel.guided_genre_vector`); None: the checkpoint's (:attr:`genre_scale`, or the
+            named genre's)
+        music : the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
+            prepared dataset's), instead of extracting them from ``audio_path``
 
         Raises
         ------
         ParameterError
-            For an unknown genre or a negative temperature.
+            For a negative temperature or genre scale, or ``music`` of the wrong shape.
         """
-        return self.dances(audio_path, seeds=[seed], genre=genre, temperature=temperature, start=start, end=end,
-                           progress=progress, beat_sync=beat_sync, cleanup=cleanup, genre_scale=genre_scale)[0]
-
-    @torch.no_grad()
-    def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], genre: str | list[str | None] | None = None,
-               temperature: float | None = None, start: float | None = None, end: float | None = None,
-               progress: bool = False, music: np.ndarray | None = None, beat_sync: bool = True,
-               cleanup: bool = True, genre_scale: float | None = None,
-               stage_trace: Callable[[int, str, DanceResult], None] | None = None) -> list[DanceResult]:
-        """One dance per seed for the song (the features and the genre reading once, each seed's frame loop on
-        its own): ``dances(song, seeds=[0, 1, 2])[k]`` is bit for bit ``pipe(song, seed=[0, 1, 2][k])``. Arguments as
-        :meth:`__call__`; ``genre`` may also be a list, one genre per seed (a row's dance type). ``music``:
-        the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
-        prepared dataset's), instead of extracting them from ``audio_path``. Rows whose genre is named and has
-        an entry in :attr:`genre_sampling` sample with it over the plain settings (one batch per such genre);
-        ``temperature`` / ``genre_scale`` given here override both.
-        ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
-        :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran)."""
-        seeds = check_seeds(seeds)
-        wanted = list(genre) if isinstance(genre, (list, tuple)) else [genre] * len(seeds)
-        if len(wanted) != len(seeds):
-            raise ParameterError(f"{len(wanted)} genres for {len(seeds)} seeds")
-        # rows whose genre is named and has its own sampling settings: one batch per such genre
-        keys = [str(g) if g is not None and str(g) in self.genre_sampling else None for g in wanted]
-        if len(set(keys)) > 1:
-            out: list[DanceResult | None] = [None] * len(seeds)
-            for key in dict.fromkeys(keys):
-                rows = [k for k, x in enumerate(keys) if x == key]
-                part = self.dances(audio_path, seeds=[seeds[k] for k in rows], genre=[wanted[k] for k in rows],
-                                   temperature=temperature, start=start, end=end, progress=progress, music=music,
-                                   beat_sync=beat_sync, cleanup=cleanup, genre_scale=genre_scale)
-                for k, r in zip(rows, part):
-                    out[k] = r
-            return out
-        steer = self.genre_sampling.get(keys[0], {}) if keys[0] is not None else {}
+        key = self.batch_key(choices[0])
+        steer = self.genre_sampling.get(key, {}) if key is not None else {}
         noise_correlation = steer.get("noise_correlation", self.noise_correlation)
         smooth_sigma = steer.get("smooth_sigma", self.smooth_sigma)
         if temperature is None:
@@ -203,7 +148,6 @@ class Music2DancePipeline(DancePipeline):
         genre_scale = float(genre_scale)
         if not (np.isfinite(genre_scale) and genre_scale >= 0):
             raise ParameterError(f"genre_scale must be a finite number >= 0, got {genre_scale!r}")
-        read = {g: self._genre(g, audio_path, start, end) for g in dict.fromkeys(wanted)}  # (requested, danced, probs)
         if music is None:
             feats = self.features(audio_path, start=start, end=end)
         else:
@@ -213,7 +157,7 @@ class Music2DancePipeline(DancePipeline):
             feats = self.stats.normalize_music(music).astype(np.float32)
         x = torch.from_numpy(feats)[None]  # (1, T, D)
         B = len(seeds)
-        index = torch.tensor([self.genres.index(read[g][1]) if read[g][1] is not None else -1 for g in wanted])
+        index = torch.tensor([self.genres.index(c.genre) if c.genre is not None else -1 for c in choices])
         gens = [torch.Generator().manual_seed(s) for s in seeds]
         window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
         x = x.to(self.model.genre_embedding.weight.device).expand(B, -1, -1)
@@ -226,19 +170,8 @@ class Music2DancePipeline(DancePipeline):
             D = self.model.config.gmm_dim
             y = torch.cat([torch.cat([gaussian_smooth(row[None, :, :D], smooth_sigma), row[None, :, D:]], -1)
                            for row in y])  # row by row: each seed's dance as it is alone
-        out = []
-        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
-        config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
-        for k, (seed, g) in enumerate(zip(seeds, wanted)):
-            requested, danced, probs = read[g]
-            poses = self.stats.denormalize_dance(y[k].cpu().numpy().astype(np.float64))
-            motion = on_the_floor(decode_rootdelta(poses, self.skeleton, self.fps))
-            out.append(DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
-                                   genre=danced, genre_probs=probs, danced_by=self.folder))
-            out[-1] = calm_if_not_music(out[-1], audio_path, fps=self.fps, preset=self.preset,
-                                        hop_length=self.hop_length, start=start, end=end)
-            out[-1] = finish(out[-1], song, config, trace=seed_trace(stage_trace, k))
-        return out
+        return [on_the_floor(decode_rootdelta(self.stats.denormalize_dance(y[k].cpu().numpy().astype(np.float64)),
+                                              self.skeleton, self.fps)) for k in range(B)]
 
 
 def on_the_floor(motion: Motion) -> Motion:

@@ -40,7 +40,6 @@ genres whose real jitter is over k times that of the song's most likely genre.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -52,23 +51,26 @@ from dancekit.checkpoints import NormStats
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.precision import to_precision
 from dancekit.models.revolution import RevolutionModel, SeedVariety
-from dancekit.motion import Motion, Skeleton
+from dancekit.motion import Motion
 from dancekit.motion.representations import decode_motion, get_representation
-from dancekit.pipelines.base import (
-    DanceResult,
-    calm_motion,
-    check_seeds,
-    clean_motion,
-    song_feature_set,
-)
-from dancekit.pipelines.config import CheckpointSettings, RevolutionSampling, checkpoint_settings
-from dancekit.pipelines.dance import DancePipeline
+from dancekit.pipelines.base import calm_motion, check_seeds, clean_motion
+from dancekit.pipelines.config import CheckpointSettings, RevolutionSampling
+from dancekit.pipelines.dance import DancePipeline, GenreChoice
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
-from dancekit.pipelines.stages import Song, finish, genre_jitter_table, seed_trace
+from dancekit.pipelines.stages import genre_jitter_table
 
 
 class RevolutionPipeline(DancePipeline):
     """Generate a dance for a whole song with a trained :class:`RevolutionModel`.
+
+    ``pipe(song, seed=0, genre="auto", start=None, end=None, beat_sync=True, cleanup=True, postprocess=True,
+    variety=True)`` and ``pipe.dances(song, seeds=[...], ...)`` (:meth:`DancePipeline.dances
+    <dancekit.pipelines.dance.DancePipeline.dances>`); this family's own options are those of
+    :meth:`generate_batch` (``postprocess``, ``variety``). ``genre="auto"`` lets each seed draw its genre model from
+    the music's genre posterior (:class:`GenreDraw`); a named genre is danced by its genre model (or the genre
+    input of a genre-conditioned model); the dance has one frame per feature frame (``T = 1 + n_samples //
+    hop_length`` at ``sr = fps * hop_length``), on the training skeleton (``positions3d``) or BODY_25
+    (``keypoints2d``), in the skeleton's units.
 
     Parameters
     ----------
@@ -87,25 +89,12 @@ class RevolutionPipeline(DancePipeline):
                  settings: CheckpointSettings | None = None):
         if not isinstance(model, RevolutionModel):
             raise CheckpointError(f"{folder} holds a {type(model).__name__}, not a Dance Revolution model")
-        for key in ("fps", "skeleton"):
-            if key not in meta:
-                raise CheckpointError(f"checkpoint {folder}: config.json has no {key!r} entry")
-        self.model = model.eval()
-        self.meta = meta
-        self.folder = str(folder)
-        self.stats = stats
-        self.fps = float(meta["fps"])
-        self.preset = str(meta.get("preset", "revolution"))
-        self.hop_length = int(meta.get("hop_length", 512))
+        super().__init__(model, meta=meta, stats=stats, folder=folder, settings=settings, genre_reader=genre_reader)
         self.representation = str(meta.get("representation", "positions3d"))
         try:
             get_representation(self.representation)
         except ParameterError as exc:
             raise CheckpointError(f"checkpoint {folder}: {exc}") from None
-        self.skeleton = Skeleton.from_dict(meta["skeleton"])
-        #: the checkpoint's stage settings and sampling (:func:`~dancekit.pipelines.config.checkpoint_settings`)
-        self.settings = settings if settings is not None else checkpoint_settings(meta, folder=folder,
-                                                                                  sampling=RevolutionSampling)
         #: how the seed keeps changing the dance (:class:`~dancekit.models.revolution.SeedVariety`), from the
         #: checkpoint's ``"sampling": {"phrase_s": s, "state_noise": a, "latent_noise": σ, "dance_latent": τ}``; none: the paper's
         #: decoding (the seed draws the initial decoder state only). Genre models dance with their parent's.
@@ -116,7 +105,6 @@ class RevolutionPipeline(DancePipeline):
                                                    self.settings.stages.genre_stats.table("jitter"), folder=str(folder))
         self.genre_models = dict(genre_models or {})  # genre → checkpoint folder, loaded on first use
         self._genre_pipelines: dict[str, RevolutionPipeline] = {}
-        self.genre_reader = genre_reader  # reads the genre from the music for genre="auto" (or None)
         if genre_reader is not None and genre_reader.fps != self.fps:
             raise CheckpointError(f"checkpoint {folder}: its music attribute classifier runs at {genre_reader.fps:g} "
                                   f"fps, the model at {self.fps:g} fps")
@@ -152,139 +140,54 @@ class RevolutionPipeline(DancePipeline):
         for pipe in self._genre_pipelines.values():
             pipe.set_precision(precision)
 
+    def choose_genre(self, requested: str, probs: dict[str, float], *, seed: int) -> GenreChoice:
+        """"auto": the genre seed ``seed`` draws from the music's genre posterior ``probs`` (:func:`draw_genre` with
+        :attr:`genre_draw`: the most likely genre unless the checkpoint lets the seed draw; the model alone without
+        ``probs``); otherwise as :meth:`DancePipeline.choose_genre <dancekit.pipelines.dance.DancePipeline.choose_genre>`."""
+        if requested == "auto":
+            genre, drawn_p = draw_genre(probs, seed=seed, draw=self.genre_draw)
+            return GenreChoice(requested, genre, drawn_p, probs)
+        return super().choose_genre(requested, probs, seed=seed)
+
+    def danced_by(self, genre: str | None) -> str:
+        """The genre model's folder for a genre this folder has a genre model of, else this folder."""
+        if genre is not None and self.genre_models:
+            return str(self.genre_models[genre])
+        return self.folder
+
+    def calm(self, motion: Motion, *, postprocess: bool = True, **options) -> Motion:
+        """A 3D dance calmed (:func:`~dancekit.pipelines.base.calm_motion`, then with ``postprocess``
+        :func:`~dancekit.pipelines.base.clean_motion`); a 2D dance is left as it is."""
+        if self.representation != "positions3d":
+            return motion
+        motion = calm_motion(motion)
+        return clean_motion(motion) if postprocess else motion
+
     @torch.no_grad()
-    def __call__(
-        self,
-        audio_path: str | os.PathLike,
-        *,
-        seed: int = 0,
-        start: float | None = None,
-        end: float | None = None,
-        genre: str | None = None,
-        progress: bool = False,
-        postprocess: bool = True,
-        beat_sync: bool = True,
-        cleanup: bool = True,
-        variety: bool = True,
-    ) -> DanceResult:
-        """A dance for the song ``audio_path`` (or its excerpt ``[start, end)`` seconds).
+    def generate_batch(self, audio_path: str | os.PathLike, *, seeds: list[int], choices: list[GenreChoice],
+                       start: float | None = None, end: float | None = None, progress: bool = False,
+                       postprocess: bool = True, variety: bool = True) -> list[Motion]:
+        """The dances of ``seeds``, all of the genre ``choices[0].genre``: danced by that genre's model when this
+        folder has genre models (:meth:`genre_pipeline`), else by this model (with the genre as its input when it
+        is genre-conditioned); the features once, the music encoded once, the decoder run on each seed on its own
+        (a batch of one: batched matrix products round differently for every batch size).
 
         Parameters
         ----------
-        audio_path : any audio file :func:`dancekit.audio.load` reads
-        seed : seeds the initial decoder state and the seed variety's draws; the same seed gives the same dance
-        start, end : excerpt in seconds (None: from the beginning / to the end)
-        genre : one of :attr:`genres` (e.g. "waltz"); "auto" or None: the genre read from the music by the
-            folder's music attribute classifier (:meth:`read_genre`) when it has one and genres to
-            dance, else the model alone; "none": the model alone (the style follows the music)
-        progress : show a progress bar over the generated chunks
-        postprocess : for 3D positions, set every bone to the skeleton's rest length (keeping the
-            generated bone directions, so IK/BVH export reproduces the positions exactly) and put the
-            feet on the floor (the running floor of :func:`dancekit.motion.analysis.floor_curve` moved to 0)
-        beat_sync, cleanup : the shared pipeline stages (:mod:`dancekit.pipelines.stages`): the dance
-            time-warped onto the song's beats, and its root path and floor contact cleaned up
-        variety : True: the checkpoint's seed variety (:attr:`variety`: the seed perturbs the decoding at
-            every phrase, so another seed is another dance all the way through); False: the paper's
-            decoding (the seed draws the initial decoder state only; the dances of one song converge)
-
-        Input that does not look like music (beat strength below
-        :data:`dancekit.features.MUSIC_BEAT_STRENGTH`: silence, noise, speech, birdsong) is danced calmly
-        (:func:`~dancekit.pipelines.base.calm_motion`: 40 % of the movement) with no genre read from it, and
-        the result says so (``looks_like_music``, :meth:`DanceResult.summary`).
-
-        Returns
-        -------
-        :class:`~dancekit.pipelines.DanceResult`: ``.motion`` at the checkpoint's fps with one frame per
-        feature frame (``T = 1 + n_samples // hop_length`` at ``sr = fps * hop_length``), on the training
-        skeleton (``positions3d``) or BODY_25 (``keypoints2d``), in the skeleton's units; and the genre
-        decided (``.genre``, ``.genre_probs`` when read from the music).
-
-        Raises
-        ------
-        AudioError
-            For a missing, unreadable or too short song.
-        ParameterError
-            For a genre the model does not know, or any genre for a model with neither a genre condition
-            nor genre models.
+        postprocess : for 3D positions, set every bone to the skeleton's rest length (keeping the generated bone
+            directions, so IK/BVH export reproduces the positions exactly) and put the feet on the floor (the
+            running floor of :func:`dancekit.motion.analysis.floor_curve` moved to 0)
+        variety : True: the checkpoint's seed variety (:attr:`variety`: the seed perturbs the decoding at every
+            phrase, so another seed is another dance all the way through); False: the paper's decoding (the seed
+            draws the initial decoder state only; the dances of one song converge)
         """
-        return self.dances(audio_path, seeds=[seed], start=start, end=end, genre=genre, progress=progress,
-                           postprocess=postprocess, beat_sync=beat_sync, cleanup=cleanup, variety=variety)[0]
-
-    @torch.no_grad()
-    def dances(
-        self,
-        audio_path: str | os.PathLike,
-        *,
-        seeds: list[int],
-        start: float | None = None,
-        end: float | None = None,
-        genre: str | None = None,
-        progress: bool = False,
-        postprocess: bool = True,
-        beat_sync: bool = True,
-        cleanup: bool = True,
-        variety: bool = True,
-        stage_trace: Callable[[int, str, DanceResult], None] | None = None,
-    ) -> list[DanceResult]:
-        """One dance per seed for the song: the features, the genre reading and the song's beats once, the
-        music encoded once, the decoder run on each seed on its own (a batch of one: batched matrix products
-        round differently for every batch size), the stages applied to each dance.
-        ``dances(song, seeds=[0, 1, 2])[k]`` is bit for bit ``pipe(song, seed=[0, 1, 2][k])``. Other
-        arguments as :meth:`__call__`.
-        ``stage_trace``: called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
-        :func:`~dancekit.pipelines.stages.finish` (its ``trace``: ``"input"``, then each stage that ran).
-
-        Raises
-        ------
-        ParameterError
-            For an empty ``seeds``; otherwise as :meth:`__call__`.
-        """
-        from dancekit.features import MUSIC_BEAT_STRENGTH
-
-        seeds = check_seeds(seeds)
-        requested = "auto" if genre is None else str(genre)
-        strength = song_feature_set(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
-                                    start=start, end=end).beat_strength
-        music = not strength < MUSIC_BEAT_STRENGTH  # NaN (not measured): as music
-        probs: dict[str, float] = {}
-        # per seed: (genre danced or None for the model alone, the probability it was drawn with or None)
-        choices: list[tuple[str | None, float | None]]
-        if requested == "auto" and music:  # no genre is read from what is not music
-            probs = self.read_genre(audio_path, start=start, end=end)
-            choices = [draw_genre(probs, seed=s, draw=self.genre_draw) for s in seeds]
-        else:
-            choices = [(genre, None)] * len(seeds)
-        choices = [(None if self._genre_index(g) is None else g, p) for g, p in choices]
+        genre = choices[0].genre
         vary = self.variety if variety else SeedVariety()
-        motions: list[Motion | None] = [None] * len(seeds)
-        danced_by: dict[str | None, str] = {}
-        for genre_k in dict.fromkeys(g for g, _ in choices):  # one batch per genre danced, in order of first use
-            rows = [i for i, (g, _) in enumerate(choices) if g == genre_k]
-            batch = [seeds[i] for i in rows]
-            if genre_k is not None and self.genre_models:
-                done = self.genre_pipeline(genre_k).generate_many(audio_path, seeds=batch, start=start, end=end,
-                                                                  progress=progress, postprocess=postprocess,
-                                                                  variety=vary)
-                danced_by[genre_k] = str(self.genre_models[genre_k])
-            else:
-                done = self.generate_many(audio_path, seeds=batch, start=start, end=end, progress=progress,
-                                          postprocess=postprocess, genre_index=self._genre_index(genre_k),
-                                          variety=vary)
-                danced_by[genre_k] = self.folder
-            for i, motion in zip(rows, done):
-                motions[i] = motion
-        song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
-        config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
-        results = []
-        for k, (seed, motion, (genre_k, drawn_p)) in enumerate(zip(seeds, motions, choices)):
-            if not music and self.representation == "positions3d":
-                motion = calm_motion(motion)
-                motion = clean_motion(motion) if postprocess else motion
-            result = DanceResult(motion=motion, model=self.folder, seed=seed, genre_requested=requested,
-                                 genre=genre_k, genre_probs=probs, danced_by=danced_by[genre_k],
-                                 beat_strength=float(strength), looks_like_music=music, genre_drawn_p=drawn_p)
-            results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
-        return results
+        if genre is not None and self.genre_models:
+            return self.genre_pipeline(genre).generate_many(audio_path, seeds=seeds, start=start, end=end,
+                                                            progress=progress, postprocess=postprocess, variety=vary)
+        return self.generate_many(audio_path, seeds=seeds, start=start, end=end, progress=progress,
+                                  postprocess=postprocess, genre_index=self._genre_index(genre), variety=vary)
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
@@ -315,18 +218,6 @@ class RevolutionPipeline(DancePipeline):
             motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
             motions.append(clean_motion(motion) if postprocess and self.representation == "positions3d" else motion)
         return motions
-
-    def read_genre(self, audio_path: str | os.PathLike, *, start: float | None = None,
-                   end: float | None = None) -> dict[str, float]:
-        """What ``genre="auto"`` would dance: the probability of each of :attr:`genres` for the song (excerpt),
-        from the music attribute classifier (renormalised over :attr:`genres`); empty when this model has no
-        classifier or no genres to dance."""
-        if self.genre_reader is None or not self.genres:
-            return {}
-        probs = self.genre_reader(audio_path, start=start, end=end)
-        probs = {g: probs[g] for g in self.genres if g in probs}
-        total = sum(probs.values())
-        return {g: p / total for g, p in probs.items()} if total > 0 else {}
 
     @property
     def genres(self) -> tuple[str, ...]:

@@ -7,7 +7,7 @@ Per genre, over the real dances given (a checkpoint's training split):
   equal to :func:`dancekit.metrics.stability.jitter`'s ``speed_residual``);
 * ``energy``: the median smoothed energy (m/s, :func:`dancekit.motion.energy.smoothed_energy`);
 * ``planted_share``: the mean share of foot-frames with a planted foot (:func:`dancekit.motion.floor.planted_share`);
-* ``smoothing``: the median jitter-to-energy ratio of the smoothing stage (:func:`dancekit.motion.footlock.smoothing_window`'s).
+* ``smoothing``: the median jitter-to-energy ratio of the smoothing stage (:func:`dancekit.motion.jitter.smoothing_window`'s).
 
 Each value rounded to :data:`DECIMALS` decimals, genres in the order of :data:`dancekit.data.prepared.GENRES`
 (then any other, sorted).
@@ -61,15 +61,17 @@ def genre_stats(dances: Iterable[tuple[str, Motion]]) -> dict[str, dict[str, flo
     return out
 
 
-def tang2018_genre_stats(root: str | os.PathLike, names: Iterable[str]) -> dict[str, dict[str, float]]:
-    """:func:`genre_stats` of the raw tang2018 dances ``names`` (folders ``DANCE_<W|R|C|T>_<n>`` under ``root``)."""
-    from dancekit.data.prepared import TANG2018_GENRE_CODES
-    from dancekit.motion.formats.tang2018 import read_tang2018
+def tang2018_genre_stats(root: str | os.PathLike, names: Iterable[str], *,
+                         fps: float = 25.0) -> dict[str, dict[str, float]]:
+    """:func:`genre_stats` of the tang2018 dances ``names`` (folders ``DANCE_<W|R|C|T>_<n>`` under ``root``) as
+    ``dancekit prepare tang2018`` makes them (:func:`dancekit.data.prepared.level_tang2018`: the floor levelled
+    to 0 frame by frame, float32): the tables ``dancekit train`` writes from the prepared dataset
+    (:func:`prepared_genre_stats`), recomputed from the raw dances without preparing their music."""
+    from dancekit.data.prepared import level_tang2018, tang2018_genre
 
     def dances():
         for name in names:
-            motion, _ = read_tang2018(Path(root) / name)
-            yield TANG2018_GENRE_CODES[name.split("_")[1]], motion
+            yield tang2018_genre(name), level_tang2018(Path(root) / name, fps=fps)[0]
 
     return genre_stats(dances())
 
