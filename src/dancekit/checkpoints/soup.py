@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -37,6 +38,7 @@ def average_checkpoints(
     out: str | os.PathLike,
     *,
     weights: Sequence[float] | None = None,
+    keep: Sequence[str] = (),
 ) -> Path:
     """Write the (weighted) element-wise mean of several checkpoints' weights as a new checkpoint.
 
@@ -46,12 +48,15 @@ def average_checkpoints(
         (identical ``stats.npz``)
     out : the folder to write (replaced atomically if it exists)
     weights : one non-negative weight per folder (normalised to sum 1); default: equal weights
+    keep : names of tensors that are state, not weights, copied from the first folder instead of averaged (e.g.
+        the dual model's pool of training start poses, ``("pose_pool", "pool_count")``)
 
     Returns
     -------
-    ``out``. Its ``config.json`` is the first folder's, with ``"soup": {"folders": [...], "weights": [...]}``
-    added; floating-point tensors are averaged in float64 and stored in their own dtype, integer tensors
-    (which must be equal) are copied.
+    ``out``. Its ``config.json`` is the first folder's, with ``"soup": {"folders": [...], "weights": [...],
+    "kept": [...]}`` added; floating-point tensors are averaged in float64 and stored in their own dtype, integer
+    tensors (which must be equal) and the ``keep`` tensors are copied from the first folder, and so are the
+    first folder's sub-folders (the components its ``config.json`` declares, e.g. ``music_attributes/``).
 
     Raises
     ------
@@ -77,7 +82,15 @@ def average_checkpoints(
                                  f"{list(weights)}")
         w = w / w.sum()
     first_meta, first_state, first_stats = _load(paths[0])
-    acc = {k: v.to(torch.float64) * w[0] if v.is_floating_point() else v.clone() for k, v in first_state.items()}
+    missing = sorted(set(keep) - set(first_state))
+    if missing:
+        raise ParameterError(f"keep names tensors that {paths[0]} does not have: {missing}")
+    kept = set(keep)
+
+    def averaged(k: str, v: torch.Tensor) -> bool:
+        return v.is_floating_point() and k not in kept
+
+    acc = {k: v.to(torch.float64) * w[0] if averaged(k, v) else v.clone() for k, v in first_state.items()}
     for path, wi in zip(paths[1:], w[1:], strict=True):
         meta, state, stats = _load(path)
         if meta["model"] != first_meta["model"] or meta["config"] != first_meta["config"]:
@@ -91,18 +104,21 @@ def average_checkpoints(
             if v.shape != ref.shape or v.dtype != ref.dtype:
                 raise CheckpointError(f"cannot average {path}: tensor {k!r} is {tuple(v.shape)} {v.dtype}, "
                                       f"{tuple(ref.shape)} {ref.dtype} in {paths[0]}")
-            if v.is_floating_point():
+            if averaged(k, v):
                 acc[k] += v.to(torch.float64) * wi
-            elif not torch.equal(v, ref):
+            elif k not in kept and not torch.equal(v, ref):
                 raise CheckpointError(f"cannot average {path}: integer tensor {k!r} differs from {paths[0]}'s")
         if set(stats) != set(first_stats) or any(not np.array_equal(stats[k], first_stats[k]) for k in stats):
             raise CheckpointError(f"cannot average {path}: its {STATS_FILE} differs from {paths[0]}'s "
                                   "(trained on other data?)")
-    state = {k: (v.to(first_state[k].dtype) if first_state[k].is_floating_point() else v).contiguous()
+    state = {k: (v.to(first_state[k].dtype) if averaged(k, first_state[k]) else v).contiguous()
              for k, v in acc.items()}
     doc = dict(first_meta)
-    doc["soup"] = {"folders": [os.fspath(p.resolve()) for p in paths], "weights": [float(x) for x in w]}
+    doc["soup"] = {"folders": [os.fspath(p.resolve()) for p in paths], "weights": [float(x) for x in w],
+                   "kept": sorted(kept)}
     with atomic_dir(out) as tmp:
+        for sub in sorted(p for p in paths[0].iterdir() if p.is_dir()):
+            shutil.copytree(sub, tmp / sub.name)
         (tmp / CONFIG_FILE).write_text(json.dumps(doc, indent=1))
         save_file(state, str(tmp / WEIGHTS_FILE))
         np.savez(tmp / STATS_FILE, **first_stats)

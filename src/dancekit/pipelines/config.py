@@ -44,7 +44,7 @@ STAGE_NAMES = ("clean_up", "smooth", "lift_energy", "jitter_cap", "foot_lock", "
 #: :func:`dancekit.checkpoints.save_pretrained`, plus the three entries of this module).
 TOP_LEVEL_KEYS = frozenset({"model", "config", "representation", "preset", "fps", "hop_length", "skeleton", "genres",
                             "data", "init", "step", "val_loss", "train", "components", "stages", "sampling",
-                            "genre_stats"})
+                            "genre_stats", "soup"})
 
 
 #: The jitter-to-energy ratio (:func:`dancekit.motion.footlock.smoothing_window`) the smoothing stage brings a
