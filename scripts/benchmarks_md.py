@@ -109,7 +109,7 @@ def command_block(command: str) -> list[str]:
 
 
 def eval_command(model: str, extra: str = "") -> str:
-    return (f"dancekit evaluate --checkpoint {model} --data data/tang2018 --split test --seeds 5{extra} "
+    return (f"dancekit evaluate --checkpoint {model} --data data/tang2018 --split test --seeds 0-4{extra} "
             f"-o runs/{model}_test")
 
 

@@ -1,6 +1,6 @@
 """Refresh the test-split metrics in an embedded model's ``card.json`` (what ``dancekit models`` prints).
 
-    dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 5 -o runs/eval_rev
+    dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 0-4 -o runs/eval_rev
     python scripts/refresh_card_metrics.py revolution runs/eval_rev/report.json --date 2026-11-24
 
 Replaces the card's ``metrics`` with the headline metrics of the report (the keys
@@ -19,6 +19,15 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from embed_model import CARD_METRICS, MODELS, _pick  # noqa: E402
+
+
+def _seed_list(gen: dict) -> str:
+    """The ``--seeds`` list of a report's ``generation`` (``seeds`` a count from ``first_seed``, or a list)."""
+    seeds = gen.get("seeds")
+    if isinstance(seeds, list):
+        return ",".join(str(s) for s in seeds)
+    first = int(gen.get("first_seed") or 0)
+    return f"{first}-{first + int(seeds) - 1}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -42,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"{args.report}: a report of {checkpoint!r}, not of {args.name!r}")
     card = json.loads(card_path.read_text())
     counts = report.get("counts", {})
-    card[args.key.replace("metrics", "metrics_source")] = (f"dancekit evaluate --checkpoint {args.name} --split test --seeds {gen.get('seeds')} "
+    card[args.key.replace("metrics", "metrics_source")] = (f"dancekit evaluate --checkpoint {args.name} --split test --seeds {_seed_list(gen)} "
                               f"--genre {gen.get('genre')} on tang2018 ({counts.get('songs', '?')} songs, "
                               f"{gen.get('files', '?')} dances, every default stage, beat sync "
                               f"{'on' if gen.get('beat_sync') else 'off'}), measured {args.date}; see docs/BENCHMARKS.md")

@@ -47,7 +47,7 @@ def test_a_card_and_a_result_file_become_a_table_row_and_a_section(tmp_path):
     # the card's figures in the quality table, rounded as the table states, with the command that measures them
     assert "| FID_k (kinetic features, lower is better) | 12.35 |" in lines
     assert "| FID_g (geometric features, lower is better) | 6.50 |" in lines
-    assert ("dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 5 "
+    assert ("dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 0-4 "
             "-o runs/revolution_test") in lines
     # the result file as its own section: title, date, table (a '|' escaped, None as a dash), note, command
     i = lines.index("## Speed of X")
