@@ -45,3 +45,13 @@ def test_the_check_sees_a_deleted_script_and_accepts_its_commit_form(tmp_path):
     text = ("run `python benchmarks/kept.py`, then benchmarks/gone.py; old: 264b8a3:benchmarks/gone2.py, "
             "scripts/x.sh")
     assert missing_scripts(text, tmp_path) == ["benchmarks/gone.py", "scripts/x.sh"]
+
+
+def test_benchmarks_holds_only_what_the_docs_cite_and_at_most_20_files():
+    """benchmarks/ keeps the benchmarks the documents cite and ``tune.py`` (issue 40: at most 20 files); a study
+    whose decision is taken is deleted and named as ``COMMIT:benchmarks/NAME.py``."""
+    files = sorted(p.name for p in (ROOT / "benchmarks").iterdir() if p.is_file())
+    assert len(files) <= 20, f"benchmarks/ holds {len(files)} files: {files}"
+    text = "\n".join(f.read_text() for f in _documents() if not f.is_relative_to(ROOT / "tests"))
+    uncited = [name for name in files if f"benchmarks/{name}" not in text]
+    assert not uncited, f"benchmarks/ files no document names: {uncited}"
