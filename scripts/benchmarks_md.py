@@ -159,6 +159,14 @@ def model_section(name: str, card: dict) -> list[str]:
                    + ", ".join(f"{k.replace('_', ' ')} {v:g}" for k, v in comp.items())
                    + f"; `dancekit evaluate --compose {name} --data data/tang2018 --split test -o runs/{name}_compose`"
                    " (docs/DUAL.md)")
+    curve = card.get("training_curve")
+    if isinstance(curve, dict) and curve.get("rows"):
+        points = []
+        for row in curve["rows"]:
+            fid = (f" (FID_k {row['val_fid_k']:.1f}, FID_g {row['val_fid_g']:.1f})"
+                   if "val_fid_k" in row and "val_fid_g" in row else "")
+            points.append(f"{row['step']}: {row['val_loss']:g}{fid}")
+        out.append(f"- training curve ({curve.get('what', 'validation loss by step')}): " + "; ".join(points))
     if card.get("known_limits"):
         out.append(f"- known limits: {card['known_limits']}")
     return out + [""]

@@ -32,7 +32,10 @@ def test_benchmarks_md_is_at_most_500_lines():
 def _inputs(root: Path, result: dict) -> None:
     card = root / "src" / "dancekit" / "assets" / "models" / "revolution" / "card.json"
     card.parent.mkdir(parents=True)
-    card.write_text(json.dumps({"description": "d", "metrics": {"fid_k": 12.345, "fid_g": 6.5}}))
+    card.write_text(json.dumps({"description": "d", "metrics": {"fid_k": 12.345, "fid_g": 6.5},
+                                "training_curve": {"what": "w", "rows": [{"step": 10, "val_loss": 2.5},
+                                                                        {"step": 20, "val_loss": 1.25,
+                                                                         "val_fid_k": 40.04, "val_fid_g": 9.96}]}}))
     (root / "docs" / "results").mkdir(parents=True)
     (root / "docs" / "results" / "speed_x.json").write_text(json.dumps(result))
 
@@ -49,6 +52,8 @@ def test_a_card_and_a_result_file_become_a_table_row_and_a_section(tmp_path):
     assert "| FID_g (geometric features, lower is better) | 6.50 |" in lines
     assert ("dancekit evaluate --checkpoint revolution --data data/tang2018 --split test --seeds 0-4 "
             "-o runs/revolution_test") in lines
+    # the card's training curve, one point per logged step, with the validation FID where measured
+    assert "- training curve (w): 10: 2.5; 20: 1.25 (FID_k 40.0, FID_g 10.0)" in lines
     # the result file as its own section: title, date, table (a '|' escaped, None as a dash), note, command
     i = lines.index("## Speed of X")
     assert lines[i + 2] == "Measured 2026-01-02 on m (`docs/results/speed_x.json`)."
