@@ -18,6 +18,13 @@ finished dance (``pipe.dances``, the model's stages) is edited four ways by ``st
 
 Writes the JSON table (docs/results/<topic>.json shape) and, with ``--figure``, a PNG: a keyed wrist's height
 through its keys (edited, unedited) and a path with the root's trace seen from above.
+
+``--fid OUT`` instead dances every song of the tang2018 test split of ``--data`` (the dance's slice of its song,
+seeds ``--seeds``, ``--genre auto``: what ``dancekit evaluate --checkpoint`` dances) and keys each dance every 2 s
+with the poses of the song's real dance at the same frames (turned to the dance's heading, placed on its root);
+the unedited and the keyed dances go to ``OUT/MODEL/unedited`` and ``OUT/MODEL/keyed``, to be scored with
+``dancekit evaluate --pred OUT/MODEL/keyed --ref DATA --data DATA`` (and the same for ``unedited``): issue 44's
+"edited dances' FID within +10 % of the unedited dances".
 """
 
 from __future__ import annotations
@@ -57,11 +64,14 @@ def _turned(pose: np.ndarray, sk, yaw: float) -> np.ndarray:
     return out
 
 
-def _keys_file(path: Path, p: np.ndarray, real: np.ndarray, sk, fps: float) -> list[int]:
+def _keys_file(path: Path, p: np.ndarray, real: np.ndarray, sk, fps: float, offset: int | None = None) -> list[int]:
+    """Keys every 2 s of ``p``'s frames: the poses of ``real`` from frame ``offset`` on (default: 30 s in, or
+    as far in as ``real`` allows), turned to ``p``'s heading at each key and placed on its root."""
     from dancekit.motion.edit import _yaw
 
-    frames = [int(round(t * fps)) for t in np.arange(2.0, len(p) / fps - 0.5, 2.0)]
-    keys, off = [], max(min(int(30 * fps), len(real) - len(p) - 1), 0)
+    frames = [int(round(t * fps)) for t in np.arange(2.0, min(len(p), len(real)) / fps - 0.5, 2.0)]
+    keys = []
+    off = max(min(int(30 * fps), len(real) - len(p) - 1), 0) if offset is None else offset
     for f in frames:
         yaw = _yaw(p, sk, f) - _yaw(real, sk, off + f)
         pose = _turned(real[off + f], sk, yaw) + p[f, sk.root]
@@ -81,8 +91,48 @@ def _acc(p: np.ndarray, sk, fps: float) -> np.ndarray:
     return np.linalg.norm(np.diff(p, 2, axis=0), axis=-1).max(axis=1) * fps * fps * sk.unit_scale
 
 
+def keyed_split(data_dir: Path, out: Path, models: list[str], seeds: list[int]) -> None:
+    """The ``--fid`` mode: unedited and keyed dances of the test split per model (see the module's description)."""
+    import torch
+
+    from dancekit.data import PreparedData
+    from dancekit.evaluation.generate import SAMPLE_SEP, requested_genre
+    from dancekit.motion.formats import write_motion
+    from dancekit.pipelines import load_pipeline
+    from dancekit.pipelines.config import EditConfig
+    from dancekit.pipelines.stages import Song, edit_dance
+
+    torch.set_num_threads(1)
+    data = PreparedData(data_dir)
+    t0 = time.time()
+    for model in models:
+        pipe = load_pipeline(model)
+        config = pipe.stage_options()
+        dirs = {k: out / model / k for k in ("unedited", "keyed", "keys")}
+        for d in dirs.values():
+            d.mkdir(parents=True, exist_ok=True)
+        for name in data.names("test"):
+            ref = data.audio(name)
+            real = data.motion(name).to_positions().astype(np.float64)
+            sk, fps = data.motion(name).skeleton, data.motion(name).fps
+            song = Song(ref.path, ref.start, ref.end)
+            results = pipe.dances(ref.path, seeds=seeds, start=ref.start, end=ref.end,
+                                  genre=requested_genre("auto", data.genre(name)))
+            for k, r in enumerate(results):
+                stem = f"{name}{SAMPLE_SEP}{k}"
+                p0 = r.motion.to_positions().astype(np.float64)
+                kf = dirs["keys"] / f"{stem}.json"
+                _keys_file(kf, p0, real, sk, fps, offset=0)
+                keyed = edit_dance(r, EditConfig(keyframes=str(kf)), song, config).motion
+                write_motion(dirs["unedited"] / f"{stem}.npz", r.motion)
+                write_motion(dirs["keyed"] / f"{stem}.npz", keyed)
+            print(f"{model} {name}: {len(results)} dances, {time.time() - t0:.0f} s", flush=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--fid", default=None, metavar="OUT",
+                    help="write the unedited and keyed dances of the test split (seeds --seeds) under OUT/MODEL/")
     ap.add_argument("--data", default="/work/data/tang2018")
     ap.add_argument("--music", default=str(ROOT.parent / "shared" / "music"))
     ap.add_argument("--models", default="revolution,music2dance,dual")
@@ -93,6 +143,11 @@ def main(argv=None) -> int:
     ap.add_argument("--figure", default=None)
     ap.add_argument("--work", default="/tmp/bench_edit")
     args = ap.parse_args(argv)
+    if args.fid:
+        from dancekit.pipelines.base import parse_seeds
+
+        keyed_split(Path(args.data), Path(args.fid), args.models.split(","), parse_seeds(args.seeds))
+        return 0
 
     import torch
 
