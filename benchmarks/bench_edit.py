@@ -1,6 +1,6 @@
 """The edit stage (issue 44) on test-song excerpts, for each model: keys, a path, kept arms, a prefix.
 
-    PYTHONPATH=src python benchmarks/bench_edit.py --data /work/data/tang2018 --seeds 0-1 \
+    PYTHONPATH=src python benchmarks/bench_edit.py --data data/tang2018 --seeds 0-1 \
         --out docs/results/edit.json --figure docs/edit.png
 
 Per model, song (the three test songs of tests/conftest.py, excerpt ``--start``-``--end`` s) and seed, the
@@ -133,7 +133,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fid", default=None, metavar="OUT",
                     help="write the unedited and keyed dances of the test split (seeds --seeds) under OUT/MODEL/")
-    ap.add_argument("--data", default="/work/data/tang2018")
+    ap.add_argument("--data", default=str(ROOT / "data" / "tang2018"))
     ap.add_argument("--music", default=str(ROOT.parent / "shared" / "music"))
     ap.add_argument("--models", default="revolution,music2dance,dual")
     ap.add_argument("--seeds", default="0-1")
