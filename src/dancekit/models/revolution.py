@@ -790,9 +790,10 @@ class RevolutionModel(nn.Module):
             ``B`` generators: one song danced ``B`` times (its music encoded once)
         generator : seeds the initial decoder state (and the variety draws); the same seed gives the same
             dance. A list of generators (one per row, :meth:`initial_state`): many dances, row ``k`` exactly
-            (bit for bit) the dance that ``generator[k]`` alone gives: each row is decoded on its own, as a
-            batch of one, because the batched matrix products round differently for every batch size and
-            the autoregressive decoder carries a last-bit difference into another dance within ~20 s.
+            (bit for bit) the dance that ``generator[k]`` alone gives: the rows are decoded by
+            :func:`decode_seeds`, each row's matrix products its own one-row products (a batched matrix product
+            rounds differently for every batch size, and the autoregressive decoder carries a last-bit
+            difference into another dance within ~20 s).
             One generator for ``B`` songs decodes them as one batch (rows not bit-equal to the songs alone).
         genre : (B,) or (1,) genre indices for a genre-conditioned model; None or -1: auto (the music decides)
         variety : per-phrase perturbations that keep the seeds' dances apart (:class:`SeedVariety`);
