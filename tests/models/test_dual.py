@@ -580,18 +580,90 @@ def _real_like_motion(T=40):
     return Motion(skeleton=sk, fps=25.0, positions=pos)
 
 
-def test_map_by_role_puts_every_role_joint_on_the_source_joint():
+def _dancing_motion(skeleton, *, root_scale: float = 1.0, T: int = 60):
+    """A dance on ``skeleton`` by forward kinematics: every joint turning by its own smooth random angles (a fixed
+    draw, the same for any skeleton with the same joints), the root walking a curve (cm, times ``root_scale``)."""
+    from dancekit.motion import Motion
+    from dancekit.motion.rotations import axis_angle_to_matrix
+
+    rng = np.random.default_rng(7)
+    J = skeleton.num_joints
+    t = np.arange(T)[:, None, None] / 25.0
+    amp, freq, phase = rng.uniform(0.1, 0.5, (1, J, 3)), rng.uniform(0.3, 1.5, (1, J, 3)), rng.uniform(0, 6, (1, J, 3))
+    rot = axis_angle_to_matrix(torch.from_numpy(amp * np.sin(2 * np.pi * freq * t + phase))).numpy()  # (T, J, 3, 3)
+    s = t[:, 0, 0]
+    root = root_scale * np.stack([60 * np.sin(0.8 * s), 95 + 3 * np.sin(4 * s), 40 * s], -1)
+    return Motion(skeleton=skeleton, fps=25.0, rotations=rot, root_translation=root).with_positions()
+
+
+def _bone(p, sk, a, b):
+    return p[:, sk.index(b)] - p[:, sk.index(a)]
+
+
+def test_map_by_role_keeps_a_dance_on_the_targets_proportions():
+    """A dance on the target's own proportions (its torso rigid, as tang2018's joints from the pelvis are) comes back
+    where it was: every joint with a role, to float precision."""
     from dancekit.motion import get_skeleton
+    from dancekit.motion.retarget import map_by_role
+
+    tang = get_skeleton("tang2018")
+    dance = _dancing_motion(tang)
+    p, q = dance.to_positions(), map_by_role(dance, tang).to_positions()
+    for role in tang.roles:
+        j = tang.index(role)
+        np.testing.assert_allclose(q[:, j], p[:, j], atol=1e-6, err_msg=role)
+
+
+def test_map_by_role_takes_the_directions_and_the_size_not_the_proportions():
+    """The same dance on a rig of other proportions (thighs 30 % longer, shins shorter, arms longer, the torso
+    and the walk scaled to the legs) maps onto tang2018 as the dance on tang2018 itself: the rig's bone directions
+    on tang2018's bone lengths, the root's path scaled to tang2018's size (leg + trunk)."""
+    from dancekit.motion import get_skeleton
+    from dancekit.motion.retarget import map_by_role
+
+    tang = get_skeleton("tang2018")
+    off = np.asarray(tang.offsets, np.float64).copy()
+    thigh = np.mean([np.linalg.norm(off[tang.index(f"{s}_knee")]) for s in ("left", "right")])
+    shin = np.mean([np.linalg.norm(off[tang.index(f"{s}_ankle")]) for s in ("left", "right")])
+    k = 1.1  # the rig's leg (thigh + shin) is k times tang2018's ...
+    shin_scale = (k * (thigh + shin) - 1.3 * thigh) / shin
+    for s in ("left", "right"):
+        off[tang.index(f"{s}_knee")] *= 1.3
+        off[tang.index(f"{s}_ankle")] *= shin_scale
+        off[tang.index(f"{s}_elbow")] *= 1.25
+        off[tang.index(f"{s}_wrist")] *= 0.8
+    for j in tang.children(tang.root):  # ... and so is its torso, so the whole body is k times the size
+        off[j] *= k
+    rig = tang.replace(name="long_legs", offsets=off)
+    assert not rig.same_as(tang)
+    mapped = map_by_role(_dancing_motion(rig, root_scale=k), tang).to_positions()
+    own = _dancing_motion(tang).to_positions()
+    for role in ("pelvis", "left_hip", "right_knee", "left_ankle", "right_toe", "left_wrist", "right_elbow", "head"):
+        j = tang.index(role)
+        np.testing.assert_allclose(mapped[:, j], own[:, j], atol=1e-6, err_msg=role)
+    # where the rig's proportions are kept instead (its joints' positions scaled by k), the feet slide: not this
+    assert np.abs(_dancing_motion(rig, root_scale=k).to_positions()[:, tang.index("left_ankle")] / k
+                  - own[:, tang.index("left_ankle")]).max() > 5.0
+
+
+def test_map_by_role_from_smpl_keeps_the_bone_directions_on_tang2018_lengths():
+    from dancekit.motion import get_skeleton
+    from dancekit.motion.analysis import rest_pose
     from dancekit.motion.retarget import map_by_role, retarget_to_smpl
 
     tang = get_skeleton("tang2018")
     smpl_motion, _ = retarget_to_smpl(_real_like_motion())
     mapped = map_by_role(smpl_motion, tang)
-    p, src = mapped.to_positions(), smpl_motion.to_positions() * 100.0  # SMPL metres → tang2018 cm
+    p, src, ssk = mapped.to_positions(), smpl_motion.to_positions(), smpl_motion.skeleton
+    rest = rest_pose(tang)
     assert p.shape == (40, 23, 3) and np.isfinite(p).all()
-    for role in ("left_knee", "right_wrist", "left_shoulder", "right_ankle"):
-        np.testing.assert_allclose(p[:, tang.index(role)], src[:, smpl_motion.skeleton.index(role)], atol=1e-9)
-    np.testing.assert_allclose(p[:, tang.index("left_toe")], src[:, smpl_motion.skeleton.index("left_foot")], atol=1e-9)
+    for a, b in (("left_hip", "left_knee"), ("right_knee", "right_ankle"), ("left_shoulder", "left_elbow"),
+                 ("right_elbow", "right_wrist")):
+        got, want = _bone(p, tang, a, b), _bone(src, ssk, a, b)
+        np.testing.assert_allclose(got / np.linalg.norm(got, axis=-1, keepdims=True),
+                                   want / np.linalg.norm(want, axis=-1, keepdims=True), atol=1e-9)
+        rest_length = np.linalg.norm(rest[tang.index(b)] - rest[tang.index(a)])
+        np.testing.assert_allclose(np.linalg.norm(got, axis=-1), rest_length, rtol=1e-9)
     # the forearm marker lies between the elbow and the wrist
     e, f, w = (p[:, tang.index(n)] for n in ("right_elbow", "right_forearm", "right_wrist"))
     np.testing.assert_allclose(np.linalg.norm(f - e, axis=-1) + np.linalg.norm(w - f, axis=-1),

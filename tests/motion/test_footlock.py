@@ -472,3 +472,48 @@ def test_a_bad_foot_lock_entry_is_a_checkpoint_error(tmp_path, entry):
     folder = _checkpoint(tmp_path, entry)
     with pytest.raises(CheckpointError, match="config.json.*foot_lock"):
         read_stage_config(folder)
+
+
+def _segments_frame_by_frame(p, contact, hip, ankle, knee, limit, gap, min_len):
+    """The holds' rule as a loop over frames (the reference for :func:`_segments`): a hold planted at frame t0
+    lasts while the ankle stays within ``limit`` (x, z) of its planted position and that position within 99.5 %
+    of thigh + shin from the hip."""
+    reach = np.linalg.norm(p[:, knee] - p[:, hip], axis=-1) + np.linalg.norm(p[:, ankle] - p[:, knee], axis=-1)
+    out, edges = [], np.flatnonzero(np.diff(np.concatenate([[0], contact.astype(int), [0]])))
+    for s, e in zip(edges[::2], edges[1::2] - 1):
+        t0 = s
+        while t0 <= e:
+            anchor, t = p[t0, ankle], t0
+            while t + 1 <= e and np.hypot(*(p[t + 1, ankle, [0, 2]] - anchor[[0, 2]])) <= limit \
+                    and np.linalg.norm(anchor - p[t + 1, hip]) <= 0.995 * reach[t + 1]:
+                t += 1
+            if t - t0 + 1 >= min_len:
+                out.append((int(t0), int(t)))
+            t0 = t + 1 + gap
+    return out
+
+
+def test_holds_follow_the_frame_by_frame_rule_exactly_even_on_the_bound():
+    """The holds (computed for all frames of a contact at once) are those of the frame-by-frame rule, including
+    frames whose drift is exactly the limit (kept: the rule is <=) and a hair above it."""
+    from dancekit.motion.footlock import _segments
+
+    rng = np.random.default_rng(3)
+    hip, knee, ankle = (SK.index(n) for n in ("left_hip", "left_knee", "left_ankle"))
+    foot = [ankle, *[j for j in range(SK.num_joints) if SK.parents[j] == ankle]]
+    limit = 0.06 / SK.unit_scale
+    for trial in range(30):
+        T = 200
+        p = np.cumsum(rng.normal(0, 0.6, (T, SK.num_joints, 3)), axis=0) + np.array([0.0, 90.0, 0.0])
+        p[:, ankle] = p[:, hip] + np.array([0.0, -70.0, 0.0]) + np.cumsum(rng.normal(0, 1.5, (T, 3)), axis=0)
+        if trial % 3 == 0:  # ankles exactly on the bound (and one ulp over) of the hold planted at frame 0
+            p[:40, ankle, 1] = p[0, ankle, 1]
+            p[:40, ankle, 0] = p[0, ankle, 0] + np.where(np.arange(40) % 7 == 3, limit, 0.5 * limit)
+            p[:40, ankle, 2] = p[0, ankle, 2]
+            p[29, ankle, 0] = np.nextafter(p[0, ankle, 0] + limit, np.inf)
+        contact = rng.uniform(size=T) < 0.8
+        contact[:40] = True
+        for gap, min_len in ((2, 1), (5, 10)):
+            want = _segments_frame_by_frame(p, contact, hip, ankle, knee, limit, gap, min_len)
+            assert _segments(p, contact, hip, foot, SK, 0.06, gap, min_len) == want, trial
+    assert want  # holds were found

@@ -11,7 +11,7 @@ from dancekit.audio.synth import ode_to_joy
 from dancekit.cli.main import main
 from dancekit.errors import ParameterError
 from dancekit.models.music2dance import Music2DanceConfig, Music2DanceModel
-from dancekit.models.revolution import RevolutionConfig, RevolutionModel, SeedVariety
+from dancekit.models.revolution import RevolutionConfig, RevolutionModel, SeedVariety, decode_seeds
 from dancekit.pipelines import load_pipeline, parse_seeds
 
 SR = 22050
@@ -39,10 +39,10 @@ def test_parse_seeds():
             parse_seeds(bad)
 
 
-def _tiny_revolution() -> RevolutionModel:
-    torch.manual_seed(0)
+def _tiny_revolution(seed: int = 0, hidden: int = 16) -> RevolutionModel:
+    torch.manual_seed(seed)
     return RevolutionModel(RevolutionConfig(music_dim=8, pose_dim=6, d_model=16, n_heads=2, d_ff=32,
-                                            decoder_hidden=16, window=10, encoder_chunk=32)).eval()
+                                            decoder_hidden=hidden, window=10, encoder_chunk=32)).eval()
 
 
 @pytest.mark.parametrize("variety", [None, SeedVariety(phrase=20, state_noise=0.3, latent_noise=0.5)])
@@ -61,6 +61,26 @@ def test_model_rows_are_the_seeds_alone(variety):
         assert torch.equal(batch([s])[0], alone), s
     assert torch.equal(three[0], five[4]) and torch.equal(three[1], five[0])  # any batch size, any position
     assert not torch.allclose(three[0], three[1], atol=1e-2)  # other seeds, other dances
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3])
+def test_decode_seeds_of_several_models_in_lanes_are_each_the_seed_alone(workers):
+    """Rows of three models (two of one decoder architecture, which share a frame loop, one of another) decoded
+    together, in any number of lanes: each row bit for bit its model's dance of that seed alone."""
+    a, b, c = _tiny_revolution(0), _tiny_revolution(1), _tiny_revolution(2, hidden=24)
+    variety = SeedVariety(phrase=20, state_noise=0.3, latent_noise=0.5)
+    music = torch.randn(1, 70, 8)
+    models, seeds = [a, c, b, a, c, a], [4, 0, 11, 0, 7, 2]
+    with torch.no_grad():
+        rows = decode_seeds(models, [m._latents(music, None) for m in models],
+                            [torch.Generator().manual_seed(s) for s in seeds], variety, workers=workers)
+    assert rows.shape == (6, 70, 6)
+    for k, (m, s) in enumerate(zip(models, seeds)):
+        alone = m.generate(music, generator=torch.Generator().manual_seed(s), variety=variety)[0]
+        assert torch.equal(rows[k], alone), (k, s)
+    assert not torch.allclose(rows[0], rows[3], atol=1e-2)  # one model, two seeds: two dances
+    with pytest.raises(ParameterError, match="workers"):
+        decode_seeds(models[:1], [a._latents(music, None)], [torch.Generator()], variety, workers=0)
 
 
 @pytest.mark.parametrize("mixtures", [1, 3])
@@ -106,6 +126,21 @@ def test_dances_equal_each_seed_alone(song, name):
     first, second = batch[0].motion.to_positions(), batch[1].motion.to_positions()
     n = min(len(first), len(second))
     assert np.abs(first[:n] - second[:n]).max() > 1.0  # the seeds dance differently (cm)
+
+
+@pytest.mark.slow
+def test_revolution_seeds_of_several_genre_models_in_lanes_equal_each_seed_alone(song):
+    """The default model's seeds danced by three models at once (a genre model of another size, one of the
+    parent's size and the parent itself, the last two in one frame loop), decoded in two lanes: each dance bit for
+    bit the seed alone."""
+    pipe = load_pipeline("revolution")
+    seeds, genres = [2, 0, 3, 4], ["rumba", "auto", "waltz", "none"]
+    batch = pipe.dances(str(song), seeds=seeds, genre=genres, workers=2)
+    assert len({r.danced_by for r in batch}) == 3
+    for r, s, g in zip(batch, seeds, genres):
+        alone = pipe(str(song), seed=s, genre=g)
+        assert r.genre == alone.genre and r.notes == alone.notes
+        assert np.array_equal(r.motion.to_positions(), alone.motion.to_positions()), (s, g)
 
 
 def test_cli_seeds_write_one_output_set_per_seed(tmp_path, capsys, song):

@@ -43,8 +43,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "[0, 2**63) are hashed to 63 bits)")
     p.add_argument("--seeds", default=None, metavar="LIST",
                    help=f"several dances in one run, one per seed: {SEEDS_HELP}; the song is read and its "
-                        "features computed once, each seed is then decoded on its own (the same dance as "
-                        "--seed K), and written as NAME_seedK.mp4, NAME_seedK.html, ... (at most 64 seeds)")
+                        "features computed once, the seeds' decoders run side by side on the CPU cores (each seed "
+                        "the same dance as --seed K), and each is written as NAME_seedK.mp4, NAME_seedK.html, ... "
+                        "(at most 64 seeds)")
     p.add_argument("--foot-constraint", nargs="?", const="default", default=None, metavar="MODEL",
                    help="post-process the dance with the Foot Constraint Model of Music2Dance (less foot sliding; "
                         "the lower body alone is corrected, the path over the floor is kept): the one embedded with "

@@ -790,9 +790,10 @@ class RevolutionModel(nn.Module):
             ``B`` generators: one song danced ``B`` times (its music encoded once)
         generator : seeds the initial decoder state (and the variety draws); the same seed gives the same
             dance. A list of generators (one per row, :meth:`initial_state`): many dances, row ``k`` exactly
-            (bit for bit) the dance that ``generator[k]`` alone gives: each row is decoded on its own, as a
-            batch of one, because the batched matrix products round differently for every batch size and
-            the autoregressive decoder carries a last-bit difference into another dance within ~20 s.
+            (bit for bit) the dance that ``generator[k]`` alone gives: the rows are decoded by
+            :func:`decode_seeds`, each row's matrix products its own one-row products (a batched matrix product
+            rounds differently for every batch size, and the autoregressive decoder carries a last-bit
+            difference into another dance within ~20 s).
             One generator for ``B`` songs decodes them as one batch (rows not bit-equal to the songs alone).
         genre : (B,) or (1,) genre indices for a genre-conditioned model; None or -1: auto (the music decides)
         variety : per-phrase perturbations that keep the seeds' dances apart (:class:`SeedVariety`);
@@ -818,16 +819,15 @@ class RevolutionModel(nn.Module):
             if genres is not None and len(genres) not in (1, B):
                 raise ParameterError(f"{len(genres)} genre indices for a batch of {B}")
             cache: dict[tuple[int, int], torch.Tensor] = {}
-            rows = []
-            for k, g in enumerate(generator):  # each seed decoded alone: batch-size independent, bit for bit
+            latents = []
+            for k in range(B):  # the music encoded once per (song, genre), its latents shared by the seeds
                 song = k if music.shape[0] > 1 else 0
                 index = genres[k : k + 1] if genres is not None and len(genres) > 1 else genres
                 key = (song, -2 if index is None else int(index))
                 if key not in cache:
                     cache[key] = self._latents(music[song : song + 1], index, chunk=chunk)
-                rows.append(self._decode(cache[key], [g], variety, device=music.device, chunk=chunk,
-                                         progress=progress))
-            return torch.cat(rows, dim=0) if rows else music.new_zeros(0, n, self.config.pose_dim)
+                latents.append(cache[key])
+            return decode_seeds([self] * B, latents, list(generator), variety, chunk=chunk, progress=progress)
         finally:
             self.train(was_training)
 
@@ -844,34 +844,33 @@ class RevolutionModel(nn.Module):
         variety's draws) of ``generator`` → (B, n, pose_dim); the steps are run in pieces of ``chunk`` frames
         (or the variety's phrases), the pieces shown by ``progress``."""
         B, n, _ = z.shape
-        state = self.initial_state(B, generator=generator, device=device)
         variety = variety or SeedVariety()
-        prev = self.bop.expand(B, 1, -1)
+        z, state, noise = self._decode_start(z, generator, variety, device=device)
         if n == 0:
             return z.new_zeros(B, 0, self.config.pose_dim)
+        prev = self.bop.expand(B, 1, -1)
+        outputs = []
+        for a0, b0 in _pieces(n, variety, chunk or self.config.encoder_chunk, progress):
+            state = _perturb_state(state, noise, a0, variety)
+            y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
+            outputs.append(y)
+        return torch.cat(outputs, dim=1)
+
+    def _decode_start(self, z: torch.Tensor, generator, variety: SeedVariety, *, device):
+        """What :meth:`_decode` draws before its first step, in this order: the initial state ``(h_0, c_0)``, then
+        (a song of ``n > 0`` frames, an active ``variety``) the variety's noise, whose latent offsets and style are
+        added to ``z``. Returns ``(z (B, n, d), state, noise)`` (:meth:`_variety_noise`'s ``noise``, or ``{}``)."""
+        B, n, _ = z.shape
+        state = self.initial_state(B, generator=generator, device=device)
         noise: dict[str, torch.Tensor] = {}
-        if variety.active:  # the whole song's spread of z per dimension scales the latent offsets
+        if n and variety.active:  # the whole song's spread of z per dimension scales the latent offsets
             noise = self._variety_noise(n, B, variety, generator, device,
                                         scale=z.std(dim=1, keepdim=True, correction=0))
             if "latent" in noise:
                 z = z + noise["latent"]
             if "style" in noise:
                 z = z + self.style_proj(self.style_path(noise["style"], n))
-        if variety.active and variety.phrase:
-            pieces = _phrases(0, n, variety.phrase)
-        else:
-            step = chunk or self.config.encoder_chunk
-            pieces = [(a, min(n, a + step)) for a in range(0, n, step)]
-        if progress:
-            from tqdm import tqdm
-
-            pieces = tqdm(pieces, desc="generate", unit="piece")
-        outputs = []
-        for a0, b0 in pieces:
-            state = _perturb_state(state, noise, a0, variety)
-            y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
-            outputs.append(y)
-        return torch.cat(outputs, dim=1)
+        return z, state, noise
 
     def _check_music(self, music: torch.Tensor) -> None:
         if music.ndim != 3 or music.shape[2] != self.config.music_dim:
@@ -884,6 +883,202 @@ class RevolutionModel(nn.Module):
         return sum(p.numel() for p in self.parameters() if p.requires_grad)
 
 
+@torch.no_grad()
+def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], generators: list[torch.Generator],
+                 variety: SeedVariety | None = None, *, chunk: int | None = None, progress: bool = False,
+                 workers: int = 1) -> torch.Tensor:
+    """Many dances of one song: row ``k`` is ``models[k]``'s dance of the latents ``latents[k]``
+    (1, n, ``models[k].config.d_model``) with the initial state and variety draws of ``generators[k]``, bit for bit
+    ``models[k]._decode(latents[k], [generators[k]], variety)`` (a batch of one) → (B, n, pose_dim) normalised
+    poses, whatever the rows beside it and ``workers``.
+
+    The rows of one decoder architecture (genre models may differ in size) share a frame loop
+    (:class:`_RowDecoder`): their draws are made row by row, as for a batch of one, then every frame steps all of
+    them at once, each row's matrix products its own matrix-vector products (the same bits as a batch of one), the
+    elementwise gate arithmetic and the per-frame overhead shared. A row alone in its loop, or of a
+    reduced-precision model (``fast_decoder``), is decoded on its own.
+
+    Parameters
+    ----------
+    chunk : the pieces without a phrase (default ``config.encoder_chunk``)
+    progress : a progress bar over the pieces (of the first lane)
+    workers : the rows are split into this many lanes of about equal cost (decoder weights per row), decoded side
+        by side in threads (each row's arithmetic is unchanged: the torch calls of one row run in one thread); 1:
+        one after the other in this thread
+    """
+    B = len(models)
+    if not (B == len(latents) == len(generators)) or B == 0:
+        raise ParameterError(f"{B} models, {len(latents)} latents and {len(generators)} generators: one of each per "
+                             "row, at least one row")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
+    n = latents[0].shape[1]
+    for m, z in zip(models, latents, strict=True):
+        if z.shape != (1, n, m.config.d_model):
+            raise ParameterError(f"every row's latents must have shape (1, {n}, d_model of its model), got "
+                                 f"{[tuple(z.shape) for z in latents]}")
+    variety = variety or SeedVariety()
+    device = models[0].bop.device
+    out: list[torch.Tensor | None] = [None] * B
+
+    def lane(rows: list[int], shown: bool) -> None:
+        with torch.no_grad():  # grad mode is per thread
+            for loop in _RowDecoder.partition([models[k] for k in rows]):
+                ks = [rows[j] for j in loop]
+                if len(ks) == 1:
+                    y = models[ks[0]]._decode(latents[ks[0]], [generators[ks[0]]], variety, device=device,
+                                              chunk=chunk, progress=progress and shown)
+                else:
+                    y = _decode_rows([models[k] for k in ks], [latents[k] for k in ks], [generators[k] for k in ks],
+                                     variety, device=device, chunk=chunk, progress=progress and shown)
+                for j, k in enumerate(ks):
+                    out[k] = y[j : j + 1]
+
+    lanes = _lanes(models, workers)
+    if len(lanes) == 1:
+        lane(lanes[0], True)
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(len(lanes), thread_name_prefix="dancekit-decode") as pool:
+            for future in [pool.submit(lane, rows, i == 0) for i, rows in enumerate(lanes)]:
+                future.result()
+    return torch.cat(out, dim=0)
+
+
+def _lanes(models: list[RevolutionModel], workers: int) -> list[list[int]]:
+    """The rows split into at most ``workers`` lanes of about equal cost (a row costs its model's decoder weights:
+    the matrix-vector products of a frame), each lane's rows in order; the largest rows placed first, each on the
+    lane with the least cost so far."""
+    cost = [sum(p.numel() for p in (*m.decoder.parameters(), *m.head.parameters())) for m in models]
+    lanes: list[list[int]] = [[] for _ in range(min(workers, len(models)))]
+    totals = [0] * len(lanes)
+    for k in sorted(range(len(models)), key=lambda k: -cost[k]):
+        i = totals.index(min(totals))
+        lanes[i].append(k)
+        totals[i] += cost[k]
+    return [sorted(rows) for rows in lanes if rows]
+
+
+def _decode_rows(models: list[RevolutionModel], latents: list[torch.Tensor], generators: list[torch.Generator],
+                 variety: SeedVariety, *, device, chunk: int | None, progress: bool) -> torch.Tensor:
+    """:func:`decode_seeds` of rows of one architecture, rows of one model consecutive, in one frame loop."""
+    starts = [m._decode_start(z, [g], variety, device=device) for m, z, g in zip(models, latents, generators)]
+    B, n = len(models), latents[0].shape[1]
+    if n == 0:
+        return latents[0].new_zeros(B, 0, models[0].config.pose_dim)
+    z = torch.cat([s[0] for s in starts], dim=0)  # (B, n, d)
+    state = tuple(torch.cat([s[1][i] for s in starts], dim=1) for i in range(2))  # each (layers, B, H)
+    noise = {"state": torch.cat([s[2]["state"] for s in starts], dim=3)} if "state" in starts[0][2] else {}
+    step = _RowDecoder(models)
+    prev = torch.cat([m.bop.expand(1, 1, -1) for m in models], dim=0)  # (B, 1, P)
+    outputs = []
+    for a0, b0 in _pieces(n, variety, chunk or models[0].config.encoder_chunk, progress):
+        state = _perturb_state(state, noise, a0, variety)
+        y, prev, state = step(z[:, a0:b0], prev, state)
+        outputs.append(y)
+    return torch.cat(outputs, dim=1)  # (B, n, P)
+
+
+#: ``torch.baddbmm`` computes a product of fewer multiply-adds than this (per batch item) in its own loop, not by
+#: one ``addmm`` per item: :class:`_RowDecoder` computes such small products row by row with ``nn.functional.linear``.
+BMM_LOOP_MIN = 400
+
+
+class _RowDecoder:
+    """One decoder step for rows of one or more :class:`RevolutionModel` of one architecture (rows of one model
+    consecutive), each row computed as :meth:`RevolutionModel._autoregress` computes a batch of one.
+
+    ``torch.lstm_cell`` and ``nn.Linear`` on a batch of B rows use one (B × K) matrix product, which rounds
+    differently from B products of one row (and the autoregressive decoder carries a last-bit difference into
+    another dance within ~20 s). Here each row's products are one-row products, the same call, layout and bias
+    handling as ``nn.Linear`` on one row (``addmm``), so the same bits: ``torch.baddbmm`` over the rows with the
+    weight matrix expanded (stride 0) in the batch dimension, which runs one ``addmm`` per row, or, for a
+    product of fewer than :data:`BMM_LOOP_MIN` multiply-adds (which ``baddbmm`` computes in a loop of its own),
+    ``nn.functional.linear`` row by row. The gate arithmetic is ``torch.lstm_cell``'s (gates = hidden product +
+    input product; sigmoid, tanh; ``c' = f c + i g``, ``h' = o tanh(c')``), elementwise, so the same bits for
+    every row."""
+
+    def __init__(self, models: list[RevolutionModel]):
+        c = models[0].config
+        self.config = c
+        #: per model: (first row, end row, {("ih" | "hh", layer) or "head": (weight (rows, K, N) and bias
+        #: (rows, 1, N) expanded for baddbmm, or None, None for a small product; weight (N, K), bias (N,))})
+        self.groups: list[tuple[int, int, dict]] = []
+        k = 0
+        while k < len(models):
+            e = k
+            while e < len(models) and models[e] is models[k]:
+                e += 1
+            m, rows = models[k], e - k
+
+            def rowwise(weight: torch.Tensor, bias: torch.Tensor, rows: int = rows):
+                if weight.numel() < BMM_LOOP_MIN:  # (N, K): row by row
+                    return None, None, weight, bias
+                return weight.t().expand(rows, *weight.t().shape), bias.expand(rows, 1, -1), weight, bias
+
+            params = {"head": rowwise(m.head.weight, m.head.bias)}
+            for layer in range(c.decoder_layers):
+                for kind in ("ih", "hh"):
+                    params[kind, layer] = rowwise(getattr(m.decoder, f"weight_{kind}_l{layer}"),
+                                                  getattr(m.decoder, f"bias_{kind}_l{layer}"))
+            self.groups.append((k, e, params))
+            k = e
+
+    @staticmethod
+    def partition(models: list[RevolutionModel]) -> list[list[int]]:
+        """The rows of ``models`` that can share a frame loop (one decoder architecture, full precision, biases as
+        ``nn.LSTM`` and ``nn.Linear`` have by default), rows of one model consecutive; a list per loop, in the
+        order of their first rows."""
+        def key(m: RevolutionModel):
+            c = m.config
+            if getattr(m, "fast_decoder", None) is not None or not m.decoder.bias or m.head.bias is None:
+                return ("alone", id(m))  # decoded on its own (a "fast_decoder" has its own loop)
+            return (c.pose_dim, c.d_model, c.decoder_layers, c.decoder_hidden, c.condition_on_music)
+
+        loops: dict = {}
+        for k, m in enumerate(models):
+            loops.setdefault(key(m), {}).setdefault(id(m), []).append(k)
+        return [[k for rows in by_model.values() for k in rows] for by_model in loops.values()]
+
+    def _product(self, x: torch.Tensor, key) -> torch.Tensor:
+        """``x (B, 1, K)`` times the weight ``key`` of each row's model, plus its bias: (B, 1, N)."""
+        parts = []
+        for a, b, params in self.groups:
+            rows_weight, rows_bias, weight, bias = params[key]
+            xs = x if len(self.groups) == 1 else x[a:b]
+            if rows_weight is not None:
+                parts.append(torch.baddbmm(rows_bias, xs, rows_weight))
+            else:
+                parts.extend(F.linear(xs[k], weight, bias)[None] for k in range(b - a))
+        return parts[0] if len(parts) == 1 else torch.cat(parts, dim=0)
+
+    def __call__(self, z: torch.Tensor, prev: torch.Tensor, state):
+        """``L = z.shape[1]`` frames from the input pose ``prev (B, 1, P)`` and ``state`` (each (layers, B, H)):
+        ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``, as :meth:`RevolutionModel._autoregress`."""
+        c = self.config
+        hs = [h[:, None] for h in state[0].unbind(0)]  # each (B, 1, H)
+        cs = [x[:, None] for x in state[1].unbind(0)]
+        y = prev  # (B, 1, P)
+        outputs = []
+        for t in range(z.shape[1]):
+            zt = z[:, t : t + 1]  # (B, 1, d)
+            x = torch.cat([y, zt], dim=-1) if c.condition_on_music else y
+            for layer in range(c.decoder_layers):
+                gates = self._product(hs[layer], ("hh", layer)).add_(self._product(x, ("ih", layer)))  # (B, 1, 4H)
+                i, f, g, o = gates.unsafe_chunk(4, 2)
+                i, f, g, o = i.sigmoid_(), f.sigmoid_(), g.tanh_(), o.sigmoid_()
+                cs[layer] = f.mul(cs[layer]).add_(i.mul(g))
+                hs[layer] = o.mul(cs[layer].tanh())
+                x = hs[layer]
+            y = self._product(torch.cat([x, zt], dim=-1), "head")  # (B, 1, P)
+            outputs.append(y)
+        if not outputs:
+            return z.new_zeros(z.shape[0], 0, c.pose_dim), prev, state
+        out = torch.cat(outputs, dim=1)  # (B, L, P)
+        return out, out[:, -1:], (torch.stack([h[:, 0] for h in hs]), torch.stack([x[:, 0] for x in cs]))
+
+
 def _generators(generator, batch: int) -> list[torch.Generator | None]:
     """One generator for the batch, or a list of ``batch`` generators (one per row)."""
     if isinstance(generator, (list, tuple)):
@@ -891,6 +1086,20 @@ def _generators(generator, batch: int) -> list[torch.Generator | None]:
             raise ParameterError(f"{len(generator)} generators for a batch of {batch}")
         return list(generator)
     return [generator]
+
+
+def _pieces(n: int, variety: SeedVariety, chunk: int, progress: bool):
+    """The pieces ``(a, b)`` of frames ``[0, n)`` a decoder runs in one go: the variety's phrases (an active variety
+    with a phrase), else ``chunk`` frames; shown by a progress bar with ``progress``."""
+    if variety.active and variety.phrase:
+        pieces = _phrases(0, n, variety.phrase)
+    else:
+        pieces = [(a, min(n, a + chunk)) for a in range(0, n, chunk)]
+    if progress:
+        from tqdm import tqdm
+
+        return tqdm(pieces, desc="generate", unit="piece")
+    return pieces
 
 
 def _phrases(a: int, b: int, phrase: int) -> list[tuple[int, int]]:

@@ -73,9 +73,14 @@ def ground_contact(
     return p
 
 
-def _rotate2(v: np.ndarray, angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+def _positive_dot(a0: float, a1: float, b0: float, b1: float) -> bool:
+    """Whether ``[a0, a1] @ [b0, b1] > 0`` as NumPy computes it: the products summed on Python floats, or NumPy's
+    own dot product where the sum is within 1e-12 (relative) of 0 (a fused multiply-add there may round the
+    other way)."""
+    dot = a0 * b0 + a1 * b1
+    if abs(dot) <= 1e-12 * (abs(a0 * b0) + abs(a1 * b1)):
+        dot = float(np.array([a0, a1]) @ np.array([b0, b1]))
+    return dot > 0
 
 
 def root_path_turns(
@@ -119,25 +124,36 @@ def root_path_turns(
     angle = np.zeros(len(p))
     new_root = np.empty_like(root)
     new_root[0] = start
+    # the frame loop on Python floats (the same IEEE operations, in the same order, as on the arrays' elements;
+    # hypot and the dot products whose value is kept are NumPy's, a dot product only compared with 0 is NumPy's
+    # where its sign is within rounding)
+    s0, s1 = float(start[0]), float(start[1])
+    d0, d1 = steps[:, 0].tolist(), steps[:, 1].tolist()
+    x, y = s0, s1  # the new root of the frame before
     theta, omega = 0.0, 0.0
     for t in range(1, len(p)):
-        c = new_root[t - 1] - start
-        step = _rotate2(steps[t - 1], theta)
-        dist = float(np.hypot(*c))
+        c0, c1 = x - s0, y - s1
+        co, si = math.cos(theta), math.sin(theta)
+        v0, v1 = d0[t - 1], d1[t - 1]
+        st0, st1 = co * v0 - si * v1, si * v0 + co * v1  # the step turned by theta
+        dist = float(np.hypot(c0, c1))
         target = 0.0
-        if dist > R and float(c @ step) > 0:
-            cross = c[0] * step[1] - c[1] * step[0]  # > 0: the step points counter-clockwise of outward
+        if dist > R and _positive_dot(c0, c1, st0, st1):
+            cross = c0 * st1 - c1 * st0  # > 0: the step points counter-clockwise of outward
             target = turn_rate if cross > 0 else -turn_rate  # so turning it further turns it back
         omega += alpha * (target - omega)
         theta += omega / fps
-        step = _rotate2(steps[t - 1], theta)
-        nxt = new_root[t - 1] + step
-        if np.hypot(*(nxt - start)) > H:  # last resort: drop the outward part of the step
+        co, si = math.cos(theta), math.sin(theta)
+        st0, st1 = co * v0 - si * v1, si * v0 + co * v1
+        nx, ny = x + st0, y + st1
+        if np.hypot(nx - s0, ny - s1) > H:  # last resort: drop the outward part of the step
+            prev, nxt, step = np.array([x, y]), np.array([nx, ny]), np.array([st0, st1])
             out = (nxt - start) / np.hypot(*(nxt - start))
             step = step - max(0.0, float(step @ out)) * out
-            nxt = new_root[t - 1] + step
-        new_root[t] = nxt
+            nx, ny = (float(v) for v in prev + step)
+        new_root[t] = (nx, ny)
         angle[t] = theta
+        x, y = nx, ny
     return angle, new_root
 
 

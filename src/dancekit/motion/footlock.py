@@ -322,15 +322,36 @@ def _segments(p: np.ndarray, contact: np.ndarray, hip: int, foot: list[int], ske
     for s, e in _runs(contact):
         t0 = s
         while t0 <= e:
-            anchor = p[t0, ankle]
-            t = t0
-            while t + 1 <= e and np.hypot(*(p[t + 1, ankle, [a, b]] - anchor[[a, b]])) <= limit \
-                    and np.linalg.norm(anchor - p[t + 1, hip]) <= 0.995 * reach[t + 1]:
-                t += 1
+            t = _hold_end(p, t0, e, ankle, hip, (a, b), limit, reach)
             if t - t0 + 1 >= min_len:
                 out.append((t0, t))
             t0 = t + 1 + gap
     return out
+
+
+def _hold_end(p: np.ndarray, t0: int, e: int, ankle: int, hip: int, axes: tuple[int, int], limit: float,
+              reach: np.ndarray) -> int:
+    """The last frame ``t`` in ``[t0, e]`` of a hold planted at frame ``t0``: every frame in ``(t0, t]`` keeps the
+    original ankle within ``limit`` (horizontally, ``axes``) of the planted ankle and the planted ankle within
+    ``0.995 * reach`` of the hip. Each test is the one of the frame-by-frame rule (``np.hypot`` of the horizontal
+    offset, ``np.linalg.norm`` of the hip-to-anchor vector), computed for all frames at once; a frame whose
+    batched value lies within 1e-9 (relative) of its bound is tested again exactly as that rule does, so the
+    decision is the rule's whatever the rounding of the batched arithmetic."""
+    if t0 >= e:
+        return t0
+    anchor = p[t0, ankle]
+    u = np.arange(t0 + 1, e + 1)
+    drift = np.hypot(p[u, ankle, axes[0]] - anchor[axes[0]], p[u, ankle, axes[1]] - anchor[axes[1]])
+    to_hip = anchor - p[u, hip]  # (n, 3)
+    dist = np.sqrt((to_hip * to_hip).sum(axis=-1))
+    bound = 0.995 * reach[u]
+    keep = (drift <= limit) & (dist <= bound)
+    near = (np.abs(drift - limit) <= 1e-9 * abs(limit)) | (np.abs(dist - bound) <= 1e-9 * np.abs(bound))
+    for k in np.flatnonzero(near):  # the frame-by-frame rule's own arithmetic
+        keep[k] = bool(np.hypot(*(p[u[k], ankle, list(axes)] - anchor[list(axes)])) <= limit
+                       and np.linalg.norm(anchor - p[u[k], hip]) <= 0.995 * reach[u[k]])
+    stop = np.flatnonzero(~keep)
+    return e if not len(stop) else t0 + int(stop[0])
 
 
 @dataclass

@@ -27,6 +27,9 @@ turned to y up.
 The body size goes into ``scaling`` as in AIST++: the dance's world positions are ``scaling ×``
 the SMPL joints, i.e. the SMPL root sits at ``translation / scaling`` (metres of the SMPL body),
 with ``scaling`` = (dance thigh + shin + trunk length) / (the same on the SMPL rest skeleton).
+
+:func:`map_by_role` goes the other way, from any rig with the limb roles onto a model's skeleton (e.g. a humanoid
+BVH or an SMPL pkl onto tang2018): the rig's bone directions on the target's bone lengths, at the target's size.
 """
 
 from __future__ import annotations
@@ -122,6 +125,27 @@ def smpl_bone_directions(positions: np.ndarray) -> dict[tuple[str, str], np.ndar
     return {(a, b): _unit(positions[:, i[b]] - positions[:, i[a]]) for a, b in SMPL_BONE_SOURCES}
 
 
+def _body_size(pt: dict[str, np.ndarray]) -> float:
+    """A body's size: its leg (hip → knee → ankle, the mean of the two sides) plus its trunk (``mid_hip`` →
+    ``neck``), each length the mean over frames of the points ``pt`` (:func:`_landmarks`' names, (T, 3) each)."""
+    def length(a: str, b: str) -> float:
+        return float(np.mean(np.linalg.norm(pt[b] - pt[a], axis=-1)))
+
+    size = sum(length(f"{s}_hip", f"{s}_knee") + length(f"{s}_knee", f"{s}_ankle") for s in ("left", "right"))
+    return 0.5 * size + length("mid_hip", "neck")
+
+
+def _size_points(skeleton: Skeleton, positions: np.ndarray) -> dict[str, np.ndarray]:
+    """The points :func:`_body_size` measures, from positions ``(T, J, 3)`` of a skeleton with the limb roles: the
+    hips, knees and ankles, ``mid_hip`` and ``neck`` (the ``neck`` role, or the shoulders' midpoint), as
+    :func:`_landmarks` takes them."""
+    pt = {r: positions[:, skeleton.index(r)] for r in _REQUIRED}
+    pt["mid_hip"] = 0.5 * (pt["left_hip"] + pt["right_hip"])
+    pt["neck"] = positions[:, skeleton.index("neck")] if skeleton.has("neck") else \
+        0.5 * (pt["left_shoulder"] + pt["right_shoulder"])
+    return pt
+
+
 def retarget_to_smpl(motion: Motion, skeleton: Skeleton | None = None) -> tuple[Motion, float]:
     """The dance on the SMPL skeleton, and its AIST++ ``scaling`` (see the module docstring).
 
@@ -151,11 +175,7 @@ def retarget_to_smpl(motion: Motion, skeleton: Skeleton | None = None) -> tuple[
     idx = {n: k for k, n in enumerate(smpl.joint_names)}
     off = np.asarray(smpl.offsets, np.float64)
 
-    def length(a: str, b: str) -> float:
-        return float(np.mean(np.linalg.norm(pt[b] - pt[a], axis=-1)))
-
-    src_size = sum(length(f"{s}_hip", f"{s}_knee") + length(f"{s}_knee", f"{s}_ankle") for s in ("left", "right"))
-    src_size = 0.5 * src_size + length("mid_hip", "neck")
+    src_size = _body_size(pt)
     rest = np.zeros_like(off)
     for j in smpl.topological_order:
         if smpl.parents[j] >= 0:
@@ -220,20 +240,33 @@ def _role_of(skeleton: Skeleton, joint: int) -> str | None:
 
 
 def map_by_role(motion: Motion, target: Skeleton) -> Motion:
-    """A 3D dance moved onto another skeleton's joints by their roles (positions, target units, y up).
+    """A 3D dance moved onto another skeleton's joints by their roles: the dance's bone directions on the
+    target's bone lengths, at the target's size (positions, target units, y up).
 
-    Each joint of ``target`` that has a canonical role (``left_knee``, ``head``, ``pelvis``, ...) takes the
-    dance's joint of that role; the root without one takes the hips' midpoint. A joint the dance lacks is
-    placed from its parent: on the straight line to its child when the two rest bones point the same way
-    (e.g. tang2018's ``*_forearm`` between elbow and wrist, at the rest ratio), else by the target's rest
-    offset turned with the body's heading (x = left, y = up, z = forward, the convention of the embedded
-    rest skeletons; heels, the second head marker, the hand markers). Positions are converted to the
-    target's units and to y up.
+    * **Size**: the dance is scaled (about the origin, as AIST++ scales its bodies) by the target's body size over
+      the dance's, the size being the leg (hip → knee → ankle) plus the trunk (hips' midpoint → the ``neck`` role
+      or the shoulders' midpoint), as :func:`retarget_to_smpl` measures it.
+    * **Pelvis**: the target's hips and its root are placed about the dance's hips' midpoint, at their rest
+      offsets from the rest hips' midpoint turned as the dance's pelvis is turned from the target's rest pose
+      (the hip line, and the trunk to the shoulders' midpoint).
+    * **Limbs**: every other joint of ``target`` with a canonical role (``left_knee``, ``head``, ...) the dance
+      has too is placed from its nearest placed ancestor (a hip, a knee, ..., or the root) in the direction the
+      dance's joints of those roles are apart (from the root: from the placed root to the dance's joint), at the
+      target's rest distance.
+    * **The rest**: a joint the dance lacks is placed from its parent: on the straight line to its child when the
+      two rest bones point the same way (e.g. tang2018's ``*_forearm`` between elbow and wrist, at the rest
+      ratio), else by the target's rest offset turned with the body's heading (x = left, y = up, z = forward,
+      the convention of the embedded rest skeletons; the second head marker, the hand markers, a heel).
+
+    So a rig's other proportions do not move the dance's feet (the humanoid BVH and the SMPL pkl of a tang2018
+    dance read back with its steps, which the composer's tempo follows, :mod:`dancekit.pipelines.compose`), the
+    bones between role joints have the target's rest lengths, and a dance on the target's own proportions (a
+    rigid trunk) comes back where it was.
 
     Parameters
     ----------
     motion : a 3D dance whose skeleton has the roles of :data:`MAP_REQUIRED`
-    target : a y-up 3D skeleton with roles (e.g. ``tang2018``)
+    target : a y-up 3D skeleton with the hip, knee, ankle, shoulder, elbow and wrist roles (e.g. ``tang2018``)
 
     Returns
     -------
@@ -242,7 +275,7 @@ def map_by_role(motion: Motion, target: Skeleton) -> Motion:
     Raises
     ------
     ParameterError
-        For a 2D dance or target, or a dance lacking a required role (the message names them).
+        For a 2D dance or target, or either lacking a required role (the message names them).
     """
     sk = motion.skeleton
     if sk.dims != 3 or target.dims != 3:
@@ -252,9 +285,21 @@ def map_by_role(motion: Motion, target: Skeleton) -> Motion:
     if missing:
         raise ParameterError(f"skeleton {sk.name!r} has no {', '.join(missing)} role(s): cannot map its joints "
                              f"onto {target.name!r}")
+    missing = [r for r in _REQUIRED if not target.has(r)]
+    if missing:
+        raise ParameterError(f"skeleton {target.name!r} has no {', '.join(missing)} role(s): cannot map joints "
+                             "onto it")
     pos = np.asarray(motion.to_positions(), np.float64) * (sk.unit_scale / target.unit_scale)
     if sk.up_axis == "z":
         pos = np.stack([pos[..., 0], pos[..., 2], -pos[..., 1]], axis=-1)
+    off = np.asarray(target.offsets, np.float64)
+    rest = np.zeros_like(off)  # the target's rest pose (J, 3)
+    for j in target.topological_order:
+        if target.parents[j] >= 0:
+            rest[j] = rest[target.parents[j]] + off[j]
+    size = _body_size(_size_points(sk, pos))
+    if np.isfinite(size) and size > 0:  # the dance at the target's size (about the origin, as AIST++ scales)
+        pos = pos * (_body_size(_size_points(target, rest[None])) / size)
     get = {r: pos[:, sk.index(r)] for r in sk.roles}
     left = (get["left_hip"] - get["right_hip"]) + (get["left_shoulder"] - get["right_shoulder"])
     left[:, 1] = 0.0
@@ -262,15 +307,28 @@ def map_by_role(motion: Motion, target: Skeleton) -> Motion:
     up = np.broadcast_to(np.array([0.0, 1.0, 0.0]), left.shape)
     forward = np.cross(left, up)
     body = np.stack([left, up, forward], axis=-1)  # (T, 3, 3): columns = the rest frame's axes in the world
-    off = np.asarray(target.offsets, np.float64)
+    at = {r: rest[target.index(r)] for r in ("left_hip", "right_hip", "left_shoulder", "right_shoulder")}
+    mid_hip, rest_mid_hip = 0.5 * (get["left_hip"] + get["right_hip"]), 0.5 * (at["left_hip"] + at["right_hip"])
+    turn = _frame(get["left_hip"] - get["right_hip"],
+                  0.5 * (get["left_shoulder"] + get["right_shoulder"]) - mid_hip) @ _frame(
+        (at["left_hip"] - at["right_hip"])[None],
+        (0.5 * (at["left_shoulder"] + at["right_shoulder"]) - rest_mid_hip)[None])[0].T  # (T, 3, 3) rest → dance
     out = np.full((motion.num_frames, target.num_joints, 3), np.nan)
     roles = [_role_of(target, j) for j in range(target.num_joints)]
+    source = {}  # placed joint → the dance's point it stands for
     for j in target.topological_order:
-        p, role = target.parents[j], roles[j]
-        if role is not None and role in get:
-            out[:, j] = get[role]
-        elif p < 0:
-            out[:, j] = 0.5 * (get["left_hip"] + get["right_hip"])
+        role = roles[j]
+        if target.parents[j] < 0 or role in ("left_hip", "right_hip"):  # turned with the pelvis
+            out[:, j] = mid_hip + np.einsum("tij,j->ti", turn, rest[j] - rest_mid_hip)
+            source[j] = get[role] if role in ("left_hip", "right_hip") else out[:, j]
+            continue
+        if role not in get:
+            continue
+        a = target.parents[j]
+        while a not in source:  # the nearest placed ancestor (the root at the latest)
+            a = target.parents[a]
+        out[:, j] = out[:, a] + np.linalg.norm(rest[j] - rest[a]) * _unit(get[role] - source[a])
+        source[j] = get[role]
     for j in target.topological_order:
         if not np.isnan(out[0, j]).any():
             continue

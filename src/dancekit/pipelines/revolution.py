@@ -50,7 +50,7 @@ import torch
 from dancekit.checkpoints import NormStats
 from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.precision import to_precision
-from dancekit.models.revolution import RevolutionModel, SeedVariety
+from dancekit.models.revolution import RevolutionModel, SeedVariety, decode_seeds
 from dancekit.motion import Motion
 from dancekit.motion.representations import decode_motion, get_representation
 from dancekit.pipelines.base import calm_motion, check_seeds, clean_motion
@@ -163,14 +163,19 @@ class RevolutionPipeline(DancePipeline):
         motion = calm_motion(motion)
         return clean_motion(motion) if postprocess else motion
 
+    def batch_key(self, choice: GenreChoice) -> None:
+        """Every seed in one :meth:`generate_batch` call, whatever its genre: the seeds' genre models are stepped
+        side by side (:func:`~dancekit.models.revolution.decode_seeds`)."""
+        return None
+
     @torch.no_grad()
     def generate_batch(self, audio_path: str | os.PathLike, *, seeds: list[int], choices: list[GenreChoice],
                        start: float | None = None, end: float | None = None, progress: bool = False,
-                       postprocess: bool = True, variety: bool = True) -> list[Motion]:
-        """The dances of ``seeds``, all of the genre ``choices[0].genre``: danced by that genre's model when this
-        folder has genre models (:meth:`genre_pipeline`), else by this model (with the genre as its input when it
-        is genre-conditioned); the features once, the music encoded once, the decoder run on each seed on its own
-        (a batch of one: batched matrix products round differently for every batch size).
+                       postprocess: bool = True, variety: bool = True, workers: int | None = None) -> list[Motion]:
+        """The dances of ``seeds``, seed ``seeds[k]`` of the genre ``choices[k].genre``: danced by that genre's
+        model when this folder has genre models (:meth:`genre_pipeline`), else by this model (with the genre as
+        its input when it is genre-conditioned); :meth:`generate_rows` (each model's features and latents once,
+        the decoder of every seed bit for bit the seed alone).
 
         Parameters
         ----------
@@ -180,14 +185,14 @@ class RevolutionPipeline(DancePipeline):
         variety : True: the checkpoint's seed variety (:attr:`variety`: the seed perturbs the decoding at every
             phrase, so another seed is another dance all the way through); False: the paper's decoding (the seed
             draws the initial decoder state only; the dances of one song converge)
+        workers : how many seeds are decoded side by side (threads; None: :func:`decode_workers`); the dances
+            do not depend on it
         """
-        genre = choices[0].genre
         vary = self.variety if variety else SeedVariety()
-        if genre is not None and self.genre_models:
-            return self.genre_pipeline(genre).generate_many(audio_path, seeds=seeds, start=start, end=end,
-                                                            progress=progress, postprocess=postprocess, variety=vary)
-        return self.generate_many(audio_path, seeds=seeds, start=start, end=end, progress=progress,
-                                  postprocess=postprocess, genre_index=self._genre_index(genre), variety=vary)
+        rows = [(self.genre_pipeline(c.genre), None) if c.genre is not None and self.genre_models
+                else (self, self._genre_index(c.genre)) for c in choices]
+        return self.generate_rows(audio_path, seeds=seeds, rows=rows, start=start, end=end, progress=progress,
+                                  postprocess=postprocess, variety=vary, workers=workers)
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
@@ -202,21 +207,49 @@ class RevolutionPipeline(DancePipeline):
     @torch.no_grad()
     def generate_many(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
                       end: float | None = None, progress: bool = False, postprocess: bool = True,
-                      genre_index: int | None = None, variety: SeedVariety | None = None) -> list[Motion]:
-        """:meth:`generate` for each of ``seeds``, as one batch (the features once, the music encoded once)."""
+                      genre_index: int | None = None, variety: SeedVariety | None = None,
+                      workers: int | None = None) -> list[Motion]:
+        """:meth:`generate` for each of ``seeds`` (:meth:`generate_rows`: the features once, the music encoded
+        once)."""
         seeds = check_seeds(seeds)
-        x = self.features(audio_path, start=start, end=end)  # (T, D)
-        device = self.model.bop.device
+        return self.generate_rows(audio_path, seeds=seeds, rows=[(self, genre_index)] * len(seeds), start=start,
+                                  end=end, progress=progress, postprocess=postprocess,
+                                  variety=self.variety if variety is None else variety, workers=workers)
+
+    @torch.no_grad()
+    def generate_rows(self, audio_path: str | os.PathLike, *, seeds: list[int],
+                      rows: list[tuple[RevolutionPipeline, int | None]], start: float | None = None,
+                      end: float | None = None, progress: bool = False, postprocess: bool = True,
+                      variety: SeedVariety | None = None, workers: int | None = None) -> list[Motion]:
+        """The dance of seed ``seeds[k]`` by the pipeline ``rows[k][0]`` (this one or one of its genre models'),
+        with the genre input ``rows[k][1]`` (a genre-conditioned model; None otherwise): each pipeline's features
+        read once, each (pipeline, genre) encoded once, then every seed decoded by
+        :func:`~dancekit.models.revolution.decode_seeds` (bit for bit the seed alone) in ``workers`` lanes
+        (None: :func:`decode_workers`), on the pipeline's skeleton at its fps (``postprocess``: see
+        :meth:`generate_batch`), ``variety`` the seed variety (None: this checkpoint's)."""
+        seeds = check_seeds(seeds)
+        if len(rows) != len(seeds):
+            raise ParameterError(f"{len(rows)} rows for {len(seeds)} seeds")
+        music: dict[int, torch.Tensor] = {}
+        latents: dict[tuple[int, int | None], torch.Tensor] = {}
+        for pipe, genre_index in rows:
+            if id(pipe) not in music:
+                music[id(pipe)] = torch.from_numpy(pipe.features(audio_path, start=start, end=end))[None].to(
+                    pipe.model.bop.device)  # (1, T, D)
+            if (id(pipe), genre_index) not in latents:
+                index = None if genre_index is None else torch.tensor([genre_index])
+                pipe.model._check_music(music[id(pipe)])
+                latents[id(pipe), genre_index] = pipe.model._latents(music[id(pipe)], index)  # (1, T, d)
+        music.clear()
         generators = [torch.Generator(device="cpu").manual_seed(s) for s in seeds]
-        y = self.model.generate(torch.from_numpy(x)[None].to(device), generator=generators, progress=progress,
-                                genre=None if genre_index is None else torch.tensor([genre_index]),
-                                variety=self.variety if variety is None else variety)  # (B, T, P)
-        del x
+        y = decode_seeds([pipe.model for pipe, _ in rows], [latents[id(pipe), g] for pipe, g in rows], generators,
+                         self.variety if variety is None else variety, progress=progress,
+                         workers=decode_workers(len(seeds)) if workers is None else workers)  # (B, T, P)
         motions = []
-        for k in range(len(seeds)):
-            poses = self.stats.denormalize_dance(y[k].cpu().numpy())  # (T, P)
-            motion = decode_motion(poses, self.skeleton, self.fps, self.representation)
-            motions.append(clean_motion(motion) if postprocess and self.representation == "positions3d" else motion)
+        for k, (pipe, _) in enumerate(rows):
+            poses = pipe.stats.denormalize_dance(y[k].cpu().numpy())  # (T, P)
+            motion = decode_motion(poses, pipe.skeleton, pipe.fps, pipe.representation)
+            motions.append(clean_motion(motion) if postprocess and pipe.representation == "positions3d" else motion)
         return motions
 
     @property
@@ -255,6 +288,21 @@ class RevolutionPipeline(DancePipeline):
         if genre not in self.genres:
             raise ParameterError(f"unknown genre {genre!r} for this model; choose from {', '.join(self.genres)}")
         return self.genres.index(genre)
+
+
+def decode_workers(rows: int) -> int:
+    """How many seeds' decoders run side by side by default: one per CPU core this process may use, divided by
+    torch's threads per operation, at most ``rows`` and :data:`MAX_DECODE_WORKERS`."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(rows, MAX_DECODE_WORKERS, cores // max(1, torch.get_num_threads())))
+
+
+#: The most decoder threads :func:`decode_workers` gives: the frame loop is a Python loop, and more threads than
+#: this wait on each other for the interpreter.
+MAX_DECODE_WORKERS = 4
 
 
 def variety_from_sampling(sampling: RevolutionSampling, fps: float, *, folder: str = "?") -> SeedVariety:
