@@ -70,21 +70,40 @@ def test_online_features_equal_offline_with_full_lookahead(song):
     env = on[:, f.cols["onset_strength"]][:, 0]
     offline_tg = spectral.tempogram(onset_envelope=env, sr=SR, hop_length=512).T  # (T, 384)
     np.testing.assert_allclose(on[192:, tg], offline_tg[:-192], atol=1e-4)
-    assert not on[:192, tg].any()  # no window has ended yet
+    # the first 192 rows: the window ending at f reaches before the offline padding (a linear ramp to env[0] over
+    # 192 frames): zeros there; each row the autocorrelation of the Hann-windowed envelope, scaled to a peak of 1
+    padded = np.concatenate([np.zeros(192), np.linspace(0.0, env[0], 193)[:-1], env])
+    for fr in (0, 1, 50, 120, 191):
+        w = padded[fr : fr + 384] * np.hanning(385)[:-1]  # the periodic Hann window
+        ac = np.correlate(w, w, mode="full")[383:]
+        ref = ac / np.abs(ac).max() if ac.any() else ac  # all zeros before any sound (the song starts silent)
+        np.testing.assert_allclose(on[fr, tg], ref, atol=1e-4, err_msg=f"row {fr}")
+    assert on[100:192, tg].any(axis=1).all()
 
 
 def test_online_features_short_lookahead_stays_close(song):
     """At the default lookahead (0.08 s) the frames' right edge is zero-padded (the song "ends" there): the
-    MFCCs, the onset envelope and the tempogram are still exact; the delta and the chromagram move by a bounded
-    amount (measured here: median 2.0 and 0.02; the chroma is in [0, 1])."""
-    off = extract(song, sr=SR, fps=25, preset="revolution").features
-    f, on = _online(song, preset="revolution", lookahead_s=0.08)
+    MFCCs, the onset envelope and the tempogram are still exact; the MFCC delta of a row is the offline delta of
+    the audio received when the row was made (the song's end: its last 9 frames fit), fed one frame at a time;
+    the chromagram moves by a bounded amount (measured here: median 0.02; the chroma is in [0, 1])."""
     from dancekit.features import spectral
 
+    off = extract(song, sr=SR, fps=25, preset="revolution").features
+    f = OnlineFeatures(preset="revolution", fps=25, lookahead_s=0.08)
+    rows, received = [], []
+    for a in range(0, len(song), 512):
+        new = f.feed(song[a : a + 512])
+        rows.append(new)
+        received += [min(len(song), a + 512)] * len(new)
+    on = np.concatenate(rows + [f.finish()])
     S = spectral.log_melspectrogram(y=song, sr=SR, hop_length=512)
     k = int(np.argmax(S.max(axis=0))) + 1
     np.testing.assert_allclose(on[k:, f.cols["mfcc"]], off[k:, f.cols["mfcc"]], atol=2e-3, rtol=1e-4)
     np.testing.assert_allclose(on[k:, f.cols["onset_strength"]], off[k:, f.cols["onset_strength"]], atol=2e-3)
+    for fr in range(k, len(received), 41):
+        m = spectral.mfcc(S=spectral.log_melspectrogram(y=song[: received[fr]], sr=SR, hop_length=512), sr=SR)
+        np.testing.assert_allclose(on[fr, f.cols["mfcc_delta"]], spectral.mfcc_delta(mfcc=m)[:, fr], atol=2e-3,
+                                   rtol=1e-3, err_msg=f"frame {fr}")
     chroma = np.abs(on[k:, f.cols["chroma_cqt"]] - off[k:, f.cols["chroma_cqt"]])
     assert np.median(chroma) < 0.05 and chroma.max() < 0.6
 
@@ -168,9 +187,10 @@ def test_revolution_stepper_equals_one_offline_pass(revolution, rng):
     np.testing.assert_allclose(on, off, atol=1e-2)  # cm, float rounding of two encoder chunkings
 
 
-def _tiny_music2dance():
+def _tiny_music2dance(sampling=None):
     """A small Music2Dance model whose music condition is the features themselves (no F_map): causal
-    end to end, so a stepped dance must equal one offline pass whatever the blocks."""
+    end to end, so a stepped dance must equal one offline pass whatever the blocks; ``sampling``: its
+    checkpoint's sampling entry (default: temperature 0.7, noise correlation 0.5, no smoothing)."""
     from dancekit.checkpoints import NormStats
     from dancekit.models.music2dance import Music2DanceConfig, Music2DanceModel
     from dancekit.motion import Skeleton
@@ -187,7 +207,7 @@ def _tiny_music2dance():
     stats = NormStats(music_mean=np.zeros(15, np.float32), music_std=np.ones(15, np.float32),
                       dance_mean=np.zeros(P, np.float32), dance_std=np.full(P, 0.1, np.float32))
     meta = {"fps": 25.0, "skeleton": sk.to_dict(), "genres": ["a", "b"],
-            "sampling": {"temperature": 0.7, "noise_correlation": 0.5}}
+            "sampling": sampling or {"temperature": 0.7, "noise_correlation": 0.5}}
     assert isinstance(Skeleton.from_dict(meta["skeleton"]), Skeleton)
     return Music2DancePipeline(model, meta=meta, stats=stats, folder="tiny")
 
@@ -206,6 +226,76 @@ def test_music2dance_stepper_carries_its_state_across_blocks(rng):
     off = decode_rootdelta(pipe.stats.denormalize_dance(y.numpy().astype(np.float64)), pipe.skeleton, 25.0).positions
     assert on.shape == off.shape
     np.testing.assert_allclose(on, off, atol=1e-3)
+
+
+def _gaussian_reference(x, sigma, *, ahead):
+    """Row t: the Gaussian-weighted mean of rows t - r ... t + a (r = round(3 sigma), a = r or 0), the first and
+    last rows repeated beyond the ends: written out sum by sum, apart from the code under test."""
+    r = int(round(3 * sigma))
+    a = r if ahead else 0
+    T = len(x)
+    out = np.empty((T, x.shape[1]))
+    for t in range(T):
+        acc, total = 0.0, 0.0
+        for k in range(-r, a + 1):
+            w = np.exp(-(k * k) / (2.0 * sigma * sigma))
+            acc = acc + w * x[min(max(t + k, 0), T - 1)].astype(np.float64)
+            total += w
+        out[t] = acc / total
+    return out
+
+
+@pytest.mark.parametrize("ahead", [True, False])
+def test_sample_smoother_equals_the_gaussian_of_the_whole_stream(ahead, rng):
+    """Rows pushed in uneven blocks: the delayed smoother gives the centred Gaussian of the whole stream (the offline
+    smoothing, edges repeated), the causal one the Gaussian's past half; the columns after ``columns`` (the contacts)
+    pass unchanged; the delay holds back exactly the radius (6 rows for sigma 2)."""
+    from dancekit.live.steppers import SampleSmoother
+    from dancekit.models.foot_constraint import gaussian_smooth
+
+    x = rng.standard_normal((70, 5)).astype(np.float32)
+    sm = SampleSmoother(2.0, ahead=ahead, columns=3)
+    out, held = [], []
+    a = 0
+    for n in (1, 2, 9, 3, 20, 1, 1, 30, 3):
+        got = sm.push(x[a : a + n])
+        a += n
+        out.append(got)
+        held.append(a - sum(len(o) for o in out))
+    out.append(sm.push(x[:0], final=True))
+    on = np.concatenate(out)
+    assert on.shape == x.shape
+    assert set(held[2:]) == {6 if ahead else 0}
+    np.testing.assert_allclose(on[:, :3], _gaussian_reference(x[:, :3], 2.0, ahead=ahead), atol=1e-5)
+    np.testing.assert_array_equal(on[:, 3:], x[:, 3:])
+    if ahead:
+        off = gaussian_smooth(torch.from_numpy(x[None, :, :3]), 2.0)[0].numpy()
+        np.testing.assert_allclose(on[:, :3], off, atol=1e-5)
+
+
+@pytest.mark.parametrize("genre, sigma", [("a", 1.0), ("b", 0.5)])
+def test_music2dance_stepper_smooths_its_samples_as_the_checkpoint_says(genre, sigma, rng):
+    """The checkpoint's smooth_sigma (genre b has its own): the stepped dance is the offline samples smoothed with
+    the centred Gaussian (delayed by its radius), decoded; the causal form with the Gaussian's past half."""
+    from dancekit.live.steppers import Music2DanceStepper
+    from dancekit.motion.root_delta import decode_rootdelta
+
+    pipe = _tiny_music2dance(sampling={"temperature": 0.7, "noise_correlation": 0.5, "smooth_sigma": 1.0,
+                                       "genres": {"b": {"smooth_sigma": 0.5}}})
+    T, D = 90, pipe.model.config.gmm_dim
+    raw = rng.standard_normal((T, 15)).astype(np.float32)
+    y = pipe.model.generate(torch.from_numpy(raw)[None], torch.tensor([pipe.genres.index(genre)]), temperature=0.7,
+                            generator=[torch.Generator().manual_seed(2)], noise_correlation=0.5,
+                            reference=True)[0].numpy()
+    for smoothing in ("delay", "causal"):
+        st = Music2DanceStepper(pipe, lookahead=0, context=8, seed=2, genre=genre, smoothing=smoothing)
+        assert st.delay == (int(round(3 * sigma)) if smoothing == "delay" else 0)
+        on = np.concatenate([st.push(raw[a : a + 4]) for a in range(0, T, 4)] + [st.finish()])
+        ys = y.astype(np.float64).copy()
+        ys[:, :D] = _gaussian_reference(y[:, :D], sigma, ahead=smoothing == "delay")
+        off = decode_rootdelta(pipe.stats.denormalize_dance(ys), pipe.skeleton, 25.0).positions
+        assert on.shape == off.shape
+        np.testing.assert_allclose(on, off, atol=1e-3)
 
 
 def test_stepper_rejects_an_unknown_genre():
@@ -255,6 +345,37 @@ def test_session_dances_silence_and_the_music_coming_back(model, song):
     # frames whose centre lies in a block of silence (blocks of 0.16 s: frames 100-171)
     assert not any(f.music for f in frames[101:171]) and all(f.music for f in frames[75:99])
     assert s.stats.dropped_blocks == 1
+
+
+def test_session_dances_from_the_start_while_the_tracker_warms_up(song):
+    """The beat tracker needs 3 s of sound before it can tell a pulse: meanwhile the dancer dances (the frames
+    say music, and the poses are those of a session that never calms), it does not calm as if the song were
+    speech."""
+    y = song[: 4 * SR]
+    got = {}
+    for calm in (0.4, 1.0):
+        s = LiveSession("revolution", config=LiveConfig(calm=calm))
+        frames = [f for b in _blocks(y) for f in s.feed([b])]
+        got[calm] = frames
+    warm = [f for f in got[0.4] if f.time < 2.8]
+    assert len(warm) == 70 and all(f.music for f in warm)
+    np.testing.assert_array_equal(np.stack([f.joints for f in warm]),
+                                  np.stack([f.joints for f in got[1.0][: len(warm)]]))
+
+
+def test_session_nudges_within_the_offline_warp_bound_of_its_model():
+    """The beat nudge's rate bound is the model's offline warp bound (its checkpoint's
+    stages.beat_sync.max_rate_change, else ±15 %) unless the config names one; 0: no nudge."""
+    from pathlib import Path
+
+    import dancekit
+
+    folder = Path(dancekit.__file__).parent / "assets" / "models" / "music2dance"
+    bound = json.loads((folder / "config.json").read_text())["stages"]["beat_sync"]["max_rate_change"]
+    assert LiveSession("music2dance").nudge.bound == bound != 0.15
+    assert LiveSession("revolution").nudge.bound == 0.15
+    assert LiveSession("music2dance", config=LiveConfig(rate_bound=0.1)).nudge.bound == 0.1
+    assert LiveSession("music2dance", config=LiveConfig(rate_bound=0.0)).nudge is None
 
 
 def test_session_latency_is_logged_apart_from_the_lookahead(song):

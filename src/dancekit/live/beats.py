@@ -84,6 +84,17 @@ class BeatTracker:
         return None if self.period is None else 60.0 * self.rate / self.period
 
     @property
+    def warming_up(self) -> bool:
+        """True before ``warmup_s`` of envelope: the tracker cannot tell a pulse yet (:attr:`clarity` is 0)."""
+        return self.n < self.warmup
+
+    @property
+    def pulse(self) -> bool:
+        """Whether the sound may have a pulse: while warming up (not known yet), or a clear one
+        (:attr:`clarity` at least ``min_clarity``)."""
+        return self.warming_up or self.clarity >= self.min_clarity
+
+    @property
     def next_time(self) -> float | None:
         """The predicted time (s) of the next beat, None while the tracker has no beat."""
         return None if self.next_beat is None else self.next_beat / self.rate + self.offset

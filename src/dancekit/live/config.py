@@ -39,11 +39,18 @@ class LiveConfig:
     silence_db : a block whose RMS is below this level (dB full scale) is silence (the dancer calms)
     calm : how much of the movement is left while the music is silent or not music (0 … 1; offline: 0.4)
     calm_glide_s : time constant of the glide between dancing and calm (s, > 0)
-    rate_bound : the beat alignment nudges the playback rate of the dance within ``1 ± rate_bound`` (the
-        offline warp's ±15 %)
+    rate_bound : the beat alignment nudges the playback rate of the dance within ``1 ± rate_bound`` (0: no
+        nudge); None: the offline warp's bound of the model (its checkpoint's ``stages.beat_sync.max_rate_change``:
+        ±40 % for the embedded music2dance; else ±15 %)
     max_lag_s : behind the clock by more than this (s, > 0), the session drops to its lighter path (the
         chromagram held, not recomputed) and says so; behind by more than ``3 × max_lag_s`` it drops blocks
     seed : the seed of the model's draws
+    sample_smoothing : Music2Dance's Gaussian smoothing of the sampled features (the checkpoint's
+        ``smooth_sigma`` σ, per genre where it has one; offline a centred kernel of radius ``r = round(3σ)``
+        frames): ``"delay"``, the centred kernel with each frame held back ``r`` frames (the offline smoothing
+        exactly; ``r / fps`` s more lookahead: 0.24 s for the embedded model), or ``"causal"``, the kernel's
+        past half (no frame held back; a weaker low-pass that lags the movement by about 0.65 σ frames).
+        Chosen on the validation songs (docs/research/live.md)
     """
 
     block_s: float = 0.04
@@ -57,9 +64,10 @@ class LiveConfig:
     silence_db: float = -50.0
     calm: float = 0.4
     calm_glide_s: float = 0.5
-    rate_bound: float = 0.15
+    rate_bound: float | None = None
     max_lag_s: float = 0.25
     seed: int = 0
+    sample_smoothing: str = "delay"
 
     #: lookahead (s) at which the online features equal the offline extractor's (the constant-Q support)
     EXACT_LOOKAHEAD_S = 1.0
@@ -84,10 +92,14 @@ class LiveConfig:
                   "floor_window_s": "(0, 60] s", "silence_db": "[-120, 0] dB", "calm": "[0, 1]",
                   "calm_glide_s": "(0, 10] s", "rate_bound": "[0, 0.5)", "max_lag_s": "(0, 10] s"}
         for name, ok in checks.items():
+            if name == "rate_bound" and self.rate_bound is None:
+                continue
             if not ok(number(name)):
                 raise ParameterError(f"LiveConfig.{name} must be in {ranges[name]}, got {getattr(self, name)!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ParameterError(f"LiveConfig.seed must be an integer, got {self.seed!r}")
+        if self.sample_smoothing not in ("delay", "causal"):
+            raise ParameterError(f"LiveConfig.sample_smoothing must be 'delay' or 'causal', got {self.sample_smoothing!r}")
 
     @classmethod
     def from_dict(cls, spec: dict) -> LiveConfig:

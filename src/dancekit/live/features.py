@@ -12,7 +12,8 @@ columns) computed on the audio received so far, a frame at a time:
   is the loudest frame *so far*.
 * the tempogram (384 frames, ±7.7 s at 25 fps) cannot wait for its centred window: row ``f`` holds the
   offline tempogram of frame ``f - 192`` (the window that ends at ``f``): the same values, delayed by half
-  the window (zeros for the first 192 frames).
+  the window; the first 192 rows' windows reach before the offline padding (the linear ramp to the first
+  envelope value over 192 frames), and there they see zeros.
 * the beat (and downbeat) columns come from the causal beat tracker (:class:`dancekit.live.beats.BeatTracker`),
   which runs on a 100-Hz onset envelope of its own; a beat is marked on frame ``round(t · fps)``.
 """
@@ -273,7 +274,9 @@ class OnlineFeatures:
             return np.zeros((0, self.dim), np.float32)
         hop = self.hop
         end = 1 + self.n_in // hop  # the frames of the audio so far (the song "ends" here)
-        g0, g1 = max(0, f0 - 4), min(end, f1 + 4)  # the delta's ±4 frames, the onset's 3 before
+        # the delta's ±4 frames and the onset's 3 before; at least the delta's 9 frames before the stream's end
+        # (fewer: a delta of zeros), so that near the end it is the offline delta at a song's end
+        g0, g1 = max(0, min(f0 - 4, end - 9)), min(end, f1 + 4)
         M = self._power(g0, g1)
         S = 10.0 * np.log10(np.maximum(1e-10, M))
         self.db_max = max(self.db_max, float(S[:, : f1 - g0].max()))
@@ -306,24 +309,23 @@ class OnlineFeatures:
         return out
 
     def _tempogram(self, env_new: np.ndarray, f0: int) -> np.ndarray:
-        """Rows ``f0 …`` of the delayed tempogram: row ``f`` is the offline tempogram's frame ``f - half``, its
-        window the envelope of frames ``[f - 2·half, f)`` (the linear ramp to ``env[0]`` before the song)."""
+        """Rows ``f0 …`` of the delayed tempogram: row ``f`` is the tempogram of the envelope of frames
+        ``[f - 2·half, f)`` — the offline tempogram's frame ``f - half`` (its padding before the song: the linear
+        ramp to ``env[0]`` over ``half`` frames), and before that zeros (the first ``half`` rows, whose windows
+        reach beyond the offline padding)."""
         win, half = TEMPOGRAM_WINDOW, TEMPOGRAM_WINDOW // 2
         if self.env_first is None and len(env_new):
             self.env_first = float(env_new[0])
             ramp = np.linspace(0.0, self.env_first, half + 1)[:-1].astype(np.float32)  # np.pad's linear_ramp
-            self.env_hist = ramp
-            self.env_offset = -half
+            self.env_hist = np.concatenate([np.zeros(win - half, np.float32), ramp])  # zeros before the ramp
+            self.env_offset = -win
         rows = np.zeros((len(env_new), win), np.float32)
         hann = _dsp.hann(win)
         for k, e in enumerate(env_new):
-            f = f0 + k
-            c = f - half  # the offline frame this row holds
-            if c >= 0:
-                lo = c - half - self.env_offset
-                frame = self.env_hist[lo : lo + win].astype(np.float64)
-                ac = _dsp.autocorrelate(frame * hann, axis=-1)
-                rows[k] = np.nan_to_num(_dsp.normalize_max(ac[:, None], axis=0)[:, 0], nan=0.0)
+            lo = f0 + k - win - self.env_offset  # the window of frames [f - win, f)
+            frame = self.env_hist[lo : lo + win].astype(np.float64)
+            ac = _dsp.autocorrelate(frame * hann, axis=-1)
+            rows[k] = np.nan_to_num(_dsp.normalize_max(ac[:, None], axis=0)[:, 0], nan=0.0)
             self.env_hist = np.append(self.env_hist, np.float32(e))
         excess = len(self.env_hist) - win
         if excess > 0:

@@ -57,7 +57,8 @@ class Frame:
     """One pose frame: ``index`` (frames since the start), ``time`` (s of audio), ``joints`` (J, 3) float32 in
     the skeleton's units, ``arrival`` (when its block arrived) and ``sent`` (when it was handed to the sinks,
     ``time.monotonic()``), ``ready`` (when the block that completed it arrived), ``beat`` (a beat falls on it),
-    ``bpm`` (the tracker's tempo, or None), ``music`` (music was playing)."""
+    ``bpm`` (the tracker's tempo, or None), ``music`` (music was playing: sound above the silence level with a
+    pulse, or in the beat tracker's first seconds, before it can tell; False: the dancer calms)."""
 
     index: int
     time: float
@@ -140,12 +141,14 @@ class LiveSession:
         self.sr = self.features.sr
         la_frames = int(np.ceil(c.model_lookahead_s * self.fps - 1e-9))
         self.stepper = make_stepper(self.pipe, lookahead=la_frames, context=int(round(c.encoder_context_s * self.fps)),
-                                    seed=c.seed, genre=genre)
+                                    seed=c.seed, genre=genre, smoothing=c.sample_smoothing)
         if hasattr(self.stepper, "raw"):
             self.stepper.raw = True  # the online stages set the bone lengths
         self.skeleton = self.pipe.skeleton
         self.stages = OnlineStages(self.skeleton, fps=self.fps, config=c)
-        self.nudge = BeatNudge(fps=self.fps, rate_bound=c.rate_bound) if c.rate_bound > 0 else None
+        #: the beat nudge's rate bound: the config's, or the offline warp's of the model
+        self.rate_bound = c.rate_bound if c.rate_bound is not None else offline_rate_bound(self.pipe)
+        self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound) if self.rate_bound > 0 else None
         self.sinks = list(sinks or [])
         self.stats = SessionStats()
         self.keep_stats = keep_stats
@@ -202,11 +205,12 @@ class LiveSession:
         centre = idx * self.hop
         starts = np.array([b[0] for b in self._blocks])
         which = np.clip(np.searchsorted(starts, centre, side="right") - 1, 0, max(0, len(starts) - 1))
-        clear = self.features.tracker.clarity >= self.features.tracker.min_clarity
+        clear = self.features.tracker.pulse  # a pulse, or not known yet (the tracker's warm-up)
         music = np.array([self._blocks[w][2] for w in which], bool) if k else np.zeros(0, bool)
+        music &= clear  # sound above the silence level with a pulse: dance; else calm
         if self.nudge is not None and k:
             poses = self.nudge.process(poses, self.features.tracker.next_time if clear else None)
-        poses = self.stages.process(poses, music & clear)
+        poses = self.stages.process(poses, music)
         bpm = self.features.tracker.bpm
         beats = {int(round(b.time * self.fps)) for b in self.features.tracker.beats[-8:]}
         frames = [Frame(index=int(i), time=float(i / self.fps), joints=poses[j], arrival=self._blocks[which[j]][1],
@@ -283,6 +287,15 @@ class LiveSession:
         if self.stats.merged_blocks:
             self.notes.append(f"{self.stats.merged_blocks} blocks fed together with the one before (behind the clock)")
         return self.stats
+
+
+def offline_rate_bound(pipe) -> float:
+    """The bound of the offline beat warp of a loaded pipeline (``1 ± bound``): its checkpoint's
+    ``stages.beat_sync.max_rate_change``, else the warp's default."""
+    from dancekit.motion.timewarp import DEFAULT_MAX_RATE_CHANGE
+
+    bound = pipe.stage_options().beat_sync.max_rate_change
+    return float(DEFAULT_MAX_RATE_CHANGE if bound is None else bound)
 
 
 # ---------------------------------------------------------------------- sources

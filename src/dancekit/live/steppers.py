@@ -16,8 +16,9 @@ skeleton and units) of the frames it can dance now; :meth:`finish` dances the re
 * :class:`Music2DanceStepper` (Music2Dance): the WaveNet is causal; its F_map (convolutions and a BiLSTM) is
   run on the last ``context`` frames up to ``lookahead`` frames ahead, and each frame is stepped with the
   model's own :meth:`~dancekit.models.music2dance.Music2DanceModel.step` and its queues (state carried: one
-  offline pass on the same conditions). The motion is decoded from ``rotations_rootdelta`` with the root's
-  place and heading carried.
+  offline pass on the same conditions). The samples are smoothed as the checkpoint's ``smooth_sigma`` says
+  (:class:`SampleSmoother`: the offline centred Gaussian with its radius held back, or its causal half), then
+  the motion is decoded from ``rotations_rootdelta`` with the root's place and heading carried.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import torch
 from dancekit.errors import ParameterError
 from dancekit.motion.kinematics import normalize_bone_lengths
 
-__all__ = ["Music2DanceStepper", "RevolutionStepper", "make_stepper"]
+__all__ = ["SMOOTHING", "Music2DanceStepper", "RevolutionStepper", "SampleSmoother", "make_stepper"]
 
 
 class _Stepper:
@@ -152,6 +153,65 @@ def _axes(skeleton):
     return axes(skeleton)
 
 
+#: how the sampled features are smoothed live (:class:`SampleSmoother`)
+SMOOTHING = ("delay", "causal")
+
+
+class SampleSmoother:
+    """The Gaussian smoothing of sampled feature rows as they come (Music2Dance's ``smooth_sigma``, online).
+
+    Offline, the pipeline smooths the whole dance's first ``columns`` columns along time with a centred
+    Gaussian of ``sigma`` frames over ``±r`` frames, ``r = max(1, round(3 sigma))``, the edges replicated
+    (:func:`dancekit.models.foot_constraint.gaussian_smooth`); the other columns (the contacts) are left as
+    sampled. Online, row ``t`` out is ``Σ_k w_k x_{t+k}`` over ``k = -r … ahead`` with ``w_k ∝ exp(-k² / 2σ²)``
+    normalised, the first row replicated before the stream's start and, at its end (``final``), the last one
+    after it:
+
+    * ``ahead=True`` (``LiveConfig.sample_smoothing = "delay"``): the centred kernel (``ahead = r``), each row
+      given out ``r`` rows after it is sampled — the offline smoothing exactly, ``r / fps`` s more lookahead;
+    * ``ahead=False`` (``"causal"``): the kernel's past half (``k = -r … 0``), renormalised — nothing held back,
+      a weaker low-pass (at 25 fps and ``sigma = 2``: 36 % of a 5-Hz movement left against 4 %) that lags the
+      movement by ``Σ_k |k| w_k`` ≈ 0.65 sigma frames.
+
+    ``sigma = 0``: the rows as they come.
+    """
+
+    def __init__(self, sigma: float, *, ahead: bool, columns: int):
+        if not sigma >= 0:
+            raise ParameterError(f"smoothing sigma must be >= 0 frames, got {sigma!r}")
+        self.sigma, self.columns = float(sigma), int(columns)
+        self.radius = max(1, int(round(3 * self.sigma))) if self.sigma > 0 else 0
+        self.ahead = self.radius if ahead else 0
+        k = np.arange(-self.radius, self.ahead + 1, dtype=np.float64)
+        w = np.exp(-0.5 * (k / self.sigma) ** 2) if self.sigma > 0 else np.ones(1)
+        self.weights = w / w.sum()  # (radius + ahead + 1,) for the lags -radius … ahead
+        self.hist: np.ndarray | None = None  # the rows from (next row out) - radius on
+
+    def push(self, rows: np.ndarray, *, final: bool = False) -> np.ndarray:
+        """Rows ``(k, P)`` sampled in → the smoothed rows ``(m, P)`` (float32) whose future rows have come (all of
+        them when ``final``)."""
+        rows = np.asarray(rows, np.float32)
+        if self.radius == 0:
+            return rows
+        if self.hist is None:
+            if not len(rows):
+                return rows
+            self.hist = np.repeat(rows[:1], self.radius, axis=0)  # the first row before the start
+        buf = np.concatenate([self.hist, rows])
+        if final:
+            buf = np.concatenate([buf, np.repeat(buf[-1:], self.ahead, axis=0)])  # the last row after the end
+        m = len(buf) - self.radius - self.ahead  # rows out
+        if m <= 0:
+            self.hist = None if final else buf
+            return np.zeros((0, rows.shape[1]), np.float32)
+        win = np.lib.stride_tricks.sliding_window_view(buf[:, : self.columns].astype(np.float64),
+                                                       len(self.weights), axis=0)  # (m, columns, lags)
+        out = buf[self.radius : self.radius + m].copy()
+        out[:, : self.columns] = win @ self.weights
+        self.hist = buf[m:] if not final else None
+        return out
+
+
 class Music2DanceStepper(_Stepper):
     """Music2Dance stepped frame by frame (see the module's description).
 
@@ -160,11 +220,17 @@ class Music2DanceStepper(_Stepper):
     pipe : a :class:`~dancekit.pipelines.music2dance.Music2DancePipeline`
     lookahead, context : frames of music after / before a frame that its F_map condition sees
     seed : seeds the mixture sampling
-    genre : a dance type of the model, or None / "none" (the model's "no type")
+    genre : a dance type of the model, or None / "none" (the model's "no type"); the sampling settings are the
+        checkpoint's for that genre (temperature, noise correlation, guidance, smoothing), as offline
+    smoothing : how the checkpoint's Gaussian smoothing of the samples runs online (:class:`SampleSmoother`):
+        ``"delay"`` (centred, each frame held back its radius) or ``"causal"`` (the kernel's past half)
     """
 
-    def __init__(self, pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None):
+    def __init__(self, pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None,
+                 smoothing: str = "delay"):
         super().__init__(pipe, lookahead=lookahead, context=context)
+        if smoothing not in SMOOTHING:
+            raise ParameterError(f"smoothing must be one of {', '.join(SMOOTHING)}, got {smoothing!r}")
         model = self.model = pipe.model.eval()
         if model.config.generator != "wavenet":
             raise ParameterError("live dancing runs the Music2Dance WaveNet, not its LSTM baseline")
@@ -178,6 +244,10 @@ class Music2DanceStepper(_Stepper):
         self.temperature = float(steer.get("temperature", pipe.temperature))
         self.rho = float(steer.get("noise_correlation", pipe.noise_correlation))
         scale = float(steer.get("genre_scale", pipe.genre_scale))
+        sigma = float(steer.get("smooth_sigma", pipe.smooth_sigma))
+        self.smoother = SampleSmoother(sigma, ahead=smoothing == "delay", columns=model.config.gmm_dim)
+        #: frames each danced frame waits for after its own is sampled (the smoothing's lookahead)
+        self.delay = self.smoother.ahead
         self.g = model.guided_genre_vector(torch.tensor([index]), 1, torch.device("cpu"), genre_scale=scale)
         self.global_term = model.global_proj(self.g)  # (1, L * 2C)
         self.generator = torch.Generator().manual_seed(int(seed))
@@ -188,14 +258,26 @@ class Music2DanceStepper(_Stepper):
         self.prev_row: np.ndarray | None = None  # the last decoded feature row and where it left the root
         self.origin = (0.0, 0.0, 0.0)
 
-    def _dance(self, upto: int) -> np.ndarray:
+    @torch.no_grad()
+    def finish(self) -> np.ndarray:
+        """The poses of the frames still waiting for their lookahead or their smoothing (the stream has ended)."""
+        return self._dance(self.n_music, final=True)
+
+    def _dance(self, upto: int, final: bool = False) -> np.ndarray:
+        J = self.skeleton.num_joints
+        sampled = self._sample(upto)  # (k, P) normalised
+        rows = self.smoother.push(sampled, final=final)  # (m, P) normalised, smoothed
+        if not len(rows):
+            return np.zeros((0, J, 3), np.float32)
+        return self._decode(self.pipe.stats.denormalize_dance(rows.astype(np.float64)))
+
+    def _sample(self, upto: int) -> np.ndarray:
+        """The model's samples ``(upto - n_out, P)`` (normalised, float32) of the frames up to ``upto``."""
         from dancekit.models.music2dance import standard_normal
-        from dancekit.motion.root_delta import decode_rootdelta
 
         t0 = self.n_out
-        J = self.skeleton.num_joints
         if upto <= t0:
-            return np.zeros((0, J, 3), np.float32)
+            return np.zeros((0, self.model.config.pose_dim), np.float32)
         model, c = self.model, self.model.config
         a = max(self.music_start, t0 - self.context)
         a -= a % 2  # F_map's stride 2: its windows start on even frames (the history is cut on even frames)
@@ -213,7 +295,13 @@ class Music2DanceStepper(_Stepper):
             frames.append(self.x[0])
         self.n_out = upto
         self._trim((upto - self.context - 2) // 2 * 2)
-        poses = self.pipe.stats.denormalize_dance(torch.stack(frames).numpy().astype(np.float64))  # (k, P)
+        return torch.stack(frames).numpy()
+
+    def _decode(self, poses: np.ndarray) -> np.ndarray:
+        """Denormalised feature rows ``(k, P)`` → positions ``(k, J, 3)`` float32, the root's place and heading
+        carried on from the rows decoded before."""
+        from dancekit.motion.root_delta import decode_rootdelta
+
         if self.prev_row is None:
             motion = decode_rootdelta(poses, self.skeleton, self.fps, origin=self.origin)
             new = slice(0, None)
@@ -231,8 +319,10 @@ class Music2DanceStepper(_Stepper):
         return np.asarray(motion.positions[new], np.float32)
 
 
-def make_stepper(pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None):
-    """The stepper of a loaded dance pipeline (Dance Revolution or Music2Dance)."""
+def make_stepper(pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None,
+                 smoothing: str = "delay"):
+    """The stepper of a loaded dance pipeline (Dance Revolution or Music2Dance; ``smoothing``: Music2Dance's,
+    :class:`SampleSmoother`)."""
     from dancekit.models.music2dance import Music2DanceModel
     from dancekit.models.revolution import RevolutionModel
 
@@ -241,5 +331,6 @@ def make_stepper(pipe, *, lookahead: int, context: int, seed: int = 0, genre: st
             raise ParameterError("live Dance Revolution dances the model alone (its genre models need the whole song)")
         return RevolutionStepper(pipe, lookahead=lookahead, context=context, seed=seed)
     if isinstance(pipe.model, Music2DanceModel):
-        return Music2DanceStepper(pipe, lookahead=lookahead, context=context, seed=seed, genre=genre)
+        return Music2DanceStepper(pipe, lookahead=lookahead, context=context, seed=seed, genre=genre,
+                                  smoothing=smoothing)
     raise ParameterError(f"live dancing runs Dance Revolution and Music2Dance models, not {type(pipe.model).__name__}")
