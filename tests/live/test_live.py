@@ -469,6 +469,37 @@ def test_live_page_is_served():
     assert "/poses" in html and "<canvas" in html
 
 
+def test_online_floor_bounds_turn_the_path_as_offline():
+    """A figure drifting in a straight line at 0.8 m/s for 30 s, its arms swinging, fed to the online stages in
+    pieces (music playing, no smoothing): its horizontal positions are the offline clean-up's turned path
+    (:func:`dancekit.motion.cleanup.contain_root_path`) — beyond 4 m it loops back, it does not stop at the
+    edge."""
+    from dancekit.live.stages import OnlineStages
+    from dancekit.motion.analysis import horizontal_axes, rest_pose
+    from dancekit.motion.cleanup import contain_root_path
+    from dancekit.pipelines import load_pipeline
+
+    sk = load_pipeline("revolution").skeleton
+    fps, T = 25.0, 750
+    a, b = horizontal_axes(sk)
+    t = np.arange(T) / fps
+    p = np.repeat(rest_pose(sk)[None], T, axis=0)
+    p[..., sk.up_index] -= p[0, :, sk.up_index].min()
+    p[:, :, a] += 80.0 * t[:, None]  # cm: 0.8 m/s
+    p[:, :, b] += 10.0 * np.sin(0.5 * t)[:, None]
+    hands = [sk.index(n) for n in ("left_wrist", "right_wrist")]
+    p[:, hands, b] += 15.0 * np.sin(2 * np.pi * t)[:, None]  # bone lengths change: set back by the stages
+    stages = OnlineStages(sk, fps=fps, config=LiveConfig(smooth_hz=float("inf")))
+    on = np.concatenate([stages.process(p[k : k + 9], np.ones(len(p[k : k + 9]), bool)) for k in range(0, T, 9)])
+    from dancekit.motion.kinematics import normalize_bone_lengths
+
+    off = contain_root_path(np.asarray(normalize_bone_lengths(p, sk), np.float64), skeleton=sk, fps=fps)
+    np.testing.assert_allclose(on[..., [a, b]], off[..., [a, b]], atol=0.05)  # cm (float32 out)
+    travel = np.hypot(*(on[:, sk.root, [a, b]] - on[0, sk.root, [a, b]]).T)
+    assert travel.max() < 12 * 100 and travel[-1] < 0.5 * 80.0 * t[-1]  # turned back, within the hard bound
+    assert np.linalg.norm(np.diff(on[:, sk.root, [a, b]], axis=0), axis=1).min() > 0.5 * 80.0 / fps  # never stuck
+
+
 # ---------------------------------------------------------------------- beat alignment
 def test_beat_nudge_moves_the_kinematic_beats_towards_the_music_beats():
     """A dance whose speed minima come every 0.5 s but 0.17 s after the music's beats (wandering ±0.1 s): the

@@ -9,8 +9,10 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
    keeps its balance instead of freezing mid-step, and the music coming back brings the dance back;
 2. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz`` (times
    the calm gain squared while calming: a model fed silence trembles, the calm dancer does not);
-3. **floor bounds** (offline: the root path turned back beyond 4 m): the root's steps that would leave a
-   disc of :data:`FLOOR_RADIUS_CM` are not taken;
+3. **floor bounds** (offline: the root path turned back beyond 4 m, :func:`dancekit.motion.cleanup.root_path_turns`,
+   which is causal): the same turns, step by step (:class:`~dancekit.motion.cleanup.RootPathTurner`) — beyond
+   4 m of the start the whole figure turns about its root toward the start (at most 0.5 rad/s, eased), so a
+   straight drift becomes a loop; no step takes the root beyond 12 m;
 4. **floor** (offline: the running floor moved to 0, :func:`dancekit.motion.analysis.floor_curve`): the 5th
    percentile of the lowest foot joint's height over the last ``floor_window_s`` is the floor, moved to 0 (the
    offline curve's percentile over a window that ends at the frame instead of one centred on it);
@@ -25,12 +27,11 @@ from collections import deque
 import numpy as np
 
 from dancekit.live.config import LiveConfig
+from dancekit.motion.cleanup import RootPathTurner
 from dancekit.motion.kinematics import normalize_bone_lengths
 
-__all__ = ["FLOOR_RADIUS_CM", "BeatNudge", "OnlineStages"]
+__all__ = ["BeatNudge", "OnlineStages"]
 
-#: the dance floor's radius (skeleton units: cm for tang2018); the offline clean-up turns back beyond 4 m
-FLOOR_RADIUS_CM = 400.0
 #: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
 FLOOR_PERCENTILE = 5.0
 #: time constant (s) of the running mean pose that calming pulls towards
@@ -61,6 +62,7 @@ class OnlineStages:
         self.mean_rel: np.ndarray | None = None
         self.prev_root_in: np.ndarray | None = None
         self.root_out = np.zeros(3)
+        self.turner: RootPathTurner | None = None  # the floor bounds (from the first frame's root on)
         self.smoothed: np.ndarray | None = None
         self.lows: deque[float] = deque(maxlen=max(1, int(round(c.floor_window_s * self.fps))))
         names = list(skeleton.feet)
@@ -82,18 +84,24 @@ class OnlineStages:
                 self.mean_rel = rel.copy()
                 self.prev_root_in = root.copy()
                 self.root_out = root.copy()
+                self.turner = RootPathTurner(root[self.horiz], unit_scale=float(self.skeleton.unit_scale),
+                                             fps=self.fps)
+                self.angle = 0.0
+            else:
+                step = root - self.prev_root_in
+                self.prev_root_in = root
+                placed, self.angle = self.turner.step(step[self.horiz] * self.gain)
+                self.root_out = self.root_out.copy()
+                self.root_out[self.horiz] = placed
+            self.root_out[self.up] = root[self.up]
             self.mean_rel += self.a_mean * (rel - self.mean_rel)
             rel = self.mean_rel + self.gain * (rel - self.mean_rel)
-            step = root - self.prev_root_in
-            self.prev_root_in = root
-            step[self.horiz] *= self.gain
-            nxt = self.root_out + step
-            nxt[self.up] = root[self.up]
-            r = np.hypot(nxt[self.horiz[0]], nxt[self.horiz[1]])
-            if r > FLOOR_RADIUS_CM and r > np.hypot(self.root_out[self.horiz[0]], self.root_out[self.horiz[1]]):
-                nxt[self.horiz] = self.root_out[self.horiz]  # a step off the floor is not taken
-            self.root_out = nxt
-            q = rel + nxt
+            if self.angle:  # the whole figure turned about the vertical axis through its root
+                cos, sin = np.cos(self.angle), np.sin(self.angle)
+                x, y = rel[:, self.horiz[0]].copy(), rel[:, self.horiz[1]].copy()
+                rel[:, self.horiz[0]] = cos * x - sin * y
+                rel[:, self.horiz[1]] = sin * x + cos * y
+            q = rel + self.root_out
             if self.smoothed is None:
                 self.smoothed = q.copy()
             a = self.a_smooth if self.gain >= 1.0 else 1.0 - (1.0 - self.a_smooth) ** (self.gain**2)

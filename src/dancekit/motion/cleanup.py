@@ -28,8 +28,8 @@ from dancekit.errors import ParameterError
 from dancekit.motion.analysis import heights, horizontal_axes, up_sign
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["DEFAULT_HARD_RADIUS_M", "DEFAULT_RADIUS_M", "clean_up", "contain_root_path", "ground_contact",
-           "ground_offset", "root_path_turns", "turn_and_move"]
+__all__ = ["DEFAULT_HARD_RADIUS_M", "DEFAULT_RADIUS_M", "RootPathTurner", "clean_up", "contain_root_path",
+           "ground_contact", "ground_offset", "root_path_turns", "turn_and_move"]
 
 #: Distance from the start (m) beyond which the travel is turned back toward the start.
 DEFAULT_RADIUS_M = 4.0
@@ -102,43 +102,61 @@ def root_path_turns(
     never gets farther than ``hard_radius_m`` metres from its start: a step that would cross it loses
     its outward part.
     """
-    fps = check_fps(fps)
-    if not (0 < radius_m <= hard_radius_m):
-        raise ParameterError(f"need 0 < radius_m <= hard_radius_m, got {radius_m}, {hard_radius_m}")
     p = np.array(positions, dtype=np.float64)
     if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
         raise ParameterError(f"contain_root_path needs (T, J, 3) positions, got shape {p.shape}")
     a, b = horizontal_axes(skeleton)
-    scale = float(skeleton.unit_scale)
     root = p[:, skeleton.root, :][:, [a, b]].copy()  # (T, 2) skeleton units
-    start = root[0].copy()
+    turner = RootPathTurner(root[0], unit_scale=float(skeleton.unit_scale), fps=fps, radius_m=radius_m,
+                            turn_rate=turn_rate, turn_time_s=turn_time_s, hard_radius_m=hard_radius_m)
     steps = np.diff(root, axis=0)
-    R = radius_m / scale
-    H = hard_radius_m / scale
-    alpha = 1.0 - math.exp(-1.0 / (turn_time_s * fps)) if turn_time_s > 0 else 1.0
     angle = np.zeros(len(p))
     new_root = np.empty_like(root)
-    new_root[0] = start
-    theta, omega = 0.0, 0.0
+    new_root[0] = turner.root
     for t in range(1, len(p)):
-        c = new_root[t - 1] - start
-        step = _rotate2(steps[t - 1], theta)
+        new_root[t], angle[t] = turner.step(steps[t - 1])
+    return angle, new_root
+
+
+class RootPathTurner:
+    """The turns of :func:`root_path_turns` one step at a time (its state carried), for a motion that arrives
+    frame by frame: :meth:`step` takes the root's next horizontal step ``(2,)`` (skeleton units, on the axes of
+    :func:`~dancekit.motion.analysis.horizontal_axes`) and returns the root's new place ``(2,)`` and the turn
+    (radians) of that frame. ``start``: the root's first place ``(2,)``; the other parameters as
+    :func:`root_path_turns`'s (``unit_scale``: metres per skeleton unit)."""
+
+    def __init__(self, start: np.ndarray, *, unit_scale: float, fps: float, radius_m: float = DEFAULT_RADIUS_M,
+                 turn_rate: float = 0.5, turn_time_s: float = 0.5, hard_radius_m: float = DEFAULT_HARD_RADIUS_M):
+        fps = check_fps(fps)
+        if not (0 < radius_m <= hard_radius_m):
+            raise ParameterError(f"need 0 < radius_m <= hard_radius_m, got {radius_m}, {hard_radius_m}")
+        self.fps, self.turn_rate = fps, turn_rate
+        self.start = np.array(start, dtype=np.float64)
+        self.root = self.start.copy()  # the root's place after the last step
+        self.R = radius_m / unit_scale
+        self.H = hard_radius_m / unit_scale
+        self.alpha = 1.0 - math.exp(-1.0 / (turn_time_s * fps)) if turn_time_s > 0 else 1.0
+        self.theta, self.omega = 0.0, 0.0
+
+    def step(self, step: np.ndarray) -> tuple[np.ndarray, float]:
+        """The root's next step ``(2,)`` in → its new place ``(2,)`` and the frame's turn (radians)."""
+        c = self.root - self.start
+        turned = _rotate2(step, self.theta)
         dist = float(np.hypot(*c))
         target = 0.0
-        if dist > R and float(c @ step) > 0:
-            cross = c[0] * step[1] - c[1] * step[0]  # > 0: the step points counter-clockwise of outward
-            target = turn_rate if cross > 0 else -turn_rate  # so turning it further turns it back
-        omega += alpha * (target - omega)
-        theta += omega / fps
-        step = _rotate2(steps[t - 1], theta)
-        nxt = new_root[t - 1] + step
-        if np.hypot(*(nxt - start)) > H:  # last resort: drop the outward part of the step
-            out = (nxt - start) / np.hypot(*(nxt - start))
-            step = step - max(0.0, float(step @ out)) * out
-            nxt = new_root[t - 1] + step
-        new_root[t] = nxt
-        angle[t] = theta
-    return angle, new_root
+        if dist > self.R and float(c @ turned) > 0:
+            cross = c[0] * turned[1] - c[1] * turned[0]  # > 0: the step points counter-clockwise of outward
+            target = self.turn_rate if cross > 0 else -self.turn_rate  # so turning it further turns it back
+        self.omega += self.alpha * (target - self.omega)
+        self.theta += self.omega / self.fps
+        turned = _rotate2(step, self.theta)
+        nxt = self.root + turned
+        if np.hypot(*(nxt - self.start)) > self.H:  # last resort: drop the outward part of the step
+            out = (nxt - self.start) / np.hypot(*(nxt - self.start))
+            turned = turned - max(0.0, float(turned @ out)) * out
+            nxt = self.root + turned
+        self.root = nxt
+        return nxt, self.theta
 
 
 def turn_and_move(positions: np.ndarray, *, skeleton: Skeleton, angle: np.ndarray, root: np.ndarray) -> np.ndarray:
