@@ -7,17 +7,22 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
    root's steps are scaled by a gain that glides (time constant ``calm_glide_s``) between 1 while music plays
    and ``calm`` in silence, speech or a dropped block, towards a slow running mean pose — the dancer calms and
    keeps its balance instead of freezing mid-step, and the music coming back brings the dance back;
-2. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz`` (times
-   the calm gain squared while calming: a model fed silence trembles, the calm dancer does not);
-3. **floor bounds** (offline: the root path turned back beyond 4 m, :func:`dancekit.motion.cleanup.root_path_turns`,
+2. **floor bounds** (offline: the root path turned back beyond 4 m, :func:`dancekit.motion.cleanup.root_path_turns`,
    which is causal): the same turns, step by step (:class:`~dancekit.motion.cleanup.RootPathTurner`) — beyond
    4 m of the start the whole figure turns about its root toward the start (at most 0.5 rad/s, eased), so a
    straight drift becomes a loop; no step takes the root beyond 12 m;
+3. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz`` (times
+   the calm gain squared while calming: a model fed silence trembles, the calm dancer does not); then every
+   bone is set back to its rest length (bone directions kept), as the offline clean-up does;
 4. **floor** (offline: the running floor moved to 0, :func:`dancekit.motion.analysis.floor_curve`): the 5th
    percentile of the lowest foot joint's height over the last ``floor_window_s`` is the floor, moved to 0 (the
    offline curve's percentile over a window that ends at the frame instead of one centred on it);
-
-then every bone is set back to its rest length (bone directions kept), as the offline clean-up does.
+5. **ground contact** (offline: the clean-up's :func:`dancekit.motion.cleanup.ground_contact`, whose offset is
+   the lowest joint's running minimum over a centred 0.2-s window, Gaussian-smoothed over 0.05 s): the minimum
+   over the 0.2 s that end at the frame, smoothed by a one-pole of time constant 0.05 s, never above the lowest
+   joint itself, taken off — the whole figure's slow float and bob go, while a rise over less than 0.2 s
+   stays (a rise shows up to 0.2 s late in the offset: the lowest joint then stands over the floor by what it
+   rose in the last 0.2 s).
 """
 
 from __future__ import annotations
@@ -27,7 +32,8 @@ from collections import deque
 import numpy as np
 
 from dancekit.live.config import LiveConfig
-from dancekit.motion.cleanup import RootPathTurner
+from dancekit.motion.analysis import up_sign
+from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner
 from dancekit.motion.kinematics import normalize_bone_lengths
 
 __all__ = ["BeatNudge", "OnlineStages"]
@@ -65,6 +71,10 @@ class OnlineStages:
         self.turner: RootPathTurner | None = None  # the floor bounds (from the first frame's root on)
         self.smoothed: np.ndarray | None = None
         self.lows: deque[float] = deque(maxlen=max(1, int(round(c.floor_window_s * self.fps))))
+        self.sign = up_sign(skeleton)
+        self.contact: deque[float] = deque(maxlen=max(1, int(round(GROUND_WINDOW_S * self.fps)) | 1))
+        self.a_contact = 1.0 - np.exp(-1.0 / (GROUND_SMOOTH_S * self.fps))
+        self.ground: float | None = None  # the ground contact's smoothed offset
         names = list(skeleton.feet)
         self.feet = [skeleton.index(f) for f in names] or list(range(skeleton.num_joints))
         self.frames = 0
@@ -111,6 +121,11 @@ class OnlineStages:
         for k in range(len(out)):
             self.lows.append(float(out[k, self.feet, self.up].min()))
             out[k, :, self.up] -= np.percentile(self.lows, FLOOR_PERCENTILE)
+            low = float((self.sign * out[k, :, self.up]).min())  # the lowest joint's height
+            self.contact.append(low)
+            m = min(self.contact)
+            self.ground = m if self.ground is None else self.ground + self.a_contact * (m - self.ground)
+            out[k, :, self.up] -= self.sign * min(self.ground, low)
         self.frames += len(out)
         return out.astype(np.float32)
 

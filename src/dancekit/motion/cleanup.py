@@ -28,17 +28,22 @@ from dancekit.errors import ParameterError
 from dancekit.motion.analysis import heights, horizontal_axes, up_sign
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["DEFAULT_HARD_RADIUS_M", "DEFAULT_RADIUS_M", "RootPathTurner", "clean_up", "contain_root_path",
-           "ground_contact", "ground_offset", "root_path_turns", "turn_and_move"]
+__all__ = ["DEFAULT_HARD_RADIUS_M", "DEFAULT_RADIUS_M", "GROUND_SMOOTH_S", "GROUND_WINDOW_S", "RootPathTurner",
+           "clean_up", "contain_root_path", "ground_contact", "ground_offset", "root_path_turns", "turn_and_move"]
 
 #: Distance from the start (m) beyond which the travel is turned back toward the start.
 DEFAULT_RADIUS_M = 4.0
 #: Distance from the start (m) that the root never exceeds (a last resort: the outward step is dropped).
 DEFAULT_HARD_RADIUS_M = 12.0
+#: :func:`ground_contact`'s window (s): the lowest joint touches the floor at least once in every window
+GROUND_WINDOW_S = 0.2
+#: :func:`ground_contact`'s smoothing of the offset (s, a Gaussian's standard deviation)
+GROUND_SMOOTH_S = 0.05
 
 
 def ground_offset(
-    positions: np.ndarray, *, skeleton: Skeleton, fps: float, window_s: float = 0.2, smooth_s: float = 0.05
+    positions: np.ndarray, *, skeleton: Skeleton, fps: float, window_s: float = GROUND_WINDOW_S,
+    smooth_s: float = GROUND_SMOOTH_S
 ) -> np.ndarray:
     """The height ``(T,)`` (skeleton units, along the up direction) to take off every frame so that the
     lowest joint rests on the floor (height 0): see :func:`ground_contact`."""
@@ -57,7 +62,8 @@ def ground_offset(
 
 
 def ground_contact(
-    positions: np.ndarray, *, skeleton: Skeleton, fps: float, window_s: float = 0.2, smooth_s: float = 0.05
+    positions: np.ndarray, *, skeleton: Skeleton, fps: float, window_s: float = GROUND_WINDOW_S,
+    smooth_s: float = GROUND_SMOOTH_S
 ) -> np.ndarray:
     """Put the lowest joint on the floor (height 0 along the up axis): a new ``(T, J, 3)`` float64 array.
 
