@@ -4,8 +4,9 @@
         --split test --out /tmp/live_q/revolution
     # then score the live dances and the offline ones with the evaluation code, and tabulate:
     dancekit evaluate --pred OUT/live --ref DATA --data DATA --split test --no-style -o OUT/live_report.json
-    dancekit evaluate --checkpoint MODEL --data DATA --split test --seeds 0-0 --genre none -o OUT/offline_none
-    dancekit evaluate --checkpoint MODEL --data DATA --split test --seeds 0-0 -o OUT/offline
+    dancekit evaluate --checkpoint MODEL --data DATA --split test --seeds 0-0 --genre none --no-style \
+        -o OUT/offline_none
+    dancekit evaluate --checkpoint MODEL --data DATA --split test --seeds 0-0 --no-style -o OUT/offline
     python benchmarks/live_quality.py --table OUT_REVOLUTION OUT_MUSIC2DANCE --data DATA \
         -o docs/results/live_quality.json
 
@@ -95,8 +96,9 @@ def table(folders: list[str], output: str, data: str) -> None:
            "command": "PYTHONPATH=src python benchmarks/live_quality.py --model MODEL --data DATA --split test "
                       "--out OUT/MODEL; dancekit evaluate --pred OUT/MODEL/live --ref DATA --data DATA --no-style "
                       "-o OUT/MODEL/live_report.json; dancekit evaluate --checkpoint MODEL --data DATA --split test "
-                      "--seeds 0-0 --genre none -o OUT/MODEL/offline_none; dancekit evaluate --checkpoint MODEL "
-                      "--data DATA --split test --seeds 0-0 -o OUT/MODEL/offline; python benchmarks/live_quality.py "
+                      "--seeds 0-0 --genre none --no-style -o OUT/MODEL/offline_none; dancekit evaluate --checkpoint "
+                      "MODEL --data DATA --split test --seeds 0-0 --no-style -o OUT/MODEL/offline; python "
+                      "benchmarks/live_quality.py "
                       "--table OUT/revolution OUT/music2dance --data DATA -o docs/results/live_quality.json",
            "machine": f"{platform.machine()}, 2 cores", "date": time.strftime("%Y-%m-%d"),
            "columns": ["model", "metric", "live", "offline, the model alone (seed 0, genre none, every stage)",
