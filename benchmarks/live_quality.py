@@ -1,15 +1,23 @@
 """Quality of live dances against the offline dances of the same model (issue 43), on a prepared split.
 
-    PYTHONPATH=src nice python benchmarks/live_quality.py --model revolution --data /work/data/tang2018 \
+    PYTHONPATH=src nice python benchmarks/live_quality.py --model revolution --data data/tang2018 \
         --split test --out /tmp/live_q/revolution
-    # then score both folders with the evaluation code, and tabulate (docs/results/live_quality.json):
-    dancekit evaluate --pred OUT/live --ref DATA --data DATA --split test -o OUT/live_report.json
-    dancekit evaluate --checkpoint MODEL --data DATA --split test --seeds 1 -o OUT/offline
-    python benchmarks/live_quality.py --table OUT_REVOLUTION OUT_MUSIC2DANCE -o docs/results/live_quality.json
+    # then score the live dances and the offline ones with the evaluation code, and tabulate:
+    dancekit evaluate --pred OUT/live --ref DATA --data DATA --split test --no-style -o OUT/live_report.json
+    dancekit evaluate --checkpoint MODEL --data DATA --split test --seeds 0-0 --genre none --no-style \
+        -o OUT/offline_none
+    dancekit evaluate --checkpoint MODEL --data DATA --split test --seeds 0-0 --no-style -o OUT/offline
+    python benchmarks/live_quality.py --table OUT_REVOLUTION OUT_MUSIC2DANCE --data DATA \
+        -o docs/results/live_quality.json
 
 Each song of the split is fed to a :class:`dancekit.live.LiveSession` block by block (``block_s`` of audio per
 block, every block as its own step: the computation of a real-time run that keeps up; the clock itself is not
 waited for) and the frames it sends are written as ``OUT/live/NAME.npz`` (the model's skeleton and fps).
+
+The table: per model and metric the live dances, the offline dances of the model alone (``--genre none``: live
+cannot use the genre models, which need the whole song), live against those (%), the offline dances with the
+genre read from the music (``dancekit dance``'s default) and the real dances; then how many songs are within
+issue 15's per-song bounds (stillness ≤ 5 %, smoothed energy ≥ 0.6 × and jitter ≤ 1.2 × the song's real dance).
 """
 
 from __future__ import annotations
@@ -24,36 +32,86 @@ import numpy as np
 METRICS = [("fid_k", "FID_k"), ("fid_g", "FID_g"), ("bas_bailando", "BAS"), ("stillness_share", "stillness share"),
            ("smoothed_energy", "smoothed energy (m/s)"), ("jitter_speed", "jitter (m/s)"),
            ("foot_skating_ratio", "foot skating"), ("beat_hit_rate", "beat hit rate")]
+#: issue 15's per-song bounds: stillness share ≤, smoothed energy / real ≥, jitter / real ≤
+BOUNDS = {"stillness_share": 0.05, "smoothed_energy": 0.6, "jitter_speed": 1.2}
 
 
-def table(folders: list[str], output: str) -> None:
+def songs_within_bounds(report: dict, real: dict[str, dict]) -> tuple[int, int, list[str]]:
+    """(songs within issue 15's per-song bounds, songs, the failures as "NAME: metric value") of a
+    ``dancekit evaluate`` report, each song's worst dance against ``real[name]`` (its real dance's metrics)."""
+    per: dict[str, list[dict]] = {}
+    for key, row in report["per_dance"].items():
+        per.setdefault(key.split("#")[0], []).append(row)
+    fails = []
+    for name, rows in sorted(per.items()):
+        still = max(r["stillness_share"] for r in rows)
+        energy = min(r["smoothed_energy"] for r in rows) / real[name]["smoothed_energy"]
+        jitter = max(r["jitter_speed"] for r in rows) / real[name]["jitter_speed"]
+        bad = [f"stillness {still:.3f}"] * (still > BOUNDS["stillness_share"])
+        bad += [f"energy {energy:.2f}x"] * (energy < BOUNDS["smoothed_energy"])
+        bad += [f"jitter {jitter:.2f}x"] * (jitter > BOUNDS["jitter_speed"])
+        if bad:
+            fails.append(f"{name}: {', '.join(bad)}")
+    return len(per) - len(fails), len(per), fails
+
+
+def table(folders: list[str], output: str, data: str) -> None:
     """live vs offline per model and metric (the reports of ``dancekit evaluate``) → the results JSON."""
     import platform
 
-    rows = []
+    from dancekit.data import PreparedData
+    from dancekit.evaluation.score import EvalSettings, dance_metrics
+
+    prepared = PreparedData(data)
+    real_cache: dict[str, dict] = {}
+
+    def real(names):
+        for name in names:
+            if name not in real_cache:
+                gt = prepared.motion(name)
+                real_cache[name] = dance_metrics(gt.to_positions(), fps=gt.fps, skeleton=gt.skeleton,
+                                                 music_beats=None, settings=EvalSettings())
+        return real_cache
+
+    rows, failures = [], []
     for folder in folders:
         live = json.loads((Path(folder) / "live_report.json").read_text())
-        off = json.loads((Path(folder) / "offline" / "report.json").read_text())
+        alone = json.loads((Path(folder) / "offline_none" / "report.json").read_text())
+        auto = json.loads((Path(folder) / "offline" / "report.json").read_text())
         model = Path(folder).name
         for key, label in METRICS:
-            a, b, r = live["metrics"].get(key), off["metrics"].get(key), off["real"].get(key)
+            a, b, c, r = (live["metrics"].get(key), alone["metrics"].get(key), auto["metrics"].get(key),
+                          alone["real"].get(key))
             rel = None if a is None or not b else round(100.0 * (a - b) / abs(b), 1)
-            rows.append([model, label, None if a is None else round(a, 4), None if b is None else round(b, 4),
-                         rel, None if r is None else round(r, 4)])
+            rows.append([model, label] + [None if v is None else round(v, 4) for v in (a, b)] + [rel]
+                        + [None if v is None else round(v, 4) for v in (c, r)])
+        counts = []
+        for name, rep in (("live", live), ("offline alone", alone), ("offline genre auto", auto)):
+            names = {k.split("#")[0] for k in rep["per_dance"]}
+            ok, n, bad = songs_within_bounds(rep, real(names))
+            counts.append(f"{ok}/{n}")
+            failures += [f"{model} {name}: {b}" for b in bad]
+        rows.append([model, "songs within issue 15's per-song bounds", counts[0], counts[1], None, counts[2], None])
     out = {"title": "dancekit live: live dances of the test songs against the offline dances of the same model",
-           "command": "PYTHONPATH=src python benchmarks/live_quality.py --model MODEL --data /work/data/tang2018 "
-                      "--split test --out OUT/MODEL; dancekit evaluate --pred OUT/MODEL/live --ref DATA --data DATA "
+           "command": "PYTHONPATH=src python benchmarks/live_quality.py --model MODEL --data DATA --split test "
+                      "--out OUT/MODEL; dancekit evaluate --pred OUT/MODEL/live --ref DATA --data DATA --no-style "
                       "-o OUT/MODEL/live_report.json; dancekit evaluate --checkpoint MODEL --data DATA --split test "
-                      "--seeds 1 -o OUT/MODEL/offline; python benchmarks/live_quality.py --table OUT/revolution "
-                      "OUT/music2dance -o docs/results/live_quality.json",
+                      "--seeds 0-0 --genre none --no-style -o OUT/MODEL/offline_none; dancekit evaluate --checkpoint "
+                      "MODEL --data DATA --split test --seeds 0-0 --no-style -o OUT/MODEL/offline; python "
+                      "benchmarks/live_quality.py "
+                      "--table OUT/revolution OUT/music2dance --data DATA -o docs/results/live_quality.json",
            "machine": f"{platform.machine()}, 2 cores", "date": time.strftime("%Y-%m-%d"),
-           "columns": ["model", "metric", "live", "offline (seed 0, genre auto, every stage)", "live vs offline %",
-                       "real dances"],
+           "columns": ["model", "metric", "live", "offline, the model alone (seed 0, genre none, every stage)",
+                       "live vs offline alone %", "offline (seed 0, genre auto, every stage)", "real dances"],
            "rows": rows,
-           "note": "6 test songs of tang2018, one dance each. Live: fed block by block (0.04 s), the model alone "
-                   "(no genre model), the online stages (calm, smoothing, floor): no beat warp and no foot lock "
-                   "online yet, so BAS is the model's own; offline: the pipeline with every stage. FID reference: "
-                   "the training dances (dancekit evaluate's default)."}
+           "note": "6 test songs of tang2018, one dance each (seed 0). Live: fed block by block (0.04 s, as a "
+                   "real-time run that keeps up), the model alone (no genre model), the online stages (the beat "
+                   "nudge within the model's offline warp bound; calm, smoothing, floor; no online foot lock); "
+                   "music2dance's samples smoothed as offline, each frame held back 0.24 s (LiveConfig."
+                   "sample_smoothing 'delay'). Offline: the pipeline with every stage. Per-song bounds (issue 15): "
+                   "stillness ≤ 5 %, smoothed energy ≥ 0.6 x and jitter ≤ 1.2 x the song's real dance; outside "
+                   "them: " + ("; ".join(failures) if failures else "none") + ". FID reference: the training "
+                   "dances (dancekit evaluate's default)."}
     Path(output).write_text(json.dumps(out, indent=1) + "\n")
     print(json.dumps(rows, indent=0))
 
@@ -64,11 +122,13 @@ def main() -> None:
     ap.add_argument("--data")
     ap.add_argument("--split", default="test")
     ap.add_argument("--out")
-    ap.add_argument("--table", nargs="+", metavar="OUT", help="tabulate finished runs instead")
+    ap.add_argument("--table", nargs="+", metavar="OUT", help="tabulate finished runs instead (needs --data)")
     ap.add_argument("-o", "--output", default="docs/results/live_quality.json")
     args = ap.parse_args()
     if args.table:
-        table(args.table, args.output)
+        if not args.data:
+            ap.error("--table needs --data (the real dances of the per-song bounds)")
+        table(args.table, args.output, args.data)
         return
     if not args.data or not args.out:
         ap.error("--data and --out are needed to dance")

@@ -7,15 +7,22 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
    root's steps are scaled by a gain that glides (time constant ``calm_glide_s``) between 1 while music plays
    and ``calm`` in silence, speech or a dropped block, towards a slow running mean pose — the dancer calms and
    keeps its balance instead of freezing mid-step, and the music coming back brings the dance back;
-2. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz`` (times
-   the calm gain squared while calming: a model fed silence trembles, the calm dancer does not);
-3. **floor bounds** (offline: the root path turned back beyond 4 m): the root's steps that would leave a
-   disc of :data:`FLOOR_RADIUS_CM` are not taken;
+2. **floor bounds** (offline: the root path turned back beyond 4 m, :func:`dancekit.motion.cleanup.root_path_turns`,
+   which is causal): the same turns, step by step (:class:`~dancekit.motion.cleanup.RootPathTurner`) — beyond
+   4 m of the start the whole figure turns about its root toward the start (at most 0.5 rad/s, eased), so a
+   straight drift becomes a loop; no step takes the root beyond 12 m;
+3. **smoothing** (offline: a Savitzky-Golay / low-pass filter): a one-pole low-pass at ``smooth_hz`` (times
+   the calm gain squared while calming: a model fed silence trembles, the calm dancer does not); then every
+   bone is set back to its rest length (bone directions kept), as the offline clean-up does;
 4. **floor** (offline: the running floor moved to 0, :func:`dancekit.motion.analysis.floor_curve`): the 5th
    percentile of the lowest foot joint's height over the last ``floor_window_s`` is the floor, moved to 0 (the
    offline curve's percentile over a window that ends at the frame instead of one centred on it);
-
-then every bone is set back to its rest length (bone directions kept), as the offline clean-up does.
+5. **ground contact** (offline: the clean-up's :func:`dancekit.motion.cleanup.ground_contact`, whose offset is
+   the lowest joint's running minimum over a centred 0.2-s window, Gaussian-smoothed over 0.05 s): the minimum
+   over the 0.2 s that end at the frame, smoothed by a one-pole of time constant 0.05 s, never above the lowest
+   joint itself, taken off — the whole figure's slow float and bob go, while a rise over less than 0.2 s
+   stays (a rise shows up to 0.2 s late in the offset: the lowest joint then stands over the floor by what it
+   rose in the last 0.2 s).
 """
 
 from __future__ import annotations
@@ -25,12 +32,12 @@ from collections import deque
 import numpy as np
 
 from dancekit.live.config import LiveConfig
+from dancekit.motion.analysis import up_sign
+from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner
 from dancekit.motion.kinematics import normalize_bone_lengths
 
-__all__ = ["FLOOR_RADIUS_CM", "BeatNudge", "OnlineStages"]
+__all__ = ["BeatNudge", "OnlineStages"]
 
-#: the dance floor's radius (skeleton units: cm for tang2018); the offline clean-up turns back beyond 4 m
-FLOOR_RADIUS_CM = 400.0
 #: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
 FLOOR_PERCENTILE = 5.0
 #: time constant (s) of the running mean pose that calming pulls towards
@@ -61,8 +68,13 @@ class OnlineStages:
         self.mean_rel: np.ndarray | None = None
         self.prev_root_in: np.ndarray | None = None
         self.root_out = np.zeros(3)
+        self.turner: RootPathTurner | None = None  # the floor bounds (from the first frame's root on)
         self.smoothed: np.ndarray | None = None
         self.lows: deque[float] = deque(maxlen=max(1, int(round(c.floor_window_s * self.fps))))
+        self.sign = up_sign(skeleton)
+        self.contact: deque[float] = deque(maxlen=max(1, int(round(GROUND_WINDOW_S * self.fps)) | 1))
+        self.a_contact = 1.0 - np.exp(-1.0 / (GROUND_SMOOTH_S * self.fps))
+        self.ground: float | None = None  # the ground contact's smoothed offset
         names = list(skeleton.feet)
         self.feet = [skeleton.index(f) for f in names] or list(range(skeleton.num_joints))
         self.frames = 0
@@ -82,18 +94,24 @@ class OnlineStages:
                 self.mean_rel = rel.copy()
                 self.prev_root_in = root.copy()
                 self.root_out = root.copy()
+                self.turner = RootPathTurner(root[self.horiz], unit_scale=float(self.skeleton.unit_scale),
+                                             fps=self.fps)
+                self.angle = 0.0
+            else:
+                step = root - self.prev_root_in
+                self.prev_root_in = root
+                placed, self.angle = self.turner.step(step[self.horiz] * self.gain)
+                self.root_out = self.root_out.copy()
+                self.root_out[self.horiz] = placed
+            self.root_out[self.up] = root[self.up]
             self.mean_rel += self.a_mean * (rel - self.mean_rel)
             rel = self.mean_rel + self.gain * (rel - self.mean_rel)
-            step = root - self.prev_root_in
-            self.prev_root_in = root
-            step[self.horiz] *= self.gain
-            nxt = self.root_out + step
-            nxt[self.up] = root[self.up]
-            r = np.hypot(nxt[self.horiz[0]], nxt[self.horiz[1]])
-            if r > FLOOR_RADIUS_CM and r > np.hypot(self.root_out[self.horiz[0]], self.root_out[self.horiz[1]]):
-                nxt[self.horiz] = self.root_out[self.horiz]  # a step off the floor is not taken
-            self.root_out = nxt
-            q = rel + nxt
+            if self.angle:  # the whole figure turned about the vertical axis through its root
+                cos, sin = np.cos(self.angle), np.sin(self.angle)
+                x, y = rel[:, self.horiz[0]].copy(), rel[:, self.horiz[1]].copy()
+                rel[:, self.horiz[0]] = cos * x - sin * y
+                rel[:, self.horiz[1]] = sin * x + cos * y
+            q = rel + self.root_out
             if self.smoothed is None:
                 self.smoothed = q.copy()
             a = self.a_smooth if self.gain >= 1.0 else 1.0 - (1.0 - self.a_smooth) ** (self.gain**2)
@@ -103,6 +121,11 @@ class OnlineStages:
         for k in range(len(out)):
             self.lows.append(float(out[k, self.feet, self.up].min()))
             out[k, :, self.up] -= np.percentile(self.lows, FLOOR_PERCENTILE)
+            low = float((self.sign * out[k, :, self.up]).min())  # the lowest joint's height
+            self.contact.append(low)
+            m = min(self.contact)
+            self.ground = m if self.ground is None else self.ground + self.a_contact * (m - self.ground)
+            out[k, :, self.up] -= self.sign * min(self.ground, low)
         self.frames += len(out)
         return out.astype(np.float32)
 

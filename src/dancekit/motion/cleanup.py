@@ -28,17 +28,22 @@ from dancekit.errors import ParameterError
 from dancekit.motion.analysis import heights, horizontal_axes, up_sign
 from dancekit.motion.skeleton import Skeleton
 
-__all__ = ["DEFAULT_HARD_RADIUS_M", "DEFAULT_RADIUS_M", "clean_up", "contain_root_path", "ground_contact",
-           "ground_offset", "root_path_turns", "turn_and_move"]
+__all__ = ["DEFAULT_HARD_RADIUS_M", "DEFAULT_RADIUS_M", "GROUND_SMOOTH_S", "GROUND_WINDOW_S", "RootPathTurner",
+           "clean_up", "contain_root_path", "ground_contact", "ground_offset", "root_path_turns", "turn_and_move"]
 
 #: Distance from the start (m) beyond which the travel is turned back toward the start.
 DEFAULT_RADIUS_M = 4.0
 #: Distance from the start (m) that the root never exceeds (a last resort: the outward step is dropped).
 DEFAULT_HARD_RADIUS_M = 12.0
+#: :func:`ground_contact`'s window (s): the lowest joint touches the floor at least once in every window
+GROUND_WINDOW_S = 0.2
+#: :func:`ground_contact`'s smoothing of the offset (s, a Gaussian's standard deviation)
+GROUND_SMOOTH_S = 0.05
 
 
 def ground_offset(
-    positions: np.ndarray, *, skeleton: Skeleton, fps: float, window_s: float = 0.2, smooth_s: float = 0.05
+    positions: np.ndarray, *, skeleton: Skeleton, fps: float, window_s: float = GROUND_WINDOW_S,
+    smooth_s: float = GROUND_SMOOTH_S
 ) -> np.ndarray:
     """The height ``(T,)`` (skeleton units, along the up direction) to take off every frame so that the
     lowest joint rests on the floor (height 0): see :func:`ground_contact`."""
@@ -57,7 +62,8 @@ def ground_offset(
 
 
 def ground_contact(
-    positions: np.ndarray, *, skeleton: Skeleton, fps: float, window_s: float = 0.2, smooth_s: float = 0.05
+    positions: np.ndarray, *, skeleton: Skeleton, fps: float, window_s: float = GROUND_WINDOW_S,
+    smooth_s: float = GROUND_SMOOTH_S
 ) -> np.ndarray:
     """Put the lowest joint on the floor (height 0 along the up axis): a new ``(T, J, 3)`` float64 array.
 
@@ -107,54 +113,81 @@ def root_path_turns(
     never gets farther than ``hard_radius_m`` metres from its start: a step that would cross it loses
     its outward part.
     """
-    fps = check_fps(fps)
-    if not (0 < radius_m <= hard_radius_m):
-        raise ParameterError(f"need 0 < radius_m <= hard_radius_m, got {radius_m}, {hard_radius_m}")
     p = np.array(positions, dtype=np.float64)
     if p.ndim != 3 or p.shape[-1] != 3 or len(p) == 0:
         raise ParameterError(f"contain_root_path needs (T, J, 3) positions, got shape {p.shape}")
     a, b = horizontal_axes(skeleton)
-    scale = float(skeleton.unit_scale)
     root = p[:, skeleton.root, :][:, [a, b]].copy()  # (T, 2) skeleton units
-    start = root[0].copy()
+    turner = RootPathTurner(root[0], unit_scale=float(skeleton.unit_scale), fps=fps, radius_m=radius_m,
+                            turn_rate=turn_rate, turn_time_s=turn_time_s, hard_radius_m=hard_radius_m)
     steps = np.diff(root, axis=0)
-    R = radius_m / scale
-    H = hard_radius_m / scale
-    alpha = 1.0 - math.exp(-1.0 / (turn_time_s * fps)) if turn_time_s > 0 else 1.0
     angle = np.zeros(len(p))
     new_root = np.empty_like(root)
-    new_root[0] = start
-    # the frame loop on Python floats (the same IEEE operations, in the same order, as on the arrays' elements;
-    # hypot and the dot products whose value is kept are NumPy's, a dot product only compared with 0 is NumPy's
-    # where its sign is within rounding)
-    s0, s1 = float(start[0]), float(start[1])
+    new_root[0] = turner.root
     d0, d1 = steps[:, 0].tolist(), steps[:, 1].tolist()
-    x, y = s0, s1  # the new root of the frame before
-    theta, omega = 0.0, 0.0
     for t in range(1, len(p)):
+        new_root[t], angle[t] = turner.step_xy(d0[t - 1], d1[t - 1])
+    return angle, new_root
+
+
+class RootPathTurner:
+    """The turns of :func:`root_path_turns` one step at a time (its state carried), for a motion that arrives
+    frame by frame: :meth:`step` takes the root's next horizontal step ``(2,)`` (skeleton units, on the axes of
+    :func:`~dancekit.motion.analysis.horizontal_axes`) and returns the root's new place ``(2,)`` and the turn
+    (radians) of that frame. ``start``: the root's first place ``(2,)``; the other parameters as
+    :func:`root_path_turns`'s (``unit_scale``: metres per skeleton unit).
+
+    The arithmetic is on Python floats (the same IEEE operations, in the same order, as on arrays' elements;
+    ``hypot`` and the dot products whose value is kept are NumPy's, a dot product only compared with 0 is NumPy's
+    where its sign is within rounding)."""
+
+    def __init__(self, start: np.ndarray, *, unit_scale: float, fps: float, radius_m: float = DEFAULT_RADIUS_M,
+                 turn_rate: float = 0.5, turn_time_s: float = 0.5, hard_radius_m: float = DEFAULT_HARD_RADIUS_M):
+        fps = check_fps(fps)
+        if not (0 < radius_m <= hard_radius_m):
+            raise ParameterError(f"need 0 < radius_m <= hard_radius_m, got {radius_m}, {hard_radius_m}")
+        self.fps, self.turn_rate = fps, turn_rate
+        self.start = np.array(start, dtype=np.float64)
+        self._s0, self._s1 = float(self.start[0]), float(self.start[1])
+        self._x, self._y = self._s0, self._s1  # the root's place after the last step
+        self.R = radius_m / unit_scale
+        self.H = hard_radius_m / unit_scale
+        self.alpha = 1.0 - math.exp(-1.0 / (turn_time_s * fps)) if turn_time_s > 0 else 1.0
+        self.theta, self.omega = 0.0, 0.0
+
+    @property
+    def root(self) -> np.ndarray:
+        """The root's place after the last step ``(2,)``."""
+        return np.array([self._x, self._y])
+
+    def step(self, step: np.ndarray) -> tuple[np.ndarray, float]:
+        """The root's next step ``(2,)`` in → its new place ``(2,)`` and the frame's turn (radians)."""
+        nx, ny = self.step_xy(float(step[0]), float(step[1]))[0]
+        return np.array([nx, ny]), self.theta
+
+    def step_xy(self, v0: float, v1: float) -> tuple[tuple[float, float], float]:
+        """:meth:`step` on Python floats: the step ``(v0, v1)`` → the new place ``(x, y)`` and the turn."""
+        s0, s1, x, y = self._s0, self._s1, self._x, self._y
         c0, c1 = x - s0, y - s1
-        co, si = math.cos(theta), math.sin(theta)
-        v0, v1 = d0[t - 1], d1[t - 1]
+        co, si = math.cos(self.theta), math.sin(self.theta)
         st0, st1 = co * v0 - si * v1, si * v0 + co * v1  # the step turned by theta
         dist = float(np.hypot(c0, c1))
         target = 0.0
-        if dist > R and _positive_dot(c0, c1, st0, st1):
+        if dist > self.R and _positive_dot(c0, c1, st0, st1):
             cross = c0 * st1 - c1 * st0  # > 0: the step points counter-clockwise of outward
-            target = turn_rate if cross > 0 else -turn_rate  # so turning it further turns it back
-        omega += alpha * (target - omega)
-        theta += omega / fps
-        co, si = math.cos(theta), math.sin(theta)
+            target = self.turn_rate if cross > 0 else -self.turn_rate  # so turning it further turns it back
+        self.omega += self.alpha * (target - self.omega)
+        self.theta += self.omega / self.fps
+        co, si = math.cos(self.theta), math.sin(self.theta)
         st0, st1 = co * v0 - si * v1, si * v0 + co * v1
         nx, ny = x + st0, y + st1
-        if np.hypot(nx - s0, ny - s1) > H:  # last resort: drop the outward part of the step
+        if np.hypot(nx - s0, ny - s1) > self.H:  # last resort: drop the outward part of the step
             prev, nxt, step = np.array([x, y]), np.array([nx, ny]), np.array([st0, st1])
-            out = (nxt - start) / np.hypot(*(nxt - start))
+            out = (nxt - self.start) / np.hypot(*(nxt - self.start))
             step = step - max(0.0, float(step @ out)) * out
             nx, ny = (float(v) for v in prev + step)
-        new_root[t] = (nx, ny)
-        angle[t] = theta
-        x, y = nx, ny
-    return angle, new_root
+        self._x, self._y = nx, ny
+        return (nx, ny), self.theta
 
 
 def turn_and_move(positions: np.ndarray, *, skeleton: Skeleton, angle: np.ndarray, root: np.ndarray) -> np.ndarray:
