@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import sys
 from pathlib import Path
@@ -35,6 +36,29 @@ NON_MUSIC = [
     MUSIC / "456440__inspectorj__bird-whistling-robin-single-13.ogg",
     MUSIC / "glacier-bay-humpback.ogg",
 ]
+
+
+# The last bound on a test: a test still running after this many seconds (pytest-timeout's 600 s did not end it:
+# a thread that holds the GIL in native code, e.g. a deadlock in a library's destructor, stops pytest-timeout's
+# signal and its timer thread alike) has every thread's stack written to stderr and ends the test process with
+# exit code 1 — CI fails at once instead of hanging until its own limit. faulthandler's watchdog is a native thread.
+HANG_S = float(os.environ.get("DANCEKIT_TEST_HANG_S", "900"))
+_HANG_FD: int | None = None
+
+
+def pytest_configure(config):
+    global _HANG_FD
+    _HANG_FD = os.dup(sys.stderr.fileno())  # the terminal's stderr (pytest's capture is not running here)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    if _HANG_FD is not None:
+        faulthandler.dump_traceback_later(HANG_S, exit=True, file=_HANG_FD)
+    try:
+        return (yield)
+    finally:
+        faulthandler.cancel_dump_traceback_later()
 
 
 def _need(path: Path) -> Path:

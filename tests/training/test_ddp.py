@@ -8,7 +8,6 @@ printed, that the ranks saw disjoint shares of the same global batches, that the
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import json
 import math
 import os
@@ -157,28 +156,43 @@ def test_mixed_precision_bf16_trains_and_fp16_needs_cuda(tmp_path):
         OptimConfig(precision="fp8")
 
 
-def test_objective_reads_a_wrapped_models_config_and_draws_on_the_generators_device(tmp_path, rng, monkeypatch):
-    """revolution_step on a DDP-style wrapper (gloo, one process) with genre and music dropout."""
-    import torch.distributed as dist
+_WRAPPED_STEP = """
+import datetime, math, os, sys
+import torch
+import torch.distributed as dist
+from dancekit.models.revolution import RevolutionConfig, RevolutionModel
+from dancekit.training import StepContext, TrainConfig, revolution_step
+from dancekit.training.distributed import _DDP
 
-    from dancekit.models.revolution import RevolutionConfig, RevolutionModel
-    from dancekit.training import StepContext, TrainConfig, revolution_step
-    from dancekit.training.distributed import _DDP
+torch.manual_seed(0)
+store = dist.FileStore(sys.argv[1], 1)
+dist.init_process_group("gloo", store=store, rank=0, world_size=1, timeout=datetime.timedelta(seconds=60))
+model = _DDP(RevolutionModel(RevolutionConfig(music_dim=8, pose_dim=72, d_model=16, n_heads=2, d_ff=32,
+                                              window=6, decoder_hidden=16, n_genres=4)))
+cfg = TrainConfig(music_dropout=0.5, genre_dropout=0.5, curriculum_q=3)
+batch = {"music": torch.randn(2, 12, 8), "dance": torch.randn(2, 12, 72), "genre": torch.tensor([0, 1])}
+ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0), config=cfg)
+loss, _ = revolution_step(model, batch, ctx)
+loss.backward()
+grads = sum(p.grad is not None for p in model.module.parameters())
+print(model.config.n_genres, math.isfinite(float(loss.detach())), grads, len(list(model.module.parameters())),
+      flush=True)
+# no teardown: a DDP reducer freed while its gloo worker still releases a finished allreduce can deadlock the
+# interpreter (the freeing thread holds the GIL and joins the worker, which waits for the GIL)
+os._exit(0)
+"""
 
+
+def test_objective_reads_a_wrapped_models_config_and_draws_on_the_generators_device(tmp_path):
+    """revolution_step on a DDP-style wrapper (gloo, one process) with genre and music dropout: it reads the
+    wrapped model's config and every parameter gets a gradient. In a child process of its own (bounded)."""
     # A file store and the loopback interface: no port to collide on, no host name to resolve (a CI machine
     # whose host name is not in /etc/hosts would otherwise wait on DNS), and a short timeout instead of 30 min.
-    monkeypatch.setenv("GLOO_SOCKET_IFNAME", "lo")
-    store = dist.FileStore(str(tmp_path / "store"), 1)
-    dist.init_process_group("gloo", store=store, rank=0, world_size=1, timeout=datetime.timedelta(seconds=60))
-    try:
-        model = _DDP(RevolutionModel(RevolutionConfig(music_dim=8, pose_dim=72, d_model=16, n_heads=2, d_ff=32,
-                                                      window=6, decoder_hidden=16, n_genres=4)))
-        assert model.config.n_genres == 4
-        cfg = TrainConfig(music_dropout=0.5, genre_dropout=0.5, curriculum_q=3)
-        batch = {"music": torch.randn(2, 12, 8), "dance": torch.randn(2, 12, 72), "genre": torch.tensor([0, 1])}
-        ctx = StepContext(step=0, epoch=0, training=True, generator=torch.Generator().manual_seed(0), config=cfg)
-        loss, _ = revolution_step(model, batch, ctx)
-        loss.backward()
-        assert math.isfinite(float(loss.detach()))
-    finally:
-        dist.destroy_process_group()
+    env = {**os.environ, "GLOO_SOCKET_IFNAME": "lo", "OMP_NUM_THREADS": "1",
+           "PYTHONPATH": str(ROOT / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    proc = _proc.run([sys.executable, "-c", _WRAPPED_STEP, str(tmp_path / "store")], env=env,
+                     capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    n_genres, finite, with_grad, params = proc.stdout.split()
+    assert (n_genres, finite) == ("4", "True")
+    assert int(with_grad) == int(params) > 0
