@@ -203,9 +203,12 @@ def test_signal_during_render_leaves_nothing(tmp_path, sig):
     proc = subprocess.Popen([sys.executable, "-m", "dancekit.cli.main", "dance", str(song), "-o", str(out),
                              "--format", "mp4", "--quiet"], env=env, stderr=subprocess.PIPE, text=True,
                             start_new_session=True,
-                            # a closed terminal's SIGHUP as a user's shell delivers it, even when the tests
-                            # themselves run under nohup (SIG_IGN is inherited, and dancekit leaves it alone)
-                            preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_DFL))
+                            # Ctrl-C and a closed terminal's SIGHUP as a user's shell delivers them, even when the
+                            # tests themselves run in the background or under nohup (a non-interactive shell's
+                            # background job ignores SIGINT, nohup SIGHUP; SIG_IGN is inherited, and Python and
+                            # dancekit leave an ignored signal alone)
+                            preexec_fn=lambda: [signal.signal(s, signal.SIG_DFL) for s in (signal.SIGINT,
+                                                                                          signal.SIGHUP)])
     deadline = time.monotonic() + 120
     while proc.poll() is None and time.monotonic() < deadline:
         if out.is_dir() and any(p.name.startswith(".dancekit-") for p in out.iterdir()):
