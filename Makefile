@@ -31,7 +31,7 @@ demo: $(STAMP)
 # The tests in one process per core (at most 4; pytest-xdist), a test file's tests together in one process (their
 # module fixtures made once); each process runs torch and the BLAS on one thread (tests/conftest.py).
 test: $(STAMP)
-	$(PY) -m pytest -q -n auto --maxprocesses=4 --dist loadfile
+	$(PY) -m pytest -q -n logical --maxprocesses=4 --dist loadfile
 
 # The speed figures of docs/BENCHMARKS.md (docs/results/speed_*.json), each by its own command (a few minutes;
 # the memory figures take longer: `make bench-memory`). Then update the result files and run
