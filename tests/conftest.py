@@ -14,6 +14,14 @@ from pathlib import Path
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
+# `make test` runs one test process per core (pytest-xdist). librosa's numba functions cache their compiled code on
+# disk, and numba's cache is not safe for processes that fill it at the same time (numba/numba#4807, #10128: a
+# worker segfaulted in librosa's peak_pick on a fresh clone). Each worker (and the processes it starts) gets its
+# own cache folder, kept between runs; set before anything imports numba.
+if os.environ.get("PYTEST_XDIST_WORKER") and "NUMBA_CACHE_DIR" not in os.environ:
+    os.environ["NUMBA_CACHE_DIR"] = str(Path(__file__).resolve().parents[1] / ".pytest_cache" / "numba"
+                                        / os.environ["PYTEST_XDIST_WORKER"])
+
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
