@@ -29,9 +29,10 @@ demo: $(STAMP)
 	$(PY) scripts/demo.py $(if $(SONG),--song "$(SONG)") --out "$(OUT)"
 
 # The tests in one process per core (at most 4; pytest-xdist), a test file's tests together in one process (their
-# module fixtures made once); each process runs torch and the BLAS on one thread (tests/conftest.py).
+# module fixtures made once); each process runs torch and the BLAS on one thread (tests/conftest.py). A test process
+# that crashes ends the run (--max-worker-restart=0: xdist's restart after a crash can leave the run waiting).
 test: $(STAMP)
-	$(PY) -m pytest -q -n logical --maxprocesses=4 --dist loadfile
+	$(PY) -m pytest -q -n logical --maxprocesses=4 --dist loadfile --max-worker-restart=0
 
 # The speed figures of docs/BENCHMARKS.md (docs/results/speed_*.json), each by its own command (a few minutes;
 # the memory figures take longer: `make bench-memory`). Then update the result files and run
