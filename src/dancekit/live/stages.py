@@ -32,8 +32,8 @@ from collections import deque
 import numpy as np
 
 from dancekit.live.config import LiveConfig
-from dancekit.motion.analysis import up_sign
-from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner
+from dancekit.motion.analysis import horizontal_axes, up_sign
+from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner, turn_and_move
 from dancekit.motion.kinematics import normalize_bone_lengths
 
 __all__ = ["BeatNudge", "OnlineStages"]
@@ -59,7 +59,7 @@ class OnlineStages:
         self.config = config or LiveConfig()
         c = self.config
         self.up = skeleton.up_index
-        self.horiz = [i for i in range(3) if i != self.up]
+        self.horiz = list(horizontal_axes(skeleton))
         self.root = skeleton.root
         self.a_smooth = 1.0 if not np.isfinite(c.smooth_hz) else 1.0 - np.exp(-2 * np.pi * c.smooth_hz / self.fps)
         self.a_glide = 1.0 - np.exp(-1.0 / (c.calm_glide_s * self.fps))
@@ -69,6 +69,7 @@ class OnlineStages:
         self.prev_root_in: np.ndarray | None = None
         self.root_out = np.zeros(3)
         self.turner: RootPathTurner | None = None  # the floor bounds (from the first frame's root on)
+        self.angle = 0.0  # the floor bounds' turn of the last frame (rad)
         self.smoothed: np.ndarray | None = None
         self.lows: deque[float] = deque(maxlen=max(1, int(round(c.floor_window_s * self.fps))))
         self.sign = up_sign(skeleton)
@@ -96,7 +97,6 @@ class OnlineStages:
                 self.root_out = root.copy()
                 self.turner = RootPathTurner(root[self.horiz], unit_scale=float(self.skeleton.unit_scale),
                                              fps=self.fps)
-                self.angle = 0.0
             else:
                 step = root - self.prev_root_in
                 self.prev_root_in = root
@@ -106,12 +106,10 @@ class OnlineStages:
             self.root_out[self.up] = root[self.up]
             self.mean_rel += self.a_mean * (rel - self.mean_rel)
             rel = self.mean_rel + self.gain * (rel - self.mean_rel)
-            if self.angle:  # the whole figure turned about the vertical axis through its root
-                cos, sin = np.cos(self.angle), np.sin(self.angle)
-                x, y = rel[:, self.horiz[0]].copy(), rel[:, self.horiz[1]].copy()
-                rel[:, self.horiz[0]] = cos * x - sin * y
-                rel[:, self.horiz[1]] = sin * x + cos * y
             q = rel + self.root_out
+            if self.angle:  # the whole figure turned about the vertical axis through its root
+                q = turn_and_move(q[None], skeleton=self.skeleton, angle=np.array([self.angle]),
+                                  root=self.root_out[None, self.horiz])[0]
             if self.smoothed is None:
                 self.smoothed = q.copy()
             a = self.a_smooth if self.gain >= 1.0 else 1.0 - (1.0 - self.a_smooth) ** (self.gain**2)
