@@ -11,7 +11,10 @@ from dataclasses import dataclass, fields
 
 from dancekit.errors import ParameterError
 
-__all__ = ["LiveConfig"]
+__all__ = ["SMOOTHING", "LiveConfig"]
+
+#: how Music2Dance's sampled features may be smoothed live (``LiveConfig.sample_smoothing``)
+SMOOTHING = ("delay", "causal")
 
 
 @dataclass(frozen=True)
@@ -98,7 +101,7 @@ class LiveConfig:
                 raise ParameterError(f"LiveConfig.{name} must be in {ranges[name]}, got {getattr(self, name)!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ParameterError(f"LiveConfig.seed must be an integer, got {self.seed!r}")
-        if self.sample_smoothing not in ("delay", "causal"):
+        if self.sample_smoothing not in SMOOTHING:
             raise ParameterError(f"LiveConfig.sample_smoothing must be 'delay' or 'causal', got {self.sample_smoothing!r}")
 
     @classmethod

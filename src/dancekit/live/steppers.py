@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from dancekit.errors import ParameterError
+from dancekit.live.config import SMOOTHING
 from dancekit.motion.kinematics import normalize_bone_lengths
 
 __all__ = ["SMOOTHING", "Music2DanceStepper", "RevolutionStepper", "SampleSmoother", "make_stepper"]
@@ -151,10 +152,6 @@ def _axes(skeleton):
     from dancekit.motion.representations import up_and_horizontal_axes as axes
 
     return axes(skeleton)
-
-
-#: how the sampled features are smoothed live (:class:`SampleSmoother`)
-SMOOTHING = ("delay", "causal")
 
 
 class SampleSmoother:
