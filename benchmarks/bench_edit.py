@@ -8,10 +8,14 @@ finished dance (``pipe.dances``, the model's stages) is edited four ways by ``st
 
 * keys every 2 s (whole poses but the root, from the real test dances of ``--data`` 30 s in (or earlier), turned to the
   dance's heading and placed on its root at the key's frame): the largest key error (cm) over keyed joints;
-* an L-shaped path (1.5 m then 1.5 m, constant speed): the root's RMS distance to it (m) and the foot-skating
-  ratio (``dancekit.metrics.foot_skating``) of the edited and of the unedited dance (real: the mean over the
-  real test dances);
-* the upper body kept from a real test dance: the largest error (cm) of the kept joints relative to the root;
+* an L-shaped path (1.5 m then 1.5 m, constant speed), danced as ``dancekit dance --path`` dances it
+  (``pipe.dances(..., edit=EditConfig(path=...))``: the dance moved onto the path before the model's foot lock):
+  the root's RMS distance to it (m) and the foot-skating ratio (``dancekit.metrics.foot_skating``) of the edited
+  and of the unedited dance (real: the mean over the real test dances);
+* the upper body kept from a real test dance: the largest error (cm) of the kept joints relative to the root, and
+  the generated legs' floor and contacts against issue 15's bounds (means over the dances: the lowest joint's
+  median height over the local floor ≤ 2 cm and its share within 2 cm ≥ 0.6; planted-foot share and foot skating
+  within ±25 % of the real test dances');
 * a 2-s prefix from the middle of a real test dance: the largest prefix error (cm) and the largest per-frame joint
   acceleration (m/s^2) from 2 frames before the seam to the end of the fade, against the 99th percentile of
   the real test dances' per-frame largest joint acceleration.
@@ -24,7 +28,10 @@ seeds ``--seeds``, ``--genre auto``: what ``dancekit evaluate --checkpoint`` dan
 with the poses of the song's real dance at the same frames (turned to the dance's heading, placed on its root);
 the unedited and the keyed dances go to ``OUT/MODEL/unedited`` and ``OUT/MODEL/keyed``, to be scored with
 ``dancekit evaluate --pred OUT/MODEL/keyed --ref DATA --data DATA`` (and the same for ``unedited``): issue 44's
-"edited dances' FID within +10 % of the unedited dances".
+"edited dances' FID within +10 % of the unedited dances". Each dance is also danced with its upper body kept from
+the song's real dance (``OUT/MODEL/kept``), and ``OUT/physical.json`` holds the floor and contact figures of
+issue 15 (the means over the dances: floor median, share within 2 cm, planted-foot share, foot skating) for the
+unedited, the kept and the real test dances.
 """
 
 from __future__ import annotations
@@ -94,9 +101,12 @@ def _acc(p: np.ndarray, sk, fps: float) -> np.ndarray:
 def keyed_split(data_dir: Path, out: Path, models: list[str], seeds: list[int]) -> None:
     """The ``--fid`` mode: unedited and keyed dances of the test split per model (see the module's description)."""
     import torch
+    from bench_stages import physical
 
     from dancekit.data import PreparedData
     from dancekit.evaluation.generate import SAMPLE_SEP, requested_genre
+    from dancekit.metrics import foot_skating
+    from dancekit.motion import edit
     from dancekit.motion.formats import write_motion
     from dancekit.pipelines import load_pipeline
     from dancekit.pipelines.config import EditConfig
@@ -105,15 +115,26 @@ def keyed_split(data_dir: Path, out: Path, models: list[str], seeds: list[int]) 
     torch.set_num_threads(1)
     data = PreparedData(data_dir)
     t0 = time.time()
+
+    def contacts(dances: list[np.ndarray], sk, fps: float) -> dict[str, float]:
+        rows = [{**physical(p, sk, fps), "foot_skating": foot_skating(p, fps=fps, skeleton=sk)["ratio"]}
+                for p in dances]
+        keys = ("floor_median_cm", "floor_within_2cm", "planted_foot_share", "foot_skating")
+        return {k: round(float(np.nanmean([r[k] for r in rows])), 3) for k in keys} | {"dances": len(rows)}
+
+    reals = {n: data.motion(n).to_positions().astype(np.float64) for n in data.names("test")}
+    first = data.motion(data.names("test")[0])
+    summary = {"real test": contacts(list(reals.values()), first.skeleton, first.fps)}
     for model in models:
         pipe = load_pipeline(model)
         config = pipe.stage_options()
-        dirs = {k: out / model / k for k in ("unedited", "keyed", "keys")}
+        dirs = {k: out / model / k for k in ("unedited", "keyed", "keys", "kept")}
+        got: dict[str, list[np.ndarray]] = {"unedited": [], "kept": []}
         for d in dirs.values():
             d.mkdir(parents=True, exist_ok=True)
         for name in data.names("test"):
             ref = data.audio(name)
-            real = data.motion(name).to_positions().astype(np.float64)
+            real = reals[name]
             sk, fps = data.motion(name).skeleton, data.motion(name).fps
             song = Song(ref.path, ref.start, ref.end)
             results = pipe.dances(ref.path, seeds=seeds, start=ref.start, end=ref.end,
@@ -126,7 +147,20 @@ def keyed_split(data_dir: Path, out: Path, models: list[str], seeds: list[int]) 
                 keyed = edit_dance(r, EditConfig(keyframes=str(kf)), song, config).motion
                 write_motion(dirs["unedited"] / f"{stem}.npz", r.motion)
                 write_motion(dirs["keyed"] / f"{stem}.npz", keyed)
+                take = dirs["keys"] / f"{name}_take.npz"
+                if not take.exists():
+                    write_motion(take, data.motion(name))
+                kept = edit_dance(r, EditConfig(keep="upper", take=str(take)), song, config).motion
+                write_motion(dirs["kept"] / f"{stem}.npz", kept)
+                got["unedited"].append(p0)
+                got["kept"].append(np.asarray(kept.to_positions(), np.float64))
+                assert np.array_equal(got["kept"][-1][:, list(edit.body_part_joints(sk, "lower"))],
+                                      p0[:, list(edit.body_part_joints(sk, "lower"))].astype(np.float32))
             print(f"{model} {name}: {len(results)} dances, {time.time() - t0:.0f} s", flush=True)
+        summary[model] = {k: contacts(v, sk, fps) for k, v in got.items()}
+        print(model, json.dumps(summary[model]), flush=True)
+    (out / "physical.json").write_text(json.dumps(summary, indent=1) + "\n")
+    print(json.dumps(summary, indent=1))
 
 
 def main(argv=None) -> int:
@@ -150,6 +184,7 @@ def main(argv=None) -> int:
         return 0
 
     import torch
+    from bench_stages import physical
 
     from dancekit.metrics import foot_skating
     from dancekit.motion import Motion, edit
@@ -168,6 +203,7 @@ def main(argv=None) -> int:
     real_pos = [r.to_positions().astype(np.float64) for r in reals]
     real_acc99 = float(np.percentile(np.concatenate([_acc(p, sk, fps) for p in real_pos]), 99))
     real_skate = float(np.nanmean([foot_skating(p, fps=fps, skeleton=sk)["ratio"] for p in real_pos]))
+    real_planted = float(np.mean([physical(p, sk, fps)["planted_foot_share"] for p in real_pos]))
     path_file = work / "path.json"
     path_file.write_text(json.dumps({"points": [[0, 0], [1.5, 0], [1.5, 1.5]]}))
     pts, _ = edit.read_path(path_file)
@@ -175,11 +211,14 @@ def main(argv=None) -> int:
     t0 = time.time()
     for model in args.models.split(","):
         pipe = load_pipeline(model)
-        per = {k: [] for k in ("key", "path", "skate", "skate0", "keep", "prefix", "seam", "refused")}
+        per = {k: [] for k in ("key", "path", "skate", "skate0", "keep", "prefix", "seam", "refused", "keep_floor",
+                               "keep_within", "keep_planted", "keep_skate")}
         n = 0
         for si, name in enumerate(SONGS):
             song = Song(str(Path(args.music) / name), args.start, args.end)
             results = pipe.dances(song.path, seeds=seeds, start=args.start, end=args.end)
+            on_path = pipe.dances(song.path, seeds=seeds, start=args.start, end=args.end,
+                                  edit=EditConfig(path=str(path_file)))
             config = pipe.stage_options()
             for k, r in enumerate(results):
                 n += 1
@@ -196,7 +235,7 @@ def main(argv=None) -> int:
                         fig = (p0, np.asarray(out, np.float64), frames)
                 except Exception as exc:  # noqa: BLE001 (a refusal is counted and said)
                     per["refused"].append(str(exc))
-                pe = edit_dance(r, EditConfig(path=str(path_file)), song, config).motion.to_positions()
+                pe = on_path[k].motion.to_positions()
                 target = edit.path_positions(pts, None, num_frames=len(pe), fps=fps)
                 root = np.asarray(pe[:, sk.root][:, [0, 2]], np.float64) * sk.unit_scale
                 per["path"].append(float(np.sqrt(np.mean(np.sum((root - target) ** 2, axis=1)))))
@@ -209,6 +248,11 @@ def main(argv=None) -> int:
                 pk = edit_dance(r, EditConfig(keep="upper", take=str(take)), song, config).motion.to_positions()
                 j = list(edit.body_part_joints(sk, "upper"))
                 per["keep"].append(float(np.abs(_rel(pk, j, sk) - _rel(real[: len(p0)], j, sk)).max()))
+                ph = physical(np.asarray(pk, np.float64), sk, fps)
+                per["keep_floor"].append(ph["floor_median_cm"])
+                per["keep_within"].append(ph["floor_within_2cm"])
+                per["keep_planted"].append(ph["planted_foot_share"])
+                per["keep_skate"].append(foot_skating(pk, fps=fps, skeleton=sk)["ratio"])
                 pre_n = int(2 * fps)
                 pre = real[len(real) // 2: len(real) // 2 + pre_n]
                 pf = work / f"prefix_{si}_{k}.npz"
@@ -222,21 +266,26 @@ def main(argv=None) -> int:
                      round(max(per["path"]), 4), round(float(np.nanmean(per["skate"])), 3),
                      round(float(np.nanmean(per["skate0"])), 3), round(real_skate, 3),
                      round(max(per["keep"]), 5), round(max(per["prefix"]), 5), round(max(per["seam"]), 1),
-                     round(real_acc99, 1)])
+                     round(real_acc99, 1), round(float(np.mean(per["keep_floor"])), 2),
+                     round(float(np.mean(per["keep_within"])), 3), round(float(np.mean(per["keep_planted"])), 3),
+                     round(real_planted, 3), round(float(np.nanmean(per["keep_skate"])), 3)])
         print(rows[-1], per["refused"][:2], f"{time.time() - t0:.0f} s", flush=True)
     columns = ["model", "dances", "key error max (cm)", "key sets refused", "path RMS max (m)",
                "skating ratio, path (mean)", "skating ratio, unedited (mean)", "skating ratio, real test (mean)",
                "kept joints error max (cm)", "prefix error max (cm)", "seam acceleration max (m/s^2)",
-               "real acceleration p99 (m/s^2)"]
+               "real acceleration p99 (m/s^2)", "kept upper: floor median (cm)", "kept upper: within 2 cm",
+               "kept upper: planted-foot share", "planted-foot share, real test (mean)", "kept upper: skating ratio"]
     doc = {"title": "Editing: keys, path, kept upper body, prefix (issue 44)",
            "command": "PYTHONPATH=src python " + " ".join(["benchmarks/bench_edit.py", *(argv or sys.argv[1:])]),
            "machine": f"{platform.machine()}, {platform.processor() or 'cpu'}, 1 torch thread (shared 2-core box)",
            "date": time.strftime("%Y-%m-%d", time.gmtime()), "columns": columns, "rows": rows,
            "note": (f"test songs {', '.join(SONGS)}, excerpt {args.start:g}-{args.end:g} s, seeds {args.seeds}; "
                     "keys every 2 s = real test poses (tang2018 test split, 30 s in) turned to the dance's heading "
-                    "on its root; path an L of 1.5 m + 1.5 m at constant speed; prefix 2 s of a real test dance "
-                    "(from its middle); the edit stage runs on the model's finished dance (pipelines.stages.edit_dance). "
-                    "FID of edited dances not measured.")}
+                    "on its root; path an L of 1.5 m + 1.5 m at constant speed, danced with the path (moved before the foot lock, as "
+                    "dancekit dance --path); prefix 2 s of a real test dance "
+                    "(from its middle); keys, kept parts and prefix: the edit stage on the model's finished dance "
+                    "(pipelines.stages.edit_dance). "
+                    "FID of keyed dances: docs/results/edit_fid.json.")}
     print(json.dumps(doc, indent=1))
     if args.out:
         from dancekit._io import atomic_path

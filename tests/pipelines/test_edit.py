@@ -293,6 +293,34 @@ def test_finish_runs_the_edit_stage_last(tmp_path):
         EditConfig(keep="upper")
 
 
+def test_finish_moves_the_dance_onto_the_path_before_the_foot_lock(tmp_path):
+    """With a path, finish moves the dance onto it before the foot lock (the lock plants the moved feet once)
+    and after the last stage only puts the root back on the path: the result is the path's shift of the dance
+    the last stage gave, not locked a second time."""
+    import dataclasses
+
+    from dancekit.motion import Motion
+    from dancekit.pipelines.base import DanceResult
+    from dancekit.pipelines.config import EditConfig, StageConfig
+    from dancekit.pipelines.stages import finish
+
+    p = _dance(T=250)
+    path = _write(tmp_path, "path.json", {"points": [[0, 0], [1.5, 0], [1.5, 1.5]]})
+    result = DanceResult(motion=Motion(skeleton=SK, fps=FPS, positions=p.astype(np.float32)), model="x", seed=0)
+    config = dataclasses.replace(StageConfig().switched(beat_sync=False), edit=EditConfig(path=str(path)))
+    steps = []
+    out = finish(result, "no-song.wav", config, trace=lambda name, r: steps.append((name, r)))
+    names = [n for n, _ in steps]
+    assert names[-1] == "edit" and names.index("path") < names.index("foot_lock")
+    pts, times = edit.read_path(path)
+    last = steps[-2][1].motion.to_positions()
+    np.testing.assert_allclose(out.motion.positions,
+                               edit.follow_path(last, skeleton=SK, fps=FPS, points=pts, times=times), atol=1e-3)
+    target = edit.path_positions(pts, times, num_frames=len(p), fps=FPS)
+    root = out.motion.positions[:, SK.root][:, [0, 2]] * SK.unit_scale
+    assert float(np.sqrt(np.mean(np.sum((root - target) ** 2, axis=1)))) < 0.10
+
+
 def test_keys_on_beats(tmp_path):
     p = _dance()
     f = _write(tmp_path, "beats.json", [{"beat": 2, "pose": {"head_right": p[40, 0].tolist()}}])

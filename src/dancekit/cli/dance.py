@@ -163,14 +163,8 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0, edit=None) ->
     seeds = [args.seed] if args.seeds is None else args.seeds
     prefetch.wait()
     results = pipe.dances(str(audio), seeds=seeds, start=args.start, end=args.end, genre=args.genre,
-                          progress=not args.quiet,
+                          progress=not args.quiet, edit=edit if own else None,
                           **(stages_on if own else {"beat_sync": False, "cleanup": False}))
-    if own and edit is not None:  # the pipeline's own dances, then the edit stage as finish runs it last
-        from dancekit.pipelines.stages import Song, edit_dance
-
-        song = Song(str(audio), args.start, args.end)
-        config = pipe.stage_options(**stages_on)
-        results = [edit_dance(r, edit, song, config) for r in results]
     if not own:  # the foot model sees the model's own dance; the stages come after it
         import dataclasses
 

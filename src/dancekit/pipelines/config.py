@@ -370,7 +370,8 @@ STAGE_CONFIGS: dict[str, type] = {"clean_up": CleanUpConfig, "smooth": SmoothCon
 @dataclass(frozen=True)
 class EditConfig:
     """The edit stage (:func:`dancekit.pipelines.stages.stage_edit`, :mod:`dancekit.motion.edit`): the user's
-    constraints on one run, applied to the finished dance after every other stage (not a checkpoint setting).
+    constraints on one run, applied to the finished dance after every other stage, but for a path, which
+    :func:`~dancekit.pipelines.stages.finish` applies before the foot lock too (not a checkpoint setting).
 
     ``prefix``: a motion file kept exactly for its length, the dance continuing from it; ``keyframes``: a
     ``keys.json``; ``path``: a ``path.json``; ``keep``: ``"upper"``, ``"lower"`` or joint names (a tuple, or a
@@ -432,7 +433,8 @@ class StageConfig:
     beat_sync: BeatSyncConfig = field(default_factory=BeatSyncConfig)
     genre_stats: GenreStats = field(default_factory=GenreStats)
     enabled: frozenset[str] = frozenset(STAGE_NAMES)
-    #: the user's edit of this run (:class:`EditConfig`), run after every other stage; None: no edit
+    #: the user's edit of this run (:class:`EditConfig`), run after every other stage (a path also before the
+    #: foot lock); None: no edit
     edit: EditConfig | None = None
 
     def __post_init__(self):

@@ -20,6 +20,7 @@ and :meth:`~DancePipeline.calm`.
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import os
 from collections.abc import Callable, Hashable
@@ -42,7 +43,13 @@ from dancekit.pipelines.base import (
     song_feature_set,
     song_features,
 )
-from dancekit.pipelines.config import CheckpointSettings, NoSampling, StageConfig, checkpoint_settings
+from dancekit.pipelines.config import (
+    CheckpointSettings,
+    EditConfig,
+    NoSampling,
+    StageConfig,
+    checkpoint_settings,
+)
 from dancekit.pipelines.stages import Song, finish, seed_trace
 
 __all__ = ["DancePipeline", "GenreChoice"]
@@ -236,7 +243,8 @@ class DancePipeline:
     def dances(self, audio_path: str | os.PathLike, *, seeds: list[int], start: float | None = None,
                end: float | None = None, genre: str | list[str | None] | None = None, progress: bool = False,
                beat_sync: bool = True, cleanup: bool = True,
-               stage_trace: Callable[[int, str, DanceResult], None] | None = None, **options) -> list[DanceResult]:
+               stage_trace: Callable[[int, str, DanceResult], None] | None = None, edit: EditConfig | None = None,
+               **options) -> list[DanceResult]:
         """One dance per seed for the song (excerpt ``[start, end)`` s); ``dances(song, seeds=[0, 1, 2])[k]`` is bit
         for bit ``pipe(song, seed=[0, 1, 2][k])``.
 
@@ -258,6 +266,9 @@ class DancePipeline:
             the clean-up, smoothing, energy lift, jitter cap and foot lock
         stage_trace : called as ``stage_trace(k, name, result)`` for the dance of ``seeds[k]`` at each step of
             :func:`~dancekit.pipelines.stages.finish` (``"input"``, then each stage that ran)
+        edit : the user's constraints (:class:`~dancekit.pipelines.config.EditConfig`: a prefix, keyframes, a
+            path, kept body parts), run by :func:`~dancekit.pipelines.stages.finish` (a path before the foot lock,
+            the rest after every stage); None: none
         options : the family's own options, the keyword arguments of its :meth:`generate_batch`
 
         Raises
@@ -282,6 +293,8 @@ class DancePipeline:
         measured = strength is not None and bool(np.isfinite(strength))
         music = not (measured and strength < MUSIC_BEAT_STRENGTH)  # not measured: as music
         config = self.stage_options(beat_sync=beat_sync, cleanup=cleanup)
+        if edit is not None:
+            config = dataclasses.replace(config, edit=edit)
         probs = (self.read_genre(audio_path, start=start, end=end)
                  if self.reads_genre(requested, music=music, config=config) else {})
         choices = [self.choose_genre(r, probs, seed=s) for r, s in zip(requested, seeds)]

@@ -657,14 +657,30 @@ def _edit_motion(file: str, skeleton, fps: float, what: str) -> np.ndarray:
     return np.asarray(m.to_positions(), np.float64)
 
 
+def stage_path(result: DanceResult, config: EditConfig) -> DanceResult:
+    """The dance moved onto the edit's path (:func:`dancekit.motion.edit.follow_path`): what :func:`finish` runs
+    before the foot lock when a path is given, so that the lock, the settle and the beat sync treat the moved
+    dance as any other (the feet planted by the model's own lock, not locked twice). Positions only."""
+    from dancekit.motion import edit
+
+    m = result.motion
+    if not _is_3d(m):
+        raise ParameterError("edit: only a 3D dance can be edited")
+    points, times = edit.read_path(config.path)
+    p = edit.follow_path(m.to_positions(), skeleton=m.skeleton, fps=m.fps, points=points, times=times)
+    return dataclasses.replace(result, motion=Motion(skeleton=m.skeleton, fps=m.fps, positions=p.astype(np.float32)))
+
+
 def stage_edit(result: DanceResult, config: EditConfig, ctx: StageContext,
-               lock: FootLockConfig | None = None) -> DanceResult:
+               lock: FootLockConfig | None = None, *, path_before_lock: bool = False) -> DanceResult:
     """The user's edit (:class:`~dancekit.pipelines.config.EditConfig`, :mod:`dancekit.motion.edit`), in this
     order: the prefix (kept exactly, the dance aligned and faded onto it), the path (then the feet held again
-    by :func:`foot_lock` with ``lock``, when the foot lock is on), the kept body parts, the keyframes (exact
-    at their frames, so last). Same fps and frame count; the result holds positions only (the edited joints
-    no longer follow the rotations). A contradiction (keys on kept joints, keys within the prefix or its
-    fade, a prefix not shorter than the dance) is a ParameterError naming the file."""
+    by :func:`foot_lock` with ``lock``, when the foot lock is on; with ``path_before_lock`` the dance was already
+    moved onto the path before the foot lock (:func:`stage_path`): it is only put back on it exactly, the few
+    centimetres the beat sync's retiming moved it along, and not locked again), the kept body parts, the
+    keyframes (exact at their frames, so last). Same fps and frame count; the result holds positions only (the
+    edited joints no longer follow the rotations). A contradiction (keys on kept joints, keys within the prefix
+    or its fade, a prefix not shorter than the dance) is a ParameterError naming the file."""
     from dancekit.motion import edit
 
     m = result.motion
@@ -683,7 +699,7 @@ def stage_edit(result: DanceResult, config: EditConfig, ctx: StageContext,
     if config.path is not None:
         points, times = edit.read_path(config.path)
         p = edit.follow_path(p, skeleton=sk, fps=fps, points=points, times=times)
-        if lock is not None:
+        if lock is not None and not path_before_lock:
             moved = dataclasses.replace(result, motion=Motion(skeleton=sk, fps=fps, positions=p.astype(np.float32)))
             p = np.asarray(foot_lock(moved, lock, ctx.genre_stats).motion.to_positions(), np.float64)
         notes.append(f"on the path {Path(config.path).name}")
@@ -721,9 +737,10 @@ def stage_edit(result: DanceResult, config: EditConfig, ctx: StageContext,
 
 def edit_dance(result: DanceResult, edit: EditConfig, audio: Song | str | os.PathLike,
                config: StageConfig | None = None) -> DanceResult:
-    """A finished dance (e.g. one of a pipeline's ``dances``) through the edit stage alone (:func:`stage_edit`),
-    as :func:`finish` runs it last with ``config.edit``: the path's foot lock with ``config``'s settings
-    when its foot lock is on (None: the defaults). ``audio``: the song (its beats, for keys given by beat)."""
+    """A finished dance (e.g. one of a pipeline's ``dances``) through the edit stage alone (:func:`stage_edit`):
+    a path moves the finished dance and its feet are locked again with ``config``'s foot lock when it is on
+    (None: the defaults), where :func:`finish` (``dances(..., edit=...)``, ``dancekit dance --path``) moves the
+    dance before its foot lock. ``audio``: the song (its beats, for keys given by beat)."""
     config = StageConfig() if config is None else config
     song = audio if isinstance(audio, Song) else Song(audio)
     ctx = StageContext(song=song, genre_stats=config.genre_stats)
@@ -759,7 +776,11 @@ def finish(result: DanceResult, audio: Song | str | os.PathLike, config: StageCo
     (or the lock) on run again from the same input with the next lower cut-off
     (:data:`dancekit.motion.jitter.CAP_CUTOFFS_HZ`), down to the lowest. ``trace``: called as
     ``trace("input", result)``, then ``trace(name, result)`` after each stage that ran (with ``to_end``, the
-    stages after the cap as last run)."""
+    stages after the cap as last run).
+
+    ``config.edit`` (the user's constraints) runs after every other stage (:func:`stage_edit`), but a path
+    enters before the jitter cap and the foot lock (:func:`stage_path`, traced as ``"path"``): the feet of the
+    moved dance are planted by the model's own lock, as an unedited dance's are."""
     config = StageConfig() if config is None else config
     song = audio if isinstance(audio, Song) else Song(audio)
     ctx = StageContext(song=song, genre_stats=config.genre_stats,
@@ -769,6 +790,11 @@ def finish(result: DanceResult, audio: Song | str | os.PathLike, config: StageCo
     lock = [n for n in ("jitter_cap", "foot_lock", "settle", "reground") if n in order]
     split = order.index(lock[0]) if lock else len(order)
     head = _run(result, order[:split], config, ctx, steps)
+    early_path = config.edit is not None and config.edit.path is not None and bool(lock) and _is_3d(head.motion)
+    if early_path:  # the path before the lock: the lock and the stages after it plant the moved feet
+        head = stage_path(head, config.edit)
+        if steps is not None:
+            steps.append(("path", head))
     kept = None if steps is None else len(steps)
     out = _run(head, order[split:], config, ctx, steps)
     cap = config.jitter_cap
@@ -786,7 +812,8 @@ def finish(result: DanceResult, audio: Song | str | os.PathLike, config: StageCo
             ctx.cap_cutoff = c
             out = _run(head, order[split:], config, ctx, steps)
     if config.edit is not None and config.edit.active:  # the user's constraints, after every other stage
-        out = stage_edit(out, config.edit, ctx, lock=config.foot_lock if "foot_lock" in order else None)
+        out = stage_edit(out, config.edit, ctx, lock=config.foot_lock if "foot_lock" in order else None,
+                         path_before_lock=early_path)
         if steps is not None:
             steps.append(("edit", out))
     if trace is not None:
