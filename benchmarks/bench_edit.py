@@ -106,7 +106,7 @@ def keyed_split(data_dir: Path, out: Path, models: list[str], seeds: list[int]) 
     from dancekit.data import PreparedData
     from dancekit.evaluation.generate import SAMPLE_SEP, requested_genre
     from dancekit.metrics import foot_skating
-    from dancekit.motion import edit
+    from dancekit.motion import Motion, edit
     from dancekit.motion.formats import write_motion
     from dancekit.pipelines import load_pipeline
     from dancekit.pipelines.config import EditConfig
@@ -148,8 +148,9 @@ def keyed_split(data_dir: Path, out: Path, models: list[str], seeds: list[int]) 
                 write_motion(dirs["unedited"] / f"{stem}.npz", r.motion)
                 write_motion(dirs["keyed"] / f"{stem}.npz", keyed)
                 take = dirs["keys"] / f"{name}_take.npz"
-                if not take.exists():
-                    write_motion(take, data.motion(name))
+                if not take.exists():  # the real dance, its last pose held 1 s (a song slice can be a frame longer)
+                    held = np.concatenate([real, np.repeat(real[-1:], int(fps), axis=0)]).astype(np.float32)
+                    write_motion(take, Motion(skeleton=sk, fps=fps, positions=held))
                 kept = edit_dance(r, EditConfig(keep="upper", take=str(take)), song, config).motion
                 write_motion(dirs["kept"] / f"{stem}.npz", kept)
                 got["unedited"].append(p0)
@@ -163,10 +164,49 @@ def keyed_split(data_dir: Path, out: Path, models: list[str], seeds: list[int]) 
     print(json.dumps(summary, indent=1))
 
 
+def contacts_table(physical: Path, out: str | None, argv) -> int:
+    """The floor and contact figures of a ``--fid`` run (``OUT/physical.json``) as a docs/results table: per model,
+    the unedited dances and the same dances with the upper body kept from the song's real dance, against the real
+    test dances and issue 15's bounds."""
+    summary = json.loads(physical.read_text())
+    real = summary.pop("real test")
+    keys = ("floor_median_cm", "floor_within_2cm", "planted_foot_share", "foot_skating")
+    rows = [["real test dances", "-", real["dances"], *(real[k] for k in keys)]]
+    for model, parts in summary.items():
+        for part in ("unedited", "kept"):
+            rows.append([model, "upper body kept from the real dance" if part == "kept" else "unedited",
+                         parts[part]["dances"], *(parts[part][k] for k in keys)])
+    lo, hi = 0.75 * real["planted_foot_share"], 1.25 * real["planted_foot_share"]
+    slo, shi = 0.75 * real["foot_skating"], 1.25 * real["foot_skating"]
+    doc = {"title": "Editing: the generated legs' floor and foot contacts with the upper body kept, tang2018 test split "
+                    "(issue 44)",
+           "command": f"PYTHONPATH=src python benchmarks/bench_edit.py --fid {physical.parent} --data data/tang2018 "
+                      "--seeds 0-4; PYTHONPATH=src python " + " ".join(["benchmarks/bench_edit.py",
+                                                                          *(argv or sys.argv[1:])]),
+           "machine": "any (the figures do not depend on the machine)",
+           "date": time.strftime("%Y-%m-%d", time.gmtime()),
+           "columns": ["dances of", "edit", "dances", "floor median (cm)", "within 2 cm of the floor",
+                       "planted-foot share", "foot skating ratio"],
+           "rows": rows,
+           "note": ("Every song of the test split, seeds 0-4, genre auto; kept: `--keep upper --from` the song's real "
+                    "dance (the legs and the root stay the model's own: equal to the unedited dance's, checked by the "
+                    "benchmark). Issue 15's bounds: floor median <= 2 cm, within 2 cm >= 0.6, planted-foot share "
+                    f"{lo:.3f}-{hi:.3f} and foot skating {slo:.3f}-{shi:.3f} (+-25 % of the real test dances').")}
+    print(json.dumps(doc, indent=1))
+    if out:
+        from dancekit._io import atomic_path
+
+        with atomic_path(out) as tmp:
+            Path(tmp).write_text(json.dumps(doc, indent=1) + "\n")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fid", default=None, metavar="OUT",
                     help="write the unedited and keyed dances of the test split (seeds --seeds) under OUT/MODEL/")
+    ap.add_argument("--contacts-table", default=None, metavar="PHYSICAL_JSON",
+                    help="the --fid run's OUT/physical.json as a docs/results table, written to --out")
     ap.add_argument("--data", default=str(ROOT / "data" / "tang2018"))
     ap.add_argument("--music", default=str(ROOT.parent / "shared" / "music"))
     ap.add_argument("--models", default="revolution,music2dance,dual")
@@ -177,6 +217,8 @@ def main(argv=None) -> int:
     ap.add_argument("--figure", default=None)
     ap.add_argument("--work", default="/tmp/bench_edit")
     args = ap.parse_args(argv)
+    if args.contacts_table:
+        return contacts_table(Path(args.contacts_table), args.out, argv)
     if args.fid:
         from dancekit.pipelines.base import parse_seeds
 
