@@ -230,6 +230,37 @@ def test_cli_prefix(base, music_dir, tmp_path):
 
 
 @pytest.mark.shared
+def test_revolution_continues_the_prefix(base, music_dir, tmp_path):
+    """Dance Revolution is given the prefix (its decoder fed the prefix's poses): its own dance, before any stage,
+    starts with the prefix's poses (root-relative), and the conditioned continuation leaves a smaller pose gap
+    for the edit stage's fade at the seam than the unconditioned dance of the same seed."""
+    from dancekit.motion import Motion
+    from dancekit.motion.formats import write_motion
+    from dancekit.pipelines import load_pipeline
+    from dancekit.pipelines.config import EditConfig
+
+    _, p0, p1 = base
+    pre = p1[40:80] + [30.0, 0.0, -20.0]
+    write_motion(tmp_path / "pre.npz", Motion(skeleton=SK, fps=FPS, positions=pre.astype(np.float32)))
+    pipe = load_pipeline("revolution")
+    start, end = float(EXCERPT[1]), float(EXCERPT[3])
+    raw = {}
+    for edit_config in (None, EditConfig(prefix=str(tmp_path / "pre.npz"))):
+        steps = {}  # the model's own dance is the trace's "input" (the edit stage comes after it)
+        pipe.dances(str(music_dir / SONG), seeds=[0], start=start, end=end, cleanup=False, beat_sync=False,
+                    edit=edit_config, stage_trace=lambda k, name, result, steps=steps: steps.__setitem__(name, result))
+        raw[edit_config is None] = np.asarray(steps["input"].motion.to_positions(), np.float64)
+    r = SK.root
+    rel = raw[False][:40] - raw[False][:40, r:r + 1]
+    np.testing.assert_allclose(rel, pre - pre[:, r:r + 1], atol=1e-3)
+
+    def gap(p):  # frame 40's pose (root-relative) against the prefix's last
+        return float(np.linalg.norm((p[40] - p[40, r]) - (pre[-1] - pre[-1, r]), axis=-1).mean())
+
+    assert gap(raw[False]) < gap(raw[True])
+
+
+@pytest.mark.shared
 @pytest.mark.parametrize("flags, words", [
     (lambda t, take: ["--keep", "upper"], "go together"),
     (lambda t, take: ["--prefix", take, "--path", str(_write(t, "p.json", {"points": [[0, 0], [1, 0]]}))],

@@ -839,10 +839,12 @@ class RevolutionModel(nn.Module):
         return self._condition(self.encode(music, chunk=chunk or self.config.encoder_chunk), genre)  # (B, n, d)
 
     def _decode(self, z: torch.Tensor, generator, variety: SeedVariety | None, *, device, chunk: int | None = None,
-                progress: bool = False) -> torch.Tensor:
+                progress: bool = False, prefix: torch.Tensor | None = None) -> torch.Tensor:
         """Decode the latents ``z (B, n, d_model)`` from the begin-of-pose with the initial state (and the
         variety's draws) of ``generator`` → (B, n, pose_dim); the steps are run in pieces of ``chunk`` frames
-        (or the variety's phrases), the pieces shown by ``progress``."""
+        (or the variety's phrases), the pieces shown by ``progress``. ``prefix`` (1 or B, N, pose_dim), normalised
+        poses: the first N frames are those poses, fed to the decoder as its previous poses (teacher forcing: its
+        state is built from them), and the dance continues from the last (:func:`_forced_piece`)."""
         B, n, _ = z.shape
         variety = variety or SeedVariety()
         z, state, noise = self._decode_start(z, generator, variety, device=device)
@@ -852,7 +854,10 @@ class RevolutionModel(nn.Module):
         outputs = []
         for a0, b0 in _pieces(n, variety, chunk or self.config.encoder_chunk, progress):
             state = _perturb_state(state, noise, a0, variety)
-            y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
+            if prefix is not None and a0 < prefix.shape[1]:
+                y, prev, state = _forced_piece(self._autoregress, z, prefix.expand(B, -1, -1), a0, b0, prev, state)
+            else:
+                y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
             outputs.append(y)
         return torch.cat(outputs, dim=1)
 
@@ -886,7 +891,7 @@ class RevolutionModel(nn.Module):
 @torch.no_grad()
 def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], generators: list[torch.Generator],
                  variety: SeedVariety | None = None, *, chunk: int | None = None, progress: bool = False,
-                 workers: int = 1) -> torch.Tensor:
+                 workers: int = 1, prefixes: list[torch.Tensor] | None = None) -> torch.Tensor:
     """Many dances of one song: row ``k`` is ``models[k]``'s dance of the latents ``latents[k]``
     (1, n, ``models[k].config.d_model``) with the initial state and variety draws of ``generators[k]``, bit for bit
     ``models[k]._decode(latents[k], [generators[k]], variety)`` (a batch of one) → (B, n, pose_dim) normalised
@@ -905,6 +910,8 @@ def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], gen
     workers : the rows are split into this many lanes of about equal cost (decoder weights per row), decoded side
         by side in threads (each row's arithmetic is unchanged: the torch calls of one row run in one thread); 1:
         one after the other in this thread
+    prefixes : per row, normalised poses (1, N, P) (N the same for every row) that are the dance's first N frames
+        and that the decoder is fed as its previous poses (teacher forcing): the dance continues them; None: none
     """
     B = len(models)
     if not (B == len(latents) == len(generators)) or B == 0:
@@ -917,6 +924,11 @@ def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], gen
         if z.shape != (1, n, m.config.d_model):
             raise ParameterError(f"every row's latents must have shape (1, {n}, d_model of its model), got "
                                  f"{[tuple(z.shape) for z in latents]}")
+    if prefixes is not None:
+        if len(prefixes) != B or len({tuple(p.shape) for p in prefixes}) != 1 or prefixes[0].ndim != 3 \
+                or prefixes[0].shape[0] != 1 or prefixes[0].shape[2] != models[0].config.pose_dim:
+            raise ParameterError(f"prefixes must be one (1, N, pose_dim) tensor per row, N the same for all; got "
+                                 f"{[tuple(p.shape) for p in prefixes]}")
     variety = variety or SeedVariety()
     device = models[0].bop.device
     out: list[torch.Tensor | None] = [None] * B
@@ -927,10 +939,12 @@ def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], gen
                 ks = [rows[j] for j in loop]
                 if len(ks) == 1:
                     y = models[ks[0]]._decode(latents[ks[0]], [generators[ks[0]]], variety, device=device,
-                                              chunk=chunk, progress=progress and shown)
+                                              chunk=chunk, progress=progress and shown,
+                                              prefix=None if prefixes is None else prefixes[ks[0]])
                 else:
                     y = _decode_rows([models[k] for k in ks], [latents[k] for k in ks], [generators[k] for k in ks],
-                                     variety, device=device, chunk=chunk, progress=progress and shown)
+                                     variety, device=device, chunk=chunk, progress=progress and shown,
+                                     prefixes=None if prefixes is None else [prefixes[k] for k in ks])
                 for j, k in enumerate(ks):
                     out[k] = y[j : j + 1]
 
@@ -944,6 +958,23 @@ def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], gen
             for future in [pool.submit(lane, rows, i == 0) for i, rows in enumerate(lanes)]:
                 future.result()
     return torch.cat(out, dim=0)
+
+
+def _forced_piece(step, z: torch.Tensor, prefix: torch.Tensor, a0: int, b0: int, prev: torch.Tensor, state):
+    """Frames ``[a0, b0)`` of a decoding whose first ``N = prefix.shape[1]`` frames are given (``a0 < N``):
+    each frame ``t < N`` is stepped with ``step`` (``(z (B, L, d), prev (B, 1, P), state) -> (ŷ, last ŷ,
+    state)``) from its given previous pose (the begin-of-pose or ``prefix[:, t - 1]``) and its output is
+    ``prefix[:, t]``; the frames from N on are decoded from ``prefix[:, N - 1]``. Returns ``(y (B, b0 - a0, P),
+    last pose (B, 1, P), state)``."""
+    n_pre = prefix.shape[1]
+    for t in range(a0, min(b0, n_pre)):
+        _, _, state = step(z[:, t : t + 1], prev, state)
+        prev = prefix[:, t : t + 1]
+    ys = [prefix[:, a0 : min(b0, n_pre)]]
+    if b0 > n_pre:
+        y, prev, state = step(z[:, n_pre:b0], prev, state)
+        ys.append(y)
+    return torch.cat(ys, dim=1), prev, state
 
 
 def _lanes(models: list[RevolutionModel], workers: int) -> list[list[int]]:
@@ -961,8 +992,10 @@ def _lanes(models: list[RevolutionModel], workers: int) -> list[list[int]]:
 
 
 def _decode_rows(models: list[RevolutionModel], latents: list[torch.Tensor], generators: list[torch.Generator],
-                 variety: SeedVariety, *, device, chunk: int | None, progress: bool) -> torch.Tensor:
-    """:func:`decode_seeds` of rows of one architecture, rows of one model consecutive, in one frame loop."""
+                 variety: SeedVariety, *, device, chunk: int | None, progress: bool,
+                 prefixes: list[torch.Tensor] | None = None) -> torch.Tensor:
+    """:func:`decode_seeds` of rows of one architecture, rows of one model consecutive, in one frame loop
+    (``prefixes``: each row's given first poses (1, N, P), or None)."""
     starts = [m._decode_start(z, [g], variety, device=device) for m, z, g in zip(models, latents, generators)]
     B, n = len(models), latents[0].shape[1]
     if n == 0:
@@ -972,10 +1005,14 @@ def _decode_rows(models: list[RevolutionModel], latents: list[torch.Tensor], gen
     noise = {"state": torch.cat([s[2]["state"] for s in starts], dim=3)} if "state" in starts[0][2] else {}
     step = _RowDecoder(models)
     prev = torch.cat([m.bop.expand(1, 1, -1) for m in models], dim=0)  # (B, 1, P)
+    given = None if prefixes is None else torch.cat(prefixes, dim=0)  # (B, N, P)
     outputs = []
     for a0, b0 in _pieces(n, variety, chunk or models[0].config.encoder_chunk, progress):
         state = _perturb_state(state, noise, a0, variety)
-        y, prev, state = step(z[:, a0:b0], prev, state)
+        if given is not None and a0 < given.shape[1]:
+            y, prev, state = _forced_piece(step, z, given, a0, b0, prev, state)
+        else:
+            y, prev, state = step(z[:, a0:b0], prev, state)
         outputs.append(y)
     return torch.cat(outputs, dim=1)  # (B, n, P)
 

@@ -268,7 +268,9 @@ class DancePipeline:
             :func:`~dancekit.pipelines.stages.finish` (``"input"``, then each stage that ran)
         edit : the user's constraints (:class:`~dancekit.pipelines.config.EditConfig`: a prefix, keyframes, a
             path, kept body parts), run by :func:`~dancekit.pipelines.stages.finish` (a path before the foot lock,
-            the rest after every stage); None: none
+            the rest after every stage); None: none. A family whose :meth:`generate_batch` takes a ``prefix``
+            (Dance Revolution) is also given the prefix's positions: the model continues the prefix (its decoder
+            fed the prefix's poses), then the edit stage keeps the prefix exactly and fades the seam
         options : the family's own options, the keyword arguments of its :meth:`generate_batch`
 
         Raises
@@ -299,6 +301,10 @@ class DancePipeline:
                  if self.reads_genre(requested, music=music, config=config) else {})
         choices = [self.choose_genre(r, probs, seed=s) for r, s in zip(requested, seeds)]
         keys = [self.batch_key(c) for c in choices]
+        if edit is not None and edit.prefix is not None and "prefix" in inspect.signature(self.generate_batch).parameters:
+            from dancekit.pipelines.stages import read_edit_motion
+
+            options = {**options, "prefix": read_edit_motion(edit.prefix, self.skeleton, self.fps, "prefix")}
         motions: list[Motion | None] = [None] * len(seeds)
         for key in dict.fromkeys(keys):
             rows = [k for k, x in enumerate(keys) if x == key]

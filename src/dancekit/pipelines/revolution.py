@@ -52,7 +52,7 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.precision import to_precision
 from dancekit.models.revolution import RevolutionModel, SeedVariety, decode_seeds
 from dancekit.motion import Motion
-from dancekit.motion.representations import decode_motion, get_representation
+from dancekit.motion.representations import decode_motion, encode_motion, get_representation
 from dancekit.pipelines.base import calm_motion, check_seeds, clean_motion
 from dancekit.pipelines.config import CheckpointSettings, RevolutionSampling
 from dancekit.pipelines.dance import DancePipeline, GenreChoice
@@ -171,7 +171,8 @@ class RevolutionPipeline(DancePipeline):
     @torch.no_grad()
     def generate_batch(self, audio_path: str | os.PathLike, *, seeds: list[int], choices: list[GenreChoice],
                        start: float | None = None, end: float | None = None, progress: bool = False,
-                       postprocess: bool = True, variety: bool = True, workers: int | None = None) -> list[Motion]:
+                       postprocess: bool = True, variety: bool = True, workers: int | None = None,
+                       prefix: np.ndarray | None = None) -> list[Motion]:
         """The dances of ``seeds``, seed ``seeds[k]`` of the genre ``choices[k].genre``: danced by that genre's
         model when this folder has genre models (:meth:`genre_pipeline`), else by this model (with the genre as
         its input when it is genre-conditioned); :meth:`generate_rows` (each model's features and latents once,
@@ -187,12 +188,15 @@ class RevolutionPipeline(DancePipeline):
             draws the initial decoder state only; the dances of one song converge)
         workers : how many seeds are decoded side by side (threads; None: :func:`decode_workers`); the dances
             do not depend on it
+        prefix : world positions ``(N, J, 3)`` on this model's skeleton at its fps: the dance's first N frames,
+            which the decoder is fed as its previous poses (its state built from them), the dance continuing from
+            the last (:meth:`generate_rows`)
         """
         vary = self.variety if variety else SeedVariety()
         rows = [(self.genre_pipeline(c.genre), None) if c.genre is not None and self.genre_models
                 else (self, self._genre_index(c.genre)) for c in choices]
         return self.generate_rows(audio_path, seeds=seeds, rows=rows, start=start, end=end, progress=progress,
-                                  postprocess=postprocess, variety=vary, workers=workers)
+                                  postprocess=postprocess, variety=vary, workers=workers, prefix=prefix)
 
     @torch.no_grad()
     def generate(self, audio_path: str | os.PathLike, *, seed: int = 0, start: float | None = None,
@@ -220,13 +224,17 @@ class RevolutionPipeline(DancePipeline):
     def generate_rows(self, audio_path: str | os.PathLike, *, seeds: list[int],
                       rows: list[tuple[RevolutionPipeline, int | None]], start: float | None = None,
                       end: float | None = None, progress: bool = False, postprocess: bool = True,
-                      variety: SeedVariety | None = None, workers: int | None = None) -> list[Motion]:
+                      variety: SeedVariety | None = None, workers: int | None = None,
+                      prefix: np.ndarray | None = None) -> list[Motion]:
         """The dance of seed ``seeds[k]`` by the pipeline ``rows[k][0]`` (this one or one of its genre models'),
         with the genre input ``rows[k][1]`` (a genre-conditioned model; None otherwise): each pipeline's features
         read once, each (pipeline, genre) encoded once, then every seed decoded by
         :func:`~dancekit.models.revolution.decode_seeds` (bit for bit the seed alone) in ``workers`` lanes
         (None: :func:`decode_workers`), on the pipeline's skeleton at its fps (``postprocess``: see
-        :meth:`generate_batch`), ``variety`` the seed variety (None: this checkpoint's)."""
+        :meth:`generate_batch`), ``variety`` the seed variety (None: this checkpoint's). ``prefix``: world positions
+        ``(N, J, 3)`` (this model's skeleton and fps), encoded and normalised by each row's pipeline: the first N
+        frames of every dance, the decoder fed them as its previous poses (teacher forcing), continuing from the
+        last (:func:`~dancekit.models.revolution.decode_seeds`'s ``prefixes``)."""
         seeds = check_seeds(seeds)
         if len(rows) != len(seeds):
             raise ParameterError(f"{len(rows)} rows for {len(seeds)} seeds")
@@ -241,10 +249,23 @@ class RevolutionPipeline(DancePipeline):
                 pipe.model._check_music(music[id(pipe)])
                 latents[id(pipe), genre_index] = pipe.model._latents(music[id(pipe)], index)  # (1, T, d)
         music.clear()
+        prefixes = None
+        if prefix is not None:
+            given = {}
+            for pipe, _ in rows:
+                if id(pipe) not in given:
+                    if self.representation != "positions3d":
+                        raise ParameterError(f"a prefix needs a positions3d model, {self.folder} is {self.representation}")
+                    x = encode_motion(Motion(skeleton=pipe.skeleton, fps=pipe.fps,
+                                             positions=np.asarray(prefix, np.float32)), pipe.representation)
+                    given[id(pipe)] = torch.from_numpy(
+                        pipe.stats.normalize_dance(x).astype(np.float32))[None].to(pipe.model.bop.device)
+            prefixes = [given[id(pipe)] for pipe, _ in rows]
         generators = [torch.Generator(device="cpu").manual_seed(s) for s in seeds]
         y = decode_seeds([pipe.model for pipe, _ in rows], [latents[id(pipe), g] for pipe, g in rows], generators,
                          self.variety if variety is None else variety, progress=progress,
-                         workers=decode_workers(len(seeds)) if workers is None else workers)  # (B, T, P)
+                         workers=decode_workers(len(seeds)) if workers is None else workers,
+                         prefixes=prefixes)  # (B, T, P)
         motions = []
         for k, (pipe, _) in enumerate(rows):
             poses = pipe.stats.denormalize_dance(y[k].cpu().numpy())  # (T, P)

@@ -638,7 +638,7 @@ def stage_beat_sync(result: DanceResult, config, ctx: StageContext) -> DanceResu
                      beats=ctx.song.song_beats() if needs else None, options=config.warp_options())
 
 
-def _edit_motion(file: str, skeleton, fps: float, what: str) -> np.ndarray:
+def read_edit_motion(file: str, skeleton, fps: float, what: str) -> np.ndarray:
     """The positions ``(T, J, 3)`` of a motion file on ``skeleton`` at ``fps`` (mapped by role from another
     skeleton, resampled from another frame rate)."""
     from dancekit.motion.formats import read_motion
@@ -690,7 +690,7 @@ def stage_edit(result: DanceResult, config: EditConfig, ctx: StageContext,
     p = np.asarray(m.to_positions(), np.float64)
     n_pre, notes = 0, []
     if config.prefix is not None:
-        pre = _edit_motion(config.prefix, sk, fps, "prefix")
+        pre = read_edit_motion(config.prefix, sk, fps, "prefix")
         if len(pre) >= len(p):
             raise ParameterError(f"{config.prefix}: the prefix ({len(pre) / fps:.2f} s) is not shorter than the "
                                  f"dance ({len(p) / fps:.2f} s)")
@@ -705,7 +705,7 @@ def stage_edit(result: DanceResult, config: EditConfig, ctx: StageContext,
         notes.append(f"on the path {Path(config.path).name}")
     kept: tuple[int, ...] = ()
     if config.keep is not None:
-        take = _edit_motion(config.take, sk, fps, "take")
+        take = read_edit_motion(config.take, sk, fps, "take")
         if len(take) < len(p):
             raise ParameterError(f"{config.take}: the take ({len(take) / fps:.2f} s) is shorter than the dance "
                                  f"({len(p) / fps:.2f} s)")
