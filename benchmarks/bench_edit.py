@@ -16,9 +16,13 @@ finished dance (``pipe.dances``, the model's stages) is edited four ways by ``st
   the generated legs' floor and contacts against issue 15's bounds (means over the dances: the lowest joint's
   median height over the local floor ≤ 2 cm and its share within 2 cm ≥ 0.6; planted-foot share and foot skating
   within ±25 % of the real test dances');
-* a 2-s prefix from the middle of a real test dance: the largest prefix error (cm) and the largest per-frame joint
-  acceleration (m/s^2) from 2 frames before the seam to the end of the fade, against the 99th percentile of
-  the real test dances' per-frame largest joint acceleration.
+* a 2-s prefix from the middle of a real test dance, danced as ``dancekit dance --prefix`` dances it
+  (``pipe.dances(..., edit=EditConfig(prefix=...))``: Dance Revolution's decoder is fed the prefix): the largest
+  prefix error (cm), the largest per-frame joint acceleration (m/s^2) from 2 frames before the seam to the end of
+  the fade, against the 99th percentile of the real test dances' per-frame largest joint acceleration, and the
+  pose gap the fade has to bridge (the dance before the edit stage at the prefix's last frame, root-relative and
+  turned to its heading, against the prefix's last pose; cm, median) for the dance as danced and for the same
+  seed's dance without the prefix (what the stage alone would have to bridge).
 
 Writes the JSON table (docs/results/<topic>.json shape) and, with ``--figure``, a PNG: a keyed wrist's height
 through its keys (edited, unedited) and a path with the root's trace seen from above.
@@ -96,6 +100,17 @@ def _rel(x, joints: list[int], sk) -> np.ndarray:
 def _acc(p: np.ndarray, sk, fps: float) -> np.ndarray:
     """Per frame, the largest joint acceleration (m/s^2), ``(T - 2,)``."""
     return np.linalg.norm(np.diff(p, 2, axis=0), axis=-1).max(axis=1) * fps * fps * sk.unit_scale
+
+
+def _seam_gap(dance: np.ndarray, prefix: np.ndarray, sk) -> float:
+    """The pose the prefix's fade has to bridge (cm, mean over joints): the dance's frame ``N - 1`` (N = the
+    prefix's length) relative to its root and turned to the prefix's heading, against the prefix's last pose."""
+    from dancekit.motion.edit import _yaw
+
+    n = len(prefix)
+    a = _turned(dance[n - 1], sk, _yaw(prefix, sk, n - 1) - _yaw(dance, sk, n - 1))
+    b = prefix[n - 1] - prefix[n - 1, sk.root]
+    return float(np.linalg.norm(a - b, axis=-1).mean())
 
 
 def keyed_split(data_dir: Path, out: Path, models: list[str], seeds: list[int]) -> None:
@@ -254,7 +269,7 @@ def main(argv=None) -> int:
     for model in args.models.split(","):
         pipe = load_pipeline(model)
         per = {k: [] for k in ("key", "path", "skate", "skate0", "keep", "prefix", "seam", "refused", "keep_floor",
-                               "keep_within", "keep_planted", "keep_skate")}
+                               "keep_within", "keep_planted", "keep_skate", "gap_model", "gap_stage")}
         n = 0
         for si, name in enumerate(SONGS):
             song = Song(str(Path(args.music) / name), args.start, args.end)
@@ -299,24 +314,33 @@ def main(argv=None) -> int:
                 pre = real[len(real) // 2: len(real) // 2 + pre_n]
                 pf = work / f"prefix_{si}_{k}.npz"
                 write_motion(pf, Motion(skeleton=sk, fps=fps, positions=pre.astype(np.float32)))
-                pp = np.asarray(edit_dance(r, EditConfig(prefix=str(pf)), song, config).motion.to_positions(),
-                                np.float64)
+                steps = {}
+                pp = pipe.dances(song.path, seeds=[seeds[k]], start=args.start, end=args.end,
+                                 edit=EditConfig(prefix=str(pf)),
+                                 stage_trace=lambda i, name, res, steps=steps: steps.__setitem__(name, res))[0]
+                pp = np.asarray(pp.motion.to_positions(), np.float64)
                 per["prefix"].append(float(np.abs(pp[:pre_n] - pre.astype(np.float32)).max()))
                 w = int(round(edit.CROSSFADE_S * fps))
                 per["seam"].append(float(_acc(pp, sk, fps)[pre_n - 3: pre_n + w].max()))
+                before = [res for name, res in steps.items() if name != "edit"][-1]
+                per["gap_model"].append(_seam_gap(np.asarray(before.motion.to_positions(), np.float64), pre, sk))
+                per["gap_stage"].append(_seam_gap(p0, pre, sk))
         rows.append([model, n, round(max(per["key"], default=float("nan")), 5), len(per["refused"]),
                      round(max(per["path"]), 4), round(float(np.nanmean(per["skate"])), 3),
                      round(float(np.nanmean(per["skate0"])), 3), round(real_skate, 3),
                      round(max(per["keep"]), 5), round(max(per["prefix"]), 5), round(max(per["seam"]), 1),
                      round(real_acc99, 1), round(float(np.mean(per["keep_floor"])), 2),
                      round(float(np.mean(per["keep_within"])), 3), round(float(np.mean(per["keep_planted"])), 3),
-                     round(real_planted, 3), round(float(np.nanmean(per["keep_skate"])), 3)])
+                     round(real_planted, 3), round(float(np.nanmean(per["keep_skate"])), 3),
+                     round(float(np.median(per["gap_model"])), 2), round(float(np.median(per["gap_stage"])), 2)])
         print(rows[-1], per["refused"][:2], f"{time.time() - t0:.0f} s", flush=True)
     columns = ["model", "dances", "key error max (cm)", "key sets refused", "path RMS max (m)",
                "skating ratio, path (mean)", "skating ratio, unedited (mean)", "skating ratio, real test (mean)",
                "kept joints error max (cm)", "prefix error max (cm)", "seam acceleration max (m/s^2)",
                "real acceleration p99 (m/s^2)", "kept upper: floor median (cm)", "kept upper: within 2 cm",
-               "kept upper: planted-foot share", "planted-foot share, real test (mean)", "kept upper: skating ratio"]
+               "kept upper: planted-foot share", "planted-foot share, real test (mean)", "kept upper: skating ratio",
+               "prefix: pose gap left to the fade, as danced (cm, median)",
+               "prefix: pose gap left to the fade, the dance without the prefix (cm, median)"]
     doc = {"title": "Editing: keys, path, kept upper body, prefix (issue 44)",
            "command": "PYTHONPATH=src python " + " ".join(["benchmarks/bench_edit.py", *(argv or sys.argv[1:])]),
            "machine": f"{platform.machine()}, {platform.processor() or 'cpu'}, 1 torch thread (shared 2-core box)",
