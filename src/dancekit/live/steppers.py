@@ -8,10 +8,11 @@ skeleton and units) of the frames it can dance now; :meth:`finish` dances the re
   ahead in each of its layers (the embedded model: 2 × 50 frames, 4 s at 25 fps). Live, each latent is encoded
   from the music up to ``lookahead`` frames after it (the frames beyond are not there yet: the encoder sees the
   stream's end there, as it sees a song's end offline) and ``context`` frames before it. With ``lookahead`` and
-  ``context`` at least the receptive field the latents are the offline ones, and the dance — the LSTM decoder
-  stepped with its state carried from block to block — equals one offline pass (``tests/live/test_live.py``); the
-  default lookahead is the latency floor's 3 frames, an approximation whose cost the quality benchmark
-  measures. The seed draws the initial state; the checkpoint's per-phrase state noise is drawn phrase by
+  ``context`` at least the receptive field the latents are the offline ones (each block's new latents are
+  computed on the frames they see alone: :meth:`~dancekit.models.revolution.MusicEncoder.forward_range`), and
+  the dance — the LSTM decoder stepped with its state carried from block to block — equals one offline pass
+  (``tests/live/test_live.py``); the default lookahead is the latency floor's 3 frames, an approximation whose
+  cost the quality benchmark measures. The seed draws the initial state; the checkpoint's per-phrase state noise is drawn phrase by
   phrase as the phrases come.
 * :class:`Music2DanceStepper` (Music2Dance): the WaveNet is causal; its F_map (convolutions and a BiLSTM) is
   run on the last ``context`` frames up to ``lookahead`` frames ahead, and each frame is stepped with the
@@ -118,7 +119,7 @@ class RevolutionStepper(_Stepper):
         a = max(self.music_start, t0 - self.context)
         b = min(self.n_music, upto + self.lookahead)
         x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
-        z = self.model._condition(self.model.encoder(x), None)[:, t0 - a : upto - a]  # (1, upto - t0, d)
+        z = self.model._condition(self.model.encoder.forward_range(x, t0 - a, upto - a), None)  # (1, upto - t0, d)
         ys = []
         for p0, p1 in self._pieces(t0, upto):
             if self.phrase and p0 > 0 and p0 % self.phrase == 0:  # a phrase starts: the state mixed with noise
