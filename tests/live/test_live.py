@@ -470,6 +470,35 @@ def test_live_page_is_served():
     assert "/poses" in html and "<canvas" in html
 
 
+@pytest.mark.parametrize("model", ["revolution", "music2dance"])
+def test_rest_bones_equal_the_offline_bone_lengths(model, rng):
+    """The live stages' bone lengths (NumPy, a tree level at a time) equal the offline normalize_bone_lengths: a
+    block of one frame, a batch of blocks, a bone of zero length (its rest offset) and a model's own dance."""
+    from dancekit.live.stages import RestBones
+    from dancekit.motion.kinematics import normalize_bone_lengths
+    from dancekit.pipelines import load_pipeline
+
+    sk = load_pipeline(model).skeleton
+    rest = RestBones(sk)
+    J = sk.num_joints
+    x = rng.standard_normal((40, J, 3)) * 30.0
+    child = next(j for j in range(J) if sk.parents[j] >= 0)
+    x[3, child] = x[3, sk.parents[child]]  # a bone of zero length
+    for poses in (x[:1], x, x.reshape(4, 10, J, 3), x.astype(np.float32)):
+        got = rest(poses)
+        assert got.dtype == np.float64 and got.shape == poses.shape
+        np.testing.assert_allclose(got, normalize_bone_lengths(poses, sk), rtol=0, atol=1e-9)
+    lengths = np.linalg.norm(got[..., [j for j in range(J) if sk.parents[j] >= 0], :]
+                             - got[..., [p for p in sk.parents if p >= 0], :], axis=-1)
+    np.testing.assert_allclose(lengths, np.broadcast_to(np.linalg.norm(sk.offsets, axis=-1)[np.asarray(sk.parents) >= 0],
+                                                        lengths.shape), atol=1e-9)
+    s = LiveSession(model)
+    s.stepper.raw = True
+    raw = s.stepper.push(rng.standard_normal((60, s.pipe.model.config.music_dim)).astype(np.float32))
+    raw = np.concatenate([raw, s.stepper.finish()]).astype(np.float64) if len(raw) else s.stepper.finish()
+    np.testing.assert_allclose(rest(raw), normalize_bone_lengths(raw, sk), rtol=0, atol=1e-6)
+
+
 def test_online_floor_bounds_turn_the_path_as_offline():
     """A figure drifting in a straight line at 0.8 m/s for 30 s, its arms swinging, fed to the online stages in
     pieces (music playing, no smoothing): its horizontal positions are the offline clean-up's turned path
