@@ -81,6 +81,25 @@ def test_online_features_equal_offline_with_full_lookahead(song):
     assert on[100:192, tg].any(axis=1).all()
 
 
+def test_online_chroma_equals_the_offline_chromagram_of_its_segment(song, rng):
+    """The online chromagram of a few frames of a segment — at its start, in its middle, at its end (the
+    centred frames' zero padding), odd and even lengths — is the offline chromagram of that segment at those
+    frames, its octave decimation (one resampler, cleared between calls) the offline ``halve``'s samples."""
+    from dancekit.features import dsp, spectral
+    from dancekit.live.features import OnlineChroma
+
+    ch = OnlineChroma(sr=SR, hop_length=512)
+    for n in (1001, 4096, 17000):
+        y = rng.standard_normal(n).astype(np.float32)
+        for _ in range(2):  # the resampler used again: cleared
+            np.testing.assert_array_equal(ch._halve(y), dsp.halve(y))
+    for a, n in ((0, 9 * 512), (3 * SR, 40 * 512 + 77), (5 * SR, 25 * 512)):
+        seg = song[a : a + n]
+        off = spectral.chroma_cqt(y=seg, sr=SR, hop_length=512).T  # (1 + n // 512, 12)
+        for frames in ([0], [1, 2], [len(off) // 2], [len(off) - 3, len(off) - 1]):
+            np.testing.assert_allclose(ch.frames(seg, np.array(frames)), off[frames], rtol=0, atol=1e-5)
+
+
 def test_online_features_short_lookahead_stays_close(song):
     """At the default lookahead (0.08 s) the frames' right edge is zero-padded (the song "ends" there): the
     MFCCs, the onset envelope and the tempogram are still exact; the MFCC delta of a row is the offline delta of
