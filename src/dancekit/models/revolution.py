@@ -441,9 +441,15 @@ class SelfAttention(nn.Module):
         B, n, d = x.shape
         h, H = self.half, self.n_heads
         a, b = max(0, start - h), min(n, stop + h)  # the keys looked at
-        W, c = self.qkv.weight, self.qkv.bias
-        q = F.linear(x[:, start:stop], W[:d], c[:d]).view(B, stop - start, H, d // H).transpose(1, 2)  # (B, H, k, dh)
-        k, v = F.linear(x[:, a:b], W[d:], c[d:]).view(B, b - a, 2, H, d // H).permute(2, 0, 3, 1, 4)  # (B, H, m, dh)
+        if type(self.qkv) is nn.Linear:  # the queries of [start, stop) alone
+            W, c = self.qkv.weight, self.qkv.bias
+            q = F.linear(x[:, start:stop], W[:d], c[:d]).view(B, stop - start, H, d // H).transpose(1, 2)
+            kv = F.linear(x[:, a:b], W[d:], c[d:])  # (B, m, 2d)
+        else:  # a quantised copy (dancekit.models.precision): its projection of every key frame
+            qkv = self.qkv(x[:, a:b])  # (B, m, 3d)
+            q = qkv[:, start - a : stop - a, :d].reshape(B, stop - start, H, d // H).transpose(1, 2)
+            kv = qkv[:, :, d:]
+        k, v = kv.reshape(B, b - a, 2, H, d // H).permute(2, 0, 3, 1, 4)  # (B, H, m, dh) each
         fn = band_attention if stop - start <= 4 * max(h, 1) else local_attention  # few queries: one score matrix
         y = fn(q, k, v, half_window=h, bias=self.rel_bias, dropout=self.dropout, training=self.training,
                q_offset=start - a)
@@ -531,20 +537,23 @@ class MusicEncoder(nn.Module):
             x = layer(x)
         return self.norm(x)  # (B, n, d)
 
-    def forward_range(self, music: torch.Tensor, start: int, stop: int) -> torch.Tensor:
+    def forward_range(self, music: torch.Tensor, start: int, stop: int, *, embedded: bool = False) -> torch.Tensor:
         """``forward(music)[:, start:stop]`` — music features ``(B, n, D)`` → latents ``(B, stop - start, d)`` —
         computed on what those frames see alone: for the local encoder the last layer's queries at
         ``[start, stop)``, each layer below over ``half_window`` frames more on each side (clipped to
         ``[0, n)``: the sequence's ends are its ends, as in :meth:`forward`), the embedding over
-        ``n_layers · half_window`` more; the other encoders run :meth:`forward` and keep those frames."""
+        ``n_layers · half_window`` more; the other encoders run :meth:`forward` and keep those frames.
+        ``embedded``: ``music`` is already ``embed(music)`` ``(B, n, d)`` (the local encoder only)."""
         n = music.shape[1]
         start, stop = max(0, int(start)), min(n, int(stop))
         c = self.config
+        if embedded and c.encoder != "local":
+            raise ParameterError(f"embedded frames are for the local encoder, not {c.encoder!r}")
         if c.encoder != "local" or stop <= start:
             return self.forward(music)[:, start:stop]
         h, L = c.half_window, len(self.layers)
         lo, hi = max(0, start - L * h), min(n, stop + L * h)  # the frames embedded
-        x = self.embed(music[:, lo:hi])  # (B, hi - lo, d)
+        x = music[:, lo:hi] if embedded else self.embed(music[:, lo:hi])  # (B, hi - lo, d)
         if c.pos_encoding == "sinusoidal":
             x = x + sinusoidal_encoding(hi, x.shape[2], device=x.device)[lo:]
         x = self.drop(x)
