@@ -81,6 +81,25 @@ def test_online_features_equal_offline_with_full_lookahead(song):
     assert on[100:192, tg].any(axis=1).all()
 
 
+def test_online_chroma_equals_the_offline_chromagram_of_its_segment(song, rng):
+    """The online chromagram of a few frames of a segment — at its start, in its middle, at its end (the
+    centred frames' zero padding), odd and even lengths — is the offline chromagram of that segment at those
+    frames, its octave decimation (one resampler, cleared between calls) the offline ``halve``'s samples."""
+    from dancekit.features import dsp, spectral
+    from dancekit.live.features import OnlineChroma
+
+    ch = OnlineChroma(sr=SR, hop_length=512)
+    for n in (1001, 4096, 17000):
+        y = rng.standard_normal(n).astype(np.float32)
+        for _ in range(2):  # the resampler used again: cleared
+            np.testing.assert_array_equal(ch._halve(y), dsp.halve(y))
+    for a, n in ((0, 9 * 512), (3 * SR, 40 * 512 + 77), (5 * SR, 25 * 512)):
+        seg = song[a : a + n]
+        off = spectral.chroma_cqt(y=seg, sr=SR, hop_length=512).T  # (1 + n // 512, 12)
+        for frames in ([0], [1, 2], [len(off) // 2], [len(off) - 3, len(off) - 1]):
+            np.testing.assert_allclose(ch.frames(seg, np.array(frames)), off[frames], rtol=0, atol=1e-5)
+
+
 def test_online_features_short_lookahead_stays_close(song):
     """At the default lookahead (0.08 s) the frames' right edge is zero-padded (the song "ends" there): the
     MFCCs, the onset envelope and the tempogram are still exact; the MFCC delta of a row is the offline delta of
@@ -468,6 +487,35 @@ def test_live_page_is_served():
     finally:
         server.stop()
     assert "/poses" in html and "<canvas" in html
+
+
+@pytest.mark.parametrize("model", ["revolution", "music2dance"])
+def test_rest_bones_equal_the_offline_bone_lengths(model, rng):
+    """The live stages' bone lengths (NumPy, a tree level at a time) equal the offline normalize_bone_lengths: a
+    block of one frame, a batch of blocks, a bone of zero length (its rest offset) and a model's own dance."""
+    from dancekit.live.stages import RestBones
+    from dancekit.motion.kinematics import normalize_bone_lengths
+    from dancekit.pipelines import load_pipeline
+
+    sk = load_pipeline(model).skeleton
+    rest = RestBones(sk)
+    J = sk.num_joints
+    x = rng.standard_normal((40, J, 3)) * 30.0
+    child = next(j for j in range(J) if sk.parents[j] >= 0)
+    x[3, child] = x[3, sk.parents[child]]  # a bone of zero length
+    for poses in (x[:1], x, x.reshape(4, 10, J, 3), x.astype(np.float32)):
+        got = rest(poses)
+        assert got.dtype == np.float64 and got.shape == poses.shape
+        np.testing.assert_allclose(got, normalize_bone_lengths(poses, sk), rtol=0, atol=1e-9)
+    lengths = np.linalg.norm(got[..., [j for j in range(J) if sk.parents[j] >= 0], :]
+                             - got[..., [p for p in sk.parents if p >= 0], :], axis=-1)
+    np.testing.assert_allclose(lengths, np.broadcast_to(np.linalg.norm(sk.offsets, axis=-1)[np.asarray(sk.parents) >= 0],
+                                                        lengths.shape), atol=1e-9)
+    s = LiveSession(model)
+    s.stepper.raw = True
+    raw = s.stepper.push(rng.standard_normal((60, s.pipe.model.config.music_dim)).astype(np.float32))
+    raw = np.concatenate([raw, s.stepper.finish()]).astype(np.float64) if len(raw) else s.stepper.finish()
+    np.testing.assert_allclose(rest(raw), normalize_bone_lengths(raw, sk), rtol=0, atol=1e-6)
 
 
 def test_online_floor_bounds_turn_the_path_as_offline():

@@ -13,6 +13,7 @@ from dancekit.models.revolution import (
     RevolutionModel,
     _runs,
     auto_condition_mask,
+    band_attention,
     band_mask,
     global_attention,
     local_attention,
@@ -70,6 +71,92 @@ def test_local_attention_ignores_keys_outside_the_band():
     out2 = local_attention(q, k2, v2, half_window=2)
     torch.testing.assert_close(out[..., :8, :], out2[..., :8, :])
     assert not torch.allclose(out[..., 8:, :], out2[..., 8:, :])
+
+
+@pytest.mark.parametrize("half", [0, 1, 3, 5])
+def test_attention_of_a_range_of_queries_equals_band_masked_global(half):
+    """Queries ``[s, e)`` of a sequence of n frames against the keys within ``half`` of them (``q_offset``: where
+    the first query sits among those keys), blocked and with one score matrix: the rows of the whole sequence's
+    band-masked attention, at its start, in its middle and at its end."""
+    n = 23
+    g = gen(half)
+    q, k, v = (torch.randn(2, 3, n, 4, generator=g, dtype=torch.float64) for _ in range(3))
+    bias = torch.randn(3, 2 * half + 1, generator=g, dtype=torch.float64)
+    for b in (None, bias):
+        ref = global_attention(q, k, v, half_window=half, bias=b, mask=band_mask(n, half))
+        for s, e in [(0, 1), (0, 5), (2, 3), (4, 16), (10, 23), (22, 23), (0, 23)]:
+            ka, kb = max(0, s - half), min(n, e + half)
+            for fn in (local_attention, band_attention):
+                out = fn(q[:, :, s:e], k[:, :, ka:kb], v[:, :, ka:kb], half_window=half, bias=b, q_offset=s - ka)
+                torch.testing.assert_close(out, ref[:, :, s:e], rtol=0, atol=1e-12)
+            # more keys than the band on either side: those beyond it are not looked at
+            out = local_attention(q[:, :, s:e], k, v, half_window=half, bias=b, q_offset=s)
+            torch.testing.assert_close(out, ref[:, :, s:e], rtol=0, atol=1e-12)
+
+
+def _random_weights(model: torch.nn.Module, seed: int = 0) -> torch.nn.Module:
+    torch.manual_seed(seed)
+    with torch.no_grad():
+        for p in model.parameters():
+            p.normal_(0.0, 0.3)  # the relative bias and layer norms too (zeros and ones at initialisation)
+    return model.eval()
+
+
+@pytest.mark.parametrize("encoder, window, n_layers, pos", [("local", 6, 2, "relative"), ("local", 7, 3, "relative"),
+                                                            ("local", 0, 2, "relative"), ("local", 6, 1, "sinusoidal"),
+                                                            ("conv", 6, 2, "relative"), ("lstm", 6, 2, "relative")])
+def test_encoder_forward_range_equals_forward(encoder, window, n_layers, pos):
+    """The latents of frames ``[s, e)`` computed on what they see equal those of the whole sequence's forward
+    pass, wherever the range lies (the sequence's start and end included), short ranges (one score matrix) and
+    long ones (blocked attention) alike."""
+    from dancekit.models.revolution import MusicEncoder
+
+    enc = _random_weights(MusicEncoder(tiny(encoder=encoder, window=window, n_layers=n_layers, pos_encoding=pos)))
+    n = 41
+    music = torch.randn(2, n, D, generator=gen(3))
+    with torch.no_grad():
+        whole = enc(music)
+        for s in range(n):
+            for e in range(s + 1, n + 1):
+                torch.testing.assert_close(enc.forward_range(music, s, e), whole[:, s:e], rtol=0, atol=1e-5)
+        assert enc.forward_range(music, 5, 5).shape == (2, 0, 16)
+
+
+def test_embedded_encoder_forward_range_equals_forward():
+    """The embedded model (2 layers, ±25 frames): a frame's latent at the stream's start, in its middle and at
+    its end, and a block of frames, from the frames it sees alone."""
+    from dancekit.pipelines import load_pipeline
+
+    enc = load_pipeline("revolution").model.encoder.eval()
+    n = 160
+    music = torch.randn(1, n, enc.config.music_dim, generator=gen(4))
+    with torch.no_grad():
+        whole = enc(music)
+        for s, e in [(0, 1), (3, 4), (80, 81), (80, 87), (24, 136), (157, 158), (159, 160), (150, 160), (0, 160)]:
+            torch.testing.assert_close(enc.forward_range(music, s, e), whole[:, s:e], rtol=0, atol=1e-5)
+        # the window a live step passes: 100 frames of history, the new frame and 2 frames of lookahead; the
+        # frames embedded beforehand
+        window = music[:, 40:143]
+        torch.testing.assert_close(enc.forward_range(window, 100, 101), enc(window)[:, 100:101], rtol=0, atol=1e-5)
+        torch.testing.assert_close(enc.forward_range(enc.embed(window), 100, 101, embedded=True),
+                                   enc(window)[:, 100:101], rtol=0, atol=1e-5)
+
+
+def test_quantised_encoder_forward_range_stays_within_its_quantisation():
+    """An int8 copy (dancekit.models.precision: its linear layers quantised dynamically, each call's activations
+    scaled by their own range, so no two calls on different frames agree exactly): its latents of a range are
+    as near the float32 ones as its whole forward pass is (measured: both within 0.03)."""
+    from dancekit.models.precision import to_precision
+    from dancekit.pipelines import load_pipeline
+
+    model = load_pipeline("revolution").model
+    enc = to_precision(model, "int8").encoder.eval()
+    music = torch.randn(1, 160, enc.config.music_dim, generator=gen(6))
+    with torch.no_grad():
+        ref = model.encoder.eval()(music)
+        assert (enc(music) - ref).abs().max() < 0.06
+        for s, e in [(0, 1), (80, 83), (158, 160)]:
+            assert (enc.forward_range(music, s, e) - ref[:, s:e]).abs().max() < 0.06
 
 
 def test_encoder_relative_bias_known_answer():

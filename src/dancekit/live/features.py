@@ -81,6 +81,22 @@ class OnlineChroma:
                 my_sr /= 2.0
         lengths, _ = _dsp.wavelet_lengths(freqs, sr0, alpha)
         self.scale = 1.0 / np.sqrt(lengths)[:, None]
+        self._halver = None  # the octave decimation's resampler, built once
+
+    def _halve(self, y: np.ndarray) -> np.ndarray:
+        """:func:`dancekit.features.dsp.halve` (the same samples: soxr HQ, ``ceil(n / 2)`` of them, scaled by
+        ``sqrt(2)``) with one soxr resampler cleared between calls instead of one built per call."""
+        import soxr
+
+        if self._halver is None:
+            self._halver = soxr.ResampleStream(2, 1, 1, dtype="float32", quality="soxr_hq")
+        self._halver.clear()
+        r = self._halver.resample_chunk(np.ascontiguousarray(y, np.float32), last=True)
+        n_out = -(-len(y) // 2)
+        out = np.zeros(n_out, np.float32)
+        out[: min(n_out, len(r))] = r[:n_out]
+        out /= np.sqrt(1.0 / 2)
+        return out
 
     def frames(self, seg: np.ndarray, rel_frames: np.ndarray) -> np.ndarray:
         """Chroma ``(len(rel_frames), n_chroma)`` float32 of frames ``rel_frames`` of ``seg`` (frame ``j`` centred
@@ -93,10 +109,14 @@ class OnlineChroma:
         V = np.empty((self.n_bins, len(rel_frames)), np.complex64)
         end = self.n_bins
         for i, (basis, n_fft, hop) in enumerate(self.octaves):
-            yp = np.pad(y, (n_fft // 2, n_fft // 2))
-            cols = np.stack([yp[j * hop : j * hop + n_fft] for j in rel_frames], axis=1).astype(np.float64)
-            if cols.shape[0] < n_fft:  # pragma: no cover - frames are within seg by construction
-                raise AssertionError("frame beyond the segment")
+            cols = np.zeros((n_fft, len(rel_frames)))  # frame j: samples j·hop ± n_fft / 2, zeros beyond y's ends
+            for c, j in enumerate(rel_frames):
+                a = j * hop - n_fft // 2
+                if a + n_fft > len(y) + n_fft // 2:  # pragma: no cover - frames are within seg by construction
+                    raise AssertionError("frame beyond the segment")
+                lo, hi = max(0, a), min(len(y), a + n_fft)
+                if hi > lo:
+                    cols[lo - a : hi - a, c] = y[lo:hi]
             D = np.fft.rfft(cols, axis=0).astype(np.complex64)
             r = basis @ D
             k = r.shape[0]
@@ -106,7 +126,7 @@ class OnlineChroma:
                 V[end - k : end] = r
             end -= k
             if i < len(self.octaves) - 1 and hop % 2 == 0:
-                y = _dsp.halve(y)
+                y = self._halve(y)
         C = np.abs(V) * self.scale
         chroma = _dsp.chroma_from_cqt(C.astype(np.float32), bins_per_octave=self.bpo, n_chroma=self.n_chroma)
         return np.nan_to_num(chroma, nan=0.0).T.astype(np.float32)
@@ -151,6 +171,7 @@ class OnlineFeatures:
         self.cqt_left = int(np.ceil(LEFT_CONTEXT_S * self.sr / self.hop))  # frames re-read before the first new one
         self._win = _dsp.hann(self.n_fft)
         self._fine_win = _dsp.hann(FINE_NFFT)
+        self._tempo_win = _dsp.hann(TEMPOGRAM_WINDOW)
         self._mel_cache = np.zeros((128, 0))
         self._mel_lo = 0
         keep = max(float(context_s), LEFT_CONTEXT_S + float(lookahead_s) + 1.0)
@@ -320,7 +341,7 @@ class OnlineFeatures:
             self.env_hist = np.concatenate([np.zeros(win - half, np.float32), ramp])  # zeros before the ramp
             self.env_offset = -win
         rows = np.zeros((len(env_new), win), np.float32)
-        hann = _dsp.hann(win)
+        hann = self._tempo_win
         for k, e in enumerate(env_new):
             lo = f0 + k - win - self.env_offset  # the window of frames [f - win, f)
             frame = self.env_hist[lo : lo + win].astype(np.float64)

@@ -34,14 +34,51 @@ import numpy as np
 from dancekit.live.config import LiveConfig
 from dancekit.motion.analysis import horizontal_axes, up_sign
 from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner, turn_and_move
-from dancekit.motion.kinematics import normalize_bone_lengths
 
-__all__ = ["BeatNudge", "OnlineStages"]
+__all__ = ["BeatNudge", "OnlineStages", "RestBones"]
 
 #: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
 FLOOR_PERCENTILE = 5.0
 #: time constant (s) of the running mean pose that calming pulls towards
 MEAN_POSE_S = 2.0
+
+
+class RestBones:
+    """:func:`dancekit.motion.kinematics.normalize_bone_lengths` for NumPy poses, a level of the skeleton's tree
+    at a time: positions ``(..., J, 3)`` → float64 positions with every bone at its rest length (the observed
+    directions kept, the root where it is; a bone of zero length takes its rest offset), the skeleton's units.
+
+    Parameters
+    ----------
+    skeleton : the dance's skeleton (parents, rest offsets)
+    """
+
+    def __init__(self, skeleton):
+        parents = np.asarray(skeleton.parents)
+        J = len(parents)
+        self.roots = np.flatnonzero(parents < 0)
+        self.child = np.flatnonzero(parents >= 0)  # every joint but the roots
+        self.parent = parents[self.child]
+        offsets = np.asarray(skeleton.offsets, np.float64)[:, :3]
+        self.rest = np.linalg.norm(offsets, axis=-1)[self.child][:, None]  # (J - roots, 1)
+        self.offsets = offsets[self.child]
+        depth = np.full(J, -1)
+        for j in skeleton.topological_order:
+            depth[j] = 0 if parents[j] < 0 else depth[parents[j]] + 1
+        #: per depth ≥ 1: the joints at that depth and their parents
+        self.levels = [(np.flatnonzero(depth == k), parents[depth == k]) for k in range(1, int(depth.max()) + 1)]
+
+    def __call__(self, positions: np.ndarray) -> np.ndarray:
+        x = np.asarray(positions, np.float64)
+        v = x[..., self.child, :] - x[..., self.parent, :]  # (..., J - roots, 3) the observed bones
+        n = np.sqrt(np.sum(v * v, axis=-1, keepdims=True))
+        bones = np.empty_like(x)
+        bones[..., self.child, :] = np.where(n > 1e-9, v / np.maximum(n, 1e-9) * self.rest, self.offsets)
+        out = np.empty_like(x)
+        out[..., self.roots, :] = x[..., self.roots, :]
+        for joints, parents in self.levels:
+            out[..., joints, :] = out[..., parents, :] + bones[..., joints, :]
+        return out
 
 
 class OnlineStages:
@@ -79,6 +116,7 @@ class OnlineStages:
         names = list(skeleton.feet)
         self.feet = [skeleton.index(f) for f in names] or list(range(skeleton.num_joints))
         self.frames = 0
+        self.rest_bones = RestBones(skeleton)
 
     def process(self, poses: np.ndarray, music: np.ndarray) -> np.ndarray:
         """Poses ``(k, J, 3)`` and, per frame, whether music is playing (``(k,)`` bool or a 0-1 weight) → the
@@ -115,7 +153,7 @@ class OnlineStages:
             a = self.a_smooth if self.gain >= 1.0 else 1.0 - (1.0 - self.a_smooth) ** (self.gain**2)
             self.smoothed += a * (q - self.smoothed)  # calmer: a lower cut-off too (gain² × smooth_hz)
             out[k] = self.smoothed
-        out = np.asarray(normalize_bone_lengths(out, self.skeleton), np.float64) if len(out) else out
+        out = self.rest_bones(out) if len(out) else out
         for k in range(len(out)):
             self.lows.append(float(out[k, self.feet, self.up].min()))
             out[k, :, self.up] -= np.percentile(self.lows, FLOOR_PERCENTILE)

@@ -8,10 +8,11 @@ skeleton and units) of the frames it can dance now; :meth:`finish` dances the re
   ahead in each of its layers (the embedded model: 2 × 50 frames, 4 s at 25 fps). Live, each latent is encoded
   from the music up to ``lookahead`` frames after it (the frames beyond are not there yet: the encoder sees the
   stream's end there, as it sees a song's end offline) and ``context`` frames before it. With ``lookahead`` and
-  ``context`` at least the receptive field the latents are the offline ones, and the dance — the LSTM decoder
-  stepped with its state carried from block to block — equals one offline pass (``tests/live/test_live.py``); the
-  default lookahead is the latency floor's 3 frames, an approximation whose cost the quality benchmark
-  measures. The seed draws the initial state; the checkpoint's per-phrase state noise is drawn phrase by
+  ``context`` at least the receptive field the latents are the offline ones (each block's new latents are
+  computed on the frames they see alone: :meth:`~dancekit.models.revolution.MusicEncoder.forward_range`), and
+  the dance — the LSTM decoder stepped with its state carried from block to block — equals one offline pass
+  (``tests/live/test_live.py``); the default lookahead is the latency floor's 3 frames, an approximation whose
+  cost the quality benchmark measures. The seed draws the initial state; the checkpoint's per-phrase state noise is drawn phrase by
   phrase as the phrases come.
 * :class:`Music2DanceStepper` (Music2Dance): the WaveNet is causal; its F_map (convolutions and a BiLSTM) is
   run on the last ``context`` frames up to ``lookahead`` frames ahead, and each frame is stepped with the
@@ -103,11 +104,26 @@ class RevolutionStepper(_Stepper):
         self.phrase = v.phrase if v is not None and v.phrase > 0 and v.state_noise > 0 else 0
         self.state_noise = v.state_noise if self.phrase else 0.0
         self.root = np.zeros(2)  # the root's horizontal place (the integrated velocity)
+        #: the local encoder's embedding of the music history (1, frames, d), embedded as the rows come
+        self.embedded = model.encoder.config.encoder == "local"
+        self.emb = torch.zeros(1, 0, model.config.d_model)
         #: True: the decoded positions as they are (the live stages set the bone lengths); False: rest bone
         #: lengths, as the offline pipeline's ``postprocess`` without its floor
         self.raw = False
         J = self.skeleton.num_joints
         self._vel = slice(3 * J, 3 * J + 2)
+
+    def _append(self, rows: np.ndarray) -> None:
+        n = len(self.music)
+        super()._append(rows)
+        if self.embedded and len(self.music) > n:
+            new = torch.from_numpy(np.ascontiguousarray(self.music[n:]))[None]  # (1, k, D)
+            self.emb = torch.cat([self.emb, self.model.encoder.embed(new)], dim=1)
+
+    def _trim(self, keep_from: int) -> None:
+        start = self.music_start
+        super()._trim(keep_from)
+        self.emb = self.emb[:, self.music_start - start :]
 
     def _dance(self, upto: int) -> np.ndarray:
         from dancekit.motion.representations import decode_positions
@@ -117,8 +133,12 @@ class RevolutionStepper(_Stepper):
             return np.zeros((0, self.skeleton.num_joints, 3), np.float32)
         a = max(self.music_start, t0 - self.context)
         b = min(self.n_music, upto + self.lookahead)
-        x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
-        z = self.model._condition(self.model.encoder(x), None)[:, t0 - a : upto - a]  # (1, upto - t0, d)
+        if self.embedded:
+            x = self.emb[:, a - self.music_start : b - self.music_start]  # (1, b - a, d)
+        else:
+            x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
+        z = self.model.encoder.forward_range(x, t0 - a, upto - a, embedded=self.embedded)
+        z = self.model._condition(z, None)  # (1, upto - t0, d)
         ys = []
         for p0, p1 in self._pieces(t0, upto):
             if self.phrase and p0 > 0 and p0 % self.phrase == 0:  # a phrase starts: the state mixed with noise

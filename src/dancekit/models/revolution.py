@@ -280,6 +280,7 @@ def local_attention(
     bias: torch.Tensor | None = None,
     dropout: float = 0.0,
     training: bool = False,
+    q_offset: int = 0,
 ) -> torch.Tensor:
     """Banded scaled dot-product attention: query ``i`` attends to keys ``|i - j| <= half_window``.
 
@@ -289,9 +290,12 @@ def local_attention(
 
     Parameters
     ----------
-    q, k, v : (B, H, n, d) tensors
+    q : (B, H, n, d) tensor, query ``i`` at frame ``q_offset + i`` of the keys
+    k, v : (B, H, m, d) tensors, key ``j`` at frame ``j`` (``m = n`` and ``q_offset = 0``: self-attention over
+        one sequence); the keys are the whole sequence there is: a query near either end sees fewer of them
     half_window : h = k // 2
     bias : optional (H, 2h + 1) learned bias per head and relative offset ``j - i``
+    q_offset : frame of the first query among the keys (≥ 0)
 
     Returns
     -------
@@ -300,20 +304,29 @@ def local_attention(
     B, H, n, d = q.shape
     h = int(half_window)
     w = max(h, 1)
+    if q_offset < 0:
+        raise ParameterError(f"q_offset must be >= 0, got {q_offset}")
+    if q_offset > h:  # keys before the first query's band are never looked at
+        k, v = k[:, :, q_offset - h :], v[:, :, q_offset - h :]
+        q_offset = h
+    m = min(k.shape[2], q_offset + n + h)  # nor are keys after the last query's band
+    k, v = k[:, :, :m], v[:, :, :m]
     nb = -(-n // w)  # number of blocks
     pad = nb * w - n
+    left = w - q_offset  # the keys padded so that query block b's neighbourhood is key blocks b … b + 2
+    right = (nb + 1) * w + q_offset - m
     qb = F.pad(q, (0, 0, 0, pad)).view(B, H, nb, w, d)  # (B, H, nb, w, d)
-    kp = F.pad(k, (0, 0, w, pad + w)).view(B, H, nb + 2, w, d)
-    vp = F.pad(v, (0, 0, w, pad + w)).view(B, H, nb + 2, w, d)
+    kp = F.pad(k, (0, 0, left, right)).view(B, H, nb + 2, w, d)
+    vp = F.pad(v, (0, 0, left, right)).view(B, H, nb + 2, w, d)
     kb = torch.cat([kp[:, :, :-2], kp[:, :, 1:-1], kp[:, :, 2:]], dim=3)  # (B, H, nb, 3w, d)
     vb = torch.cat([vp[:, :, :-2], vp[:, :, 1:-1], vp[:, :, 2:]], dim=3)  # (B, H, nb, 3w, d)
     scores = torch.einsum("bhnqd,bhnkd->bhnqk", qb, kb) / math.sqrt(d)  # (B, H, nb, w, 3w)
 
     dev = q.device
     offsets = torch.arange(3 * w, device=dev)[None, :] - w - torch.arange(w, device=dev)[:, None]  # (w, 3w)
-    key_pos = torch.arange(nb, device=dev)[:, None] * w - w + torch.arange(3 * w, device=dev)[None, :]  # (nb, 3w)
+    key_pos = torch.arange(nb, device=dev)[:, None] * w - left + torch.arange(3 * w, device=dev)[None, :]  # (nb, 3w)
     query_pos = torch.arange(nb, device=dev)[:, None] * w + torch.arange(w, device=dev)[None, :]  # (nb, w)
-    key_ok = (key_pos >= 0) & (key_pos < n)
+    key_ok = (key_pos >= 0) & (key_pos < m)
     # padded queries (beyond n) may look at padded keys so that no row is empty (their output is dropped)
     allowed = (offsets.abs() <= h)[None] & (key_ok[:, None, :] | (query_pos >= n)[:, :, None])  # (nb, w, 3w)
     if bias is not None:
@@ -324,6 +337,32 @@ def local_attention(
         attn = F.dropout(attn, p=dropout)
     out = torch.einsum("bhnqk,bhnkd->bhnqd", attn, vb)  # (B, H, nb, w, d)
     return out.reshape(B, H, nb * w, d)[:, :, :n]
+
+
+def band_attention(
+    q: torch.Tensor,
+    k: torch.Tensor,
+    v: torch.Tensor,
+    *,
+    half_window: int,
+    bias: torch.Tensor | None = None,
+    dropout: float = 0.0,
+    training: bool = False,
+    q_offset: int = 0,
+) -> torch.Tensor:
+    """:func:`local_attention` with one ``(B, H, n, m)`` score matrix: fewer operations for a few queries
+    (O(n·m) memory). Shapes and arguments as :func:`local_attention`."""
+    n, m, d = q.shape[2], k.shape[2], q.shape[3]
+    h = int(half_window)
+    offsets = torch.arange(m, device=q.device)[None, :] - torch.arange(q_offset, q_offset + n, device=q.device)[:, None]
+    scores = q @ k.transpose(-1, -2) / math.sqrt(d)  # (B, H, n, m)
+    if bias is not None:
+        scores = scores + _relative_bias(bias, offsets, h)  # (H, n, m) broadcast
+    scores = scores.masked_fill(offsets.abs() > h, float("-inf"))
+    attn = torch.softmax(scores, dim=-1)
+    if dropout and training:
+        attn = F.dropout(attn, p=dropout)
+    return attn @ v  # (B, H, n, d)
 
 
 def global_attention(
@@ -393,6 +432,29 @@ class SelfAttention(nn.Module):
         y = fn(q, k, v, half_window=self.half, bias=self.rel_bias, dropout=self.dropout, training=self.training)
         return self.proj(y.transpose(1, 2).reshape(B, n, d))  # (B, n, d)
 
+    def forward_range(self, x: torch.Tensor, start: int, stop: int) -> torch.Tensor:
+        """The outputs ``(B, stop - start, d)`` of frames ``[start, stop)`` of :meth:`forward` on ``x (B, n, d)``
+        (local attention only): the queries of those frames alone, the keys and values of the frames within
+        ``half_window`` of them."""
+        if not self.local:
+            raise ParameterError("forward_range needs the local (banded) attention")
+        B, n, d = x.shape
+        h, H = self.half, self.n_heads
+        a, b = max(0, start - h), min(n, stop + h)  # the keys looked at
+        if type(self.qkv) is nn.Linear:  # the queries of [start, stop) alone
+            W, c = self.qkv.weight, self.qkv.bias
+            q = F.linear(x[:, start:stop], W[:d], c[:d]).view(B, stop - start, H, d // H).transpose(1, 2)
+            kv = F.linear(x[:, a:b], W[d:], c[d:])  # (B, m, 2d)
+        else:  # a quantised copy (dancekit.models.precision): its projection of every key frame
+            qkv = self.qkv(x[:, a:b])  # (B, m, 3d)
+            q = qkv[:, start - a : stop - a, :d].reshape(B, stop - start, H, d // H).transpose(1, 2)
+            kv = qkv[:, :, d:]
+        k, v = kv.reshape(B, b - a, 2, H, d // H).permute(2, 0, 3, 1, 4)  # (B, H, m, dh) each
+        fn = band_attention if stop - start <= 4 * max(h, 1) else local_attention  # few queries: one score matrix
+        y = fn(q, k, v, half_window=h, bias=self.rel_bias, dropout=self.dropout, training=self.training,
+               q_offset=start - a)
+        return self.proj(y.transpose(1, 2).reshape(B, stop - start, d))  # (B, stop - start, d)
+
 
 class TransformerLayer(nn.Module):
     """Pre-norm transformer layer: self-attention sublayer + position-wise feed-forward sublayer."""
@@ -410,6 +472,12 @@ class TransformerLayer(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         x = x + self.drop(self.attn(self.ln1(x)))  # (B, n, d)
         return x + self.drop(self.ff(self.ln2(x)))
+
+    def forward_range(self, x: torch.Tensor, start: int, stop: int) -> torch.Tensor:
+        """Frames ``[start, stop)`` of :meth:`forward` on ``x (B, n, d)`` → ``(B, stop - start, d)`` (local
+        attention; ``x`` need only hold the frames within ``half_window`` of them, the sequence's ends aside)."""
+        y = x[:, start:stop] + self.drop(self.attn.forward_range(self.ln1(x), start, stop))
+        return y + self.drop(self.ff(self.ln2(y)))
 
 
 class GatedConvLayer(nn.Module):
@@ -468,6 +536,33 @@ class MusicEncoder(nn.Module):
         for layer in self.layers:
             x = layer(x)
         return self.norm(x)  # (B, n, d)
+
+    def forward_range(self, music: torch.Tensor, start: int, stop: int, *, embedded: bool = False) -> torch.Tensor:
+        """``forward(music)[:, start:stop]`` — music features ``(B, n, D)`` → latents ``(B, stop - start, d)`` —
+        computed on what those frames see alone: for the local encoder the last layer's queries at
+        ``[start, stop)``, each layer below over ``half_window`` frames more on each side (clipped to
+        ``[0, n)``: the sequence's ends are its ends, as in :meth:`forward`), the embedding over
+        ``n_layers · half_window`` more; the other encoders run :meth:`forward` and keep those frames.
+        ``embedded``: ``music`` is already ``embed(music)`` ``(B, n, d)`` (the local encoder only)."""
+        n = music.shape[1]
+        start, stop = max(0, int(start)), min(n, int(stop))
+        c = self.config
+        if embedded and c.encoder != "local":
+            raise ParameterError(f"embedded frames are for the local encoder, not {c.encoder!r}")
+        if c.encoder != "local" or stop <= start:
+            return self.forward(music)[:, start:stop]
+        h, L = c.half_window, len(self.layers)
+        lo, hi = max(0, start - L * h), min(n, stop + L * h)  # the frames embedded
+        x = music[:, lo:hi] if embedded else self.embed(music[:, lo:hi])  # (B, hi - lo, d)
+        if c.pos_encoding == "sinusoidal":
+            x = x + sinusoidal_encoding(hi, x.shape[2], device=x.device)[lo:]
+        x = self.drop(x)
+        for i, layer in enumerate(self.layers):
+            r = (L - 1 - i) * h  # the frames this layer's outputs are needed at: [start - r, stop + r)
+            a, b = max(0, start - r), min(n, stop + r)
+            x = layer.forward_range(x, a - lo, b - lo)  # (B, b - a, d)
+            lo = a
+        return self.norm(x)  # (B, stop - start, d)
 
 
 # --------------------------------------------------------------------------------------------------
