@@ -13,8 +13,9 @@ frame (or cut) to ``round(duration * fps)`` frames.
 Speed (a minute of dance in a few seconds on two cores): the mp4's frames are drawn in
 Y'CbCr (BT.601, limited range: the values ffmpeg's own rgb24 -> yuv420p conversion gives)
 and piped as yuv420p, half the bytes of RGB and no conversion in ffmpeg; the sky, the floor
-and the soft shadow are made at half resolution and pixel-doubled once, and only the
-figure's region has its chroma averaged; the figures are drawn with Pillow's drawing core
+and the soft shadow are made at half resolution, where they are the chroma planes, and the
+Y plane is their Y pixel-doubled: only the figure's region is drawn at full resolution (2x
+supersampled) and has its chroma averaged; the figures are drawn with Pillow's drawing core
 (a private API, checked at import, with the public one as fallback); a writer thread feeds
 ffmpeg while the next frame is drawn; x264 runs ``ultrafast`` on one thread, beside the
 drawing. :meth:`FrameRenderer.render` gives RGB frames by default (tests, stills).
@@ -176,7 +177,6 @@ class FrameRenderer:
         self.scene = scene
         self.figure = figure
         self.mode = mode
-        self._box, self._last = None, (None, None, None)  # the figure's region; the last frame (render_yuv420)
         self._pal = _palettes(mode)
         self.W, self.H = int(width), int(height)
         az = default_azimuth(scene) if azimuth is None else float(azimuth)
@@ -326,32 +326,50 @@ class FrameRenderer:
 
     def render(self, t: int) -> Image.Image:
         """Frame ``t`` as an image of the renderer's mode, RGB by default (``t`` is clipped to the motion's frames)."""
-        t = int(min(max(t, 0), self.scene.num_frames - 1))
-        pos = self.scene.positions[t]
-        half = self._base(t)
-        self._shadow(half, t, pos)
+        half, fig, x0, y0 = self._layers(t)
         # NEAREST: the checker is already box-filtered, the shadow soft (BILINEAR would cost 2 ms a frame)
         frame = self._double(half)
-        self._box = None  # set by _figure_region
-        if self.figure == "body" and len(self.scene.bones):
-            self._body(frame, t, pos)
-        else:
-            self._figure(frame, t, pos)
-        self._last = (frame, half, self._box)
+        if fig is not None:
+            frame.paste(fig, (x0, y0))
         return frame
 
     def render_yuv420(self, t: int) -> bytes:
         """Frame ``t`` as raw yuv420p bytes, equal to ``yuv420(self.render(t))`` (a renderer in YCbCr mode, even
-        width and height): outside the figure's region the frame is the pixel-doubled ``half``, whose chroma is
-        already the 2 x 2 mean, so only the figure's region is averaged."""
-        frame = self.render(t)
-        last, half, box = self._last
-        if last is not frame or self.mode != "YCbCr":  # not this renderer's frame (a wrapped render)
-            return yuv420(frame)
-        if box is not None:
-            x0, y0, x1, y1 = box
-            half.paste(frame.reduce(2, box=box), (x0 // 2, y0 // 2))
-        return b"".join((frame.tobytes("raw", "Y"), half.tobytes("raw", "Cb"), half.tobytes("raw", "Cr")))
+        width and height), without the full-resolution frame: outside the figure's region the frame is the
+        pixel-doubled ``half``, whose chroma is already the 2 x 2 mean, so the Y plane is ``half``'s Y doubled
+        with the figure's Y pasted in, and the chroma planes are ``half``'s with the figure's region averaged."""
+        if self.mode != "YCbCr" or self.W % 2 or self.H % 2 or getattr(self.render, "__func__", None) is not _RENDER:
+            return yuv420(self.render(t))  # a render replaced (a subclass's, a test's): its frames
+        half, fig, x0, y0 = self._layers(t)
+        w2, h2 = half.size
+        out = np.empty(self.W * self.H + 2 * w2 * h2, np.uint8)  # the yuv420p frame: Y (H, W), Cb, Cr (H/2, W/2)
+        y_plane = out[: self.W * self.H].reshape(self.H, self.W)
+        # pixel doubling of Y: each half-resolution byte times 257 is the 16-bit word of two equal bytes, and
+        # each row of words is written to two rows
+        y_half = np.frombuffer(half.getchannel("Y").tobytes(), np.uint8).reshape(h2, w2)
+        np.multiply(y_half[:, None, :], np.uint16(257), out=y_plane.view(np.uint16).reshape(h2, 2, w2))
+        if fig is not None:
+            fw, fh = fig.size
+            y_plane[y0 : y0 + fh, x0 : x0 + fw] = np.frombuffer(fig.tobytes("raw", "Y"), np.uint8).reshape(fh, fw)
+            half.paste(fig.reduce(2), (x0 // 2, y0 // 2))
+        n = w2 * h2
+        out[self.W * self.H : self.W * self.H + n] = np.frombuffer(half.tobytes("raw", "Cb"), np.uint8)
+        out[self.W * self.H + n :] = np.frombuffer(half.tobytes("raw", "Cr"), np.uint8)
+        return out.tobytes()
+
+    def _layers(self, t: int) -> tuple[Image.Image, Image.Image | None, int, int]:
+        """The parts of frame ``t`` (clipped to the motion's frames): the sky, floor and shadow at half resolution
+        (W/2, H/2, rounded up), and the figure's region at full resolution with its top-left corner ``(x0, y0)``
+        (even), which covers the pixel-doubled ``half`` there (None, 0, 0 when the figure is off screen)."""
+        t = int(min(max(t, 0), self.scene.num_frames - 1))
+        pos = self.scene.positions[t]
+        half = self._base(t)
+        self._shadow(half, t, pos)
+        if self.figure == "body" and len(self.scene.bones):
+            region = self._body(half, t, pos)
+        else:
+            region = self._figure(half, t, pos)
+        return (half, None, 0, 0) if region is None else (half, *region)
 
     def _shadow(self, half: Image.Image, t: int, pos: np.ndarray) -> None:
         """Bones projected straight down, drawn at quarter resolution, blurred and upsampled to ``half``: the frame's
@@ -393,8 +411,9 @@ class FrameRenderer:
         mask = mask.resize((x1 - x0, y1 - y0), Image.BILINEAR, box=(0, 0, (x1 - x0) / q, (y1 - y0) / q))
         half.paste(self._pal["shadow"], (x0, y0, x1, y1), mask)
 
-    def _figure(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
-        """Bones (far to near) and joints drawn at ``_SS`` x resolution on a crop, then reduced."""
+    def _figure(self, half: Image.Image, t: int, pos: np.ndarray) -> tuple[Image.Image, int, int] | None:
+        """Bones (far to near) and joints drawn at ``_SS`` x resolution on a crop of the pixel-doubled ``half``,
+        then reduced: the figure's region at full resolution and its top-left corner (see :meth:`_layers`)."""
         sc = self.scene
         uv, z = self.project(t, pos)
         zr = float(np.median(z))
@@ -402,9 +421,9 @@ class FrameRenderer:
         rj = _JOINT_RADIUS * self.k * self.f / z
         rh = _HEAD_RADIUS * self.k * self.f / z
         reach = float(max(rj.max(), rh.max() if sc.head is not None else 0.0)) + 3
-        region = self._figure_region(frame, uv, reach)
+        region = self._figure_region(half, uv, reach)
         if region is None:
-            return
+            return None
         crop, x0, y0 = region
         draw = ImageDraw.Draw(crop)
         loc = (uv - [x0, y0]) * _SS
@@ -456,13 +475,14 @@ class FrameRenderer:
             for j in range(len(pos)):
                 r = rj[j] * _SS
                 draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=self._pal["centre"])
-        frame.paste(crop.reduce(_SS), (x0, y0))
+        return crop.reduce(_SS), x0, y0
 
-    def _figure_region(self, frame: Image.Image, uv: np.ndarray,
+    def _figure_region(self, half: Image.Image, uv: np.ndarray,
                        reach: float) -> tuple[Image.Image, int, int] | None:
-        """The part of ``frame`` around the projected joints ``uv`` (J, 2) plus ``reach`` pixels, clipped to the
-        frame and upscaled ``_SS`` times for supersampled drawing, with its top-left corner ``(x0, y0)``;
-        None when less than 2 pixels of it are on screen."""
+        """The part of the frame around the projected joints ``uv`` (J, 2) plus ``reach`` pixels, clipped to the
+        frame, with even corners, as a crop of the pixel-doubled ``half`` upscaled ``_SS`` times for supersampled
+        drawing, and its top-left corner ``(x0, y0)`` in frame pixels; None when less than 2 pixels of it are on
+        screen."""
         x0 = int(max(math.floor(uv[:, 0].min() - reach), 0))
         y0 = int(max(math.floor(uv[:, 1].min() - reach), 0))
         x1 = int(min(math.ceil(uv[:, 0].max() + reach), self.W))
@@ -472,12 +492,15 @@ class FrameRenderer:
         # even corners: the region is whole 2 x 2 blocks of the half-resolution sky and floor (render_yuv420)
         x0, y0 = x0 - x0 % 2, y0 - y0 % 2
         x1, y1 = min(x1 + x1 % 2, self.W), min(y1 + y1 % 2, self.H)
-        self._box = (x0, y0, x1, y1)
-        crop = frame.resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST, box=(x0, y0, x1, y1))
+        # NEAREST by 2 * _SS from half: pixel (i, j) of the crop is half's (x0/2 + i // (2 _SS), ...), as the
+        # doubled frame's (x0 + i // _SS, ...) is (the sampling positions are exact binary fractions)
+        box = (0.5 * x0, 0.5 * y0, 0.5 * x1, 0.5 * y1)
+        crop = half.resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST, box=box)
         return crop, x0, y0
 
-    def _body(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
-        """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled.
+    def _body(self, half: Image.Image, t: int, pos: np.ndarray) -> tuple[Image.Image, int, int] | None:
+        """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled, as
+        :meth:`_figure` draws the stick figure.
 
         The per-item work is on plain Python floats (numpy scalars cost more than the drawing).
         """
@@ -487,9 +510,9 @@ class FrameRenderer:
         pix = self.f / z  # pixels per metre at each joint
         rh = 1.15 * _HEAD_RADIUS * self.k * pix
         reach = float(max((_LIMB_RADIUS[1] * self.k * pix).max(), rh.max() if sc.head is not None else 0.0)) + 3
-        region = self._figure_region(frame, uv, reach)
+        region = self._figure_region(half, uv, reach)
         if region is None:
-            return
+            return None
         crop, x0, y0 = region
         draw = ImageDraw.Draw(crop)
         loc_np = (uv - [x0, y0]) * _SS
@@ -556,7 +579,10 @@ class FrameRenderer:
                 disc([qx - r2, qy - r2, qx + r2, qy + r2], pal[0][lv], 1)
                 r3, o = 0.35 * r, 0.3 * r
                 disc([qx - o - r3, qy - o - r3, qx - o + r3, qy - o + r3], light[0][lv], 1)
-        frame.paste(crop.reduce(_SS), (x0, y0))
+        return crop.reduce(_SS), x0, y0
+
+
+_RENDER = FrameRenderer.render  # render_yuv420 draws the same frames itself, unless render is replaced
 
 
 def yuv420(frame: Image.Image) -> bytes:
