@@ -775,11 +775,6 @@ def render_mp4(
         n_frames = max(1, int(round(span.duration * scene.fps)))
     else:
         n_frames = scene.num_frames
-    # frames are drawn in YCbCr and sent as yuv420p: ffmpeg has no colour conversion to do
-    renderer = FrameRenderer(
-        scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
-        figure=options.figure, mode="YCbCr",
-    )
     rate = Fraction(scene.fps).limit_denominator(1001)
 
     cmd = [
@@ -810,6 +805,12 @@ def render_mp4(
             raise ExternalToolError(f"cannot start ffmpeg ({cmd[0]}): {exc}") from exc
         writer = _PipeWriter(proc.stdin)
         try:
+            # made while ffmpeg starts (about 0.1 s each); frames are drawn in YCbCr and sent as yuv420p, so
+            # ffmpeg has no colour conversion to do
+            renderer = FrameRenderer(
+                scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
+                figure=options.figure, mode="YCbCr",
+            )
             writer.start()
             for t in frames:
                 if writer.error is not None:
