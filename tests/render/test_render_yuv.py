@@ -17,7 +17,7 @@ from dancekit.errors import ExternalToolError, ParameterError
 from dancekit.render import RenderOptions, render_mp4
 from dancekit.render._ffmpeg import ffmpeg_exe
 from dancekit.render._scene import prepare_scene
-from dancekit.render.video import FrameRenderer, _square_wave, _to_mode, yuv420
+from dancekit.render.video import FrameRenderer, _median, _square_wave, _to_mode, yuv420
 
 # ITU-R BT.601 in 8 bits, limited range: the 100 % colour bars (Y', Cb, Cr), as published in the standard's tables
 BARS = {
@@ -120,6 +120,18 @@ def test_square_wave_is_the_plain_formula():
         c = np.float32(c)
         got = _square_wave(off * np.float32(0.5), c, gain * np.float32(2.0))
         assert np.array_equal(got, _plain_square_wave(off, c, gain)), c
+
+
+def test_median_is_numpys():
+    """The figure's reference depth: numpy's median, bit for bit, for odd and even counts, ties and one value."""
+    rng = np.random.default_rng(1)
+    for n in [1, 2, 3, 4, 13, 22, 23, 24, 55]:
+        for _ in range(200):
+            z = rng.uniform(0.5, 9.0, n) * 10.0 ** rng.integers(-3, 3)
+            if n > 3:
+                z[: n // 3] = z[n // 2]  # ties
+            assert _median(z) == float(np.median(z)), z
+    assert np.isnan(_median(np.array([1.0, np.nan, 3.0])))
 
 
 @pytest.mark.parametrize("mode", ["RGB", "YCbCr"])
