@@ -245,6 +245,25 @@ def test_mp4_default_slice_follows_the_motion_and_song_end(tmp_path, song):
     )  # tone at 1.5 s of the song
 
 
+def test_audio_duration_probes_each_file_version_once(tmp_path, song, monkeypatch):
+    """The command line and the render both ask a song's length: one ffmpeg run answers both; a file written
+    again (another length) is probed again, and a missing one is still an error."""
+    import dancekit.render._ffmpeg as ff
+
+    runs = []
+    real = ff.subprocess.run
+    monkeypatch.setattr(ff.subprocess, "run", lambda *a, **k: (runs.append(a[0]), real(*a, **k))[1])
+    assert audio_duration(song) == pytest.approx(3.0, abs=0.05)
+    assert audio_duration(str(song)) == pytest.approx(3.0, abs=0.05)
+    assert len(runs) == 1
+    write_song(song, [(2.0, 0.5)])
+    assert audio_duration(song) == pytest.approx(2.0, abs=0.05)
+    assert len(runs) == 2
+    song.unlink()
+    with pytest.raises(AudioError, match="not found"):
+        audio_duration(song)
+
+
 def test_mp4_without_audio(tmp_path):
     out = tmp_path / "silent.mp4"
     render_mp4(

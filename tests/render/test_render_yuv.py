@@ -17,7 +17,7 @@ from dancekit.errors import ExternalToolError, ParameterError
 from dancekit.render import RenderOptions, render_mp4
 from dancekit.render._ffmpeg import ffmpeg_exe
 from dancekit.render._scene import prepare_scene
-from dancekit.render.video import FrameRenderer, _to_mode, yuv420
+from dancekit.render.video import FrameRenderer, _median, _square_wave, _to_mode, yuv420
 
 # ITU-R BT.601 in 8 bits, limited range: the 100 % colour bars (Y', Cb, Cr), as published in the standard's tables
 BARS = {
@@ -97,6 +97,62 @@ def test_render_yuv420_is_yuv420_of_the_frame(fig):
     # a camera so close that the figure leaves the frame on some side
     r = FrameRenderer(sc, width=64, height=48, figure=fig, mode="YCbCr", fov=5.0)
     assert r.render_yuv420(20) == yuv420(r.render(20))
+
+
+def _plain_square_wave(off: np.ndarray, c: float, a: np.ndarray) -> np.ndarray:
+    """The floor's box-filtered square wave as first written (float32): clip(a (|((x + 1.5) mod 2) - 1| - 0.5), -1, 1)
+    of x = off + c tiles."""
+    x = off + np.float32(c + 1.5)
+    x = x - 2.0 * np.floor(x * np.float32(0.5))
+    return np.clip((np.abs(x - 1.0) - 0.5) * a, -1.0, 1.0)
+
+
+def test_square_wave_is_the_plain_formula():
+    """The floor's square wave, from halved offsets and doubled gains in fewer passes, is the plain formula's bit for
+    bit: offsets across many tiles, on and near tile edges, gains from blurred to sharp, camera offsets of any sign."""
+    rng = np.random.default_rng(0)
+    edges = np.arange(-40, 41, dtype=np.float32) * np.float32(0.5)
+    off = np.concatenate([rng.uniform(-300, 300, 20000), rng.uniform(-3, 3, 20000), edges,
+                          np.nextafter(edges, np.float32(np.inf)), np.nextafter(edges, np.float32(-np.inf))])
+    off = off.astype(np.float32)
+    gain = np.exp(rng.uniform(-3, 6, off.size)).astype(np.float32)
+    for c in [0.0, 0.25, -1.75, 3.1, -123.456, 2.0**-20, *rng.uniform(-500, 500, 30)]:
+        c = np.float32(c)
+        got = _square_wave(off * np.float32(0.5), c, gain * np.float32(2.0))
+        assert np.array_equal(got, _plain_square_wave(off, c, gain)), c
+
+
+def test_median_is_numpys():
+    """The figure's reference depth: numpy's median, bit for bit, for odd and even counts, ties and one value."""
+    rng = np.random.default_rng(1)
+    for n in [1, 2, 3, 4, 13, 22, 23, 24, 55]:
+        for _ in range(200):
+            z = rng.uniform(0.5, 9.0, n) * 10.0 ** rng.integers(-3, 3)
+            if n > 3:
+                z[: n // 3] = z[n // 2]  # ties
+            assert _median(z) == float(np.median(z)), z
+    assert np.isnan(_median(np.array([1.0, np.nan, 3.0])))
+
+
+@pytest.mark.parametrize("mode", ["RGB", "YCbCr"])
+def test_floor_is_the_blend_of_the_plain_checker(mode):
+    """A frame's floor: the plain checker's weights (from the renderer's offsets and gains) blending the two tile
+    colours over the floor's rows, the sky above, as Image.composite of the whole image gives."""
+    sc = prepare_scene(figure(2.0, speed=1.5), parents=PARENTS, fps=FPS, unit_scale=1.0, sides=SIDES, head=2)
+    r = FrameRenderer(sc, width=160, height=120, mode=mode)
+    off_x, off_z = r._half_offx * np.float32(2.0), r._half_offz * np.float32(2.0)  # exact
+    a_x, a_z = r._gain2x * np.float32(0.5), r._gain2z * np.float32(0.5)
+    r2 = r.row0 // 2
+    for t in range(0, sc.num_frames, 5):
+        half = r._base(t)
+        cx, cz = r.cam[t, 0] / 0.5, r.cam[t, 2] / 0.5  # tiles of 0.5 m
+        want = _plain_square_wave(off_x, cx, a_x) * _plain_square_wave(off_z, cz, a_z)
+        want = (want * np.float32(127.5) + np.float32(128.0)).astype(np.uint8)
+        light = Image.new(mode, half.size)
+        light.paste(r._floor_light, (0, r2))
+        blend = np.zeros(half.size[::-1], np.uint8)
+        blend[r2:] = want
+        assert half.tobytes() == Image.composite(light, r._floor_dark, Image.fromarray(blend)).tobytes(), t
 
 
 def test_mp4_colours_are_the_rgb_frames(tmp_path):

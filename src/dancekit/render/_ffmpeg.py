@@ -8,6 +8,7 @@ with ffmpeg's last stderr line.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -48,7 +49,9 @@ def _hms(match: re.Match) -> float:
 def audio_duration(path: str | os.PathLike) -> float:
     """Duration in seconds of the first audio stream of ``path``.
 
-    Read from the container header; when the header has none, the stream is decoded.
+    Read from the container header; when the header has none, the stream is decoded. Remembered per file
+    version (path, inode, size and change times) for the process: rendering a song asks twice (the command
+    line's check, then the slice), and each ask is an ffmpeg run.
 
     Raises
     ------
@@ -58,6 +61,17 @@ def audio_duration(path: str | os.PathLike) -> float:
     path = Path(path)
     if not path.is_file():
         raise AudioError(f"audio file not found: {path}")
+    try:
+        st = path.stat()
+    except OSError as exc:
+        raise AudioError(f"cannot read audio file {path}: {exc}") from exc
+    return _probed_duration(path, path.resolve(), (st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns))
+
+
+@functools.lru_cache(maxsize=64)
+def _probed_duration(path: Path, resolved: Path, version: tuple) -> float:
+    """:func:`audio_duration` of one version of a file (``resolved`` and ``version`` only key the cache; messages
+    name ``path``)."""
     cmd = [
         ffmpeg_exe(),
         "-hide_banner",

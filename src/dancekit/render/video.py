@@ -13,8 +13,9 @@ frame (or cut) to ``round(duration * fps)`` frames.
 Speed (a minute of dance in a few seconds on two cores): the mp4's frames are drawn in
 Y'CbCr (BT.601, limited range: the values ffmpeg's own rgb24 -> yuv420p conversion gives)
 and piped as yuv420p, half the bytes of RGB and no conversion in ffmpeg; the sky, the floor
-and the soft shadow are made at half resolution and pixel-doubled once, and only the
-figure's region has its chroma averaged; the figures are drawn with Pillow's drawing core
+and the soft shadow are made at half resolution, where they are the chroma planes, and the
+Y plane is their Y pixel-doubled: only the figure's region is drawn at full resolution (2x
+supersampled) and has its chroma averaged; the figures are drawn with Pillow's drawing core
 (a private API, checked at import, with the public one as fallback); a writer thread feeds
 ffmpeg while the next frame is drawn; x264 runs ``ultrafast`` on one thread, beside the
 drawing. :meth:`FrameRenderer.render` gives RGB frames by default (tests, stills).
@@ -139,6 +140,34 @@ def _inks() -> dict | None:
 _INKS = _inks()
 
 
+def _median(values: np.ndarray) -> float:
+    """``float(np.median(values))`` of a 1-D float64 array, the same value in a microsecond rather than 40 (the
+    middle value, or the mean of the two middle ones as numpy takes it: (a + b) / 2)."""
+    s = sorted(values.tolist())
+    n = len(s)
+    if values.dtype != np.float64 or n == 0 or not math.isfinite(s[0] + s[-1]):
+        return float(np.median(values))  # numpy's answer (and warnings) for other types, empty or non-finite
+    return s[n // 2] if n % 2 else (s[n // 2 - 1] + s[n // 2]) / 2
+
+
+def _square_wave(half_off: np.ndarray, c: float, gain2: np.ndarray) -> np.ndarray:
+    """The floor's box-filtered square wave of period 2 tiles, +1 on even tiles (float32, a new array of
+    ``half_off``'s shape): clip(a h(x), -1, 1) with the triangle wave h(x) = |((x + 1.5) mod 2) - 1| - 0.5, the
+    signed distance to the nearest tile edge, of x = off + c tiles (off float32 per pixel, c a scalar) and the
+    filter gain a (per pixel, 1 / the pixel's footprint in tiles), from ``half_off`` = off / 2 and ``gain2`` = 2 a.
+
+    With u = x / 2 (exact: half_off + (c + 1.5) / 2 rounds as off + (c + 1.5) does, halved) and f = u - floor(u)
+    (exact), (x + 1.5) mod 2 is 2 f and a h(x) = 2 a (|f - 1/2| - 1/4): each step is the plain formula's halved or
+    doubled, so the float32 results are the same, in 8 passes instead of 11."""
+    u = half_off + np.float32(c + 1.5) * np.float32(0.5)  # in place from here: fewer arrays
+    u -= np.floor(u)
+    u -= 0.5
+    np.abs(u, out=u)
+    u -= 0.25
+    u *= gain2
+    return np.clip(u, -1.0, 1.0, out=u)
+
+
 class FrameRenderer:
     """Draws the frames of one :class:`~dancekit.render._scene.Scene` (RGB, ``height x width``).
 
@@ -176,7 +205,6 @@ class FrameRenderer:
         self.scene = scene
         self.figure = figure
         self.mode = mode
-        self._box, self._last = None, (None, None, None)  # the figure's region; the last frame (render_yuv420)
         self._pal = _palettes(mode)
         self.W, self.H = int(width), int(height)
         az = default_azimuth(scene) if azimuth is None else float(azimuth)
@@ -265,49 +293,36 @@ class FrameRenderer:
         # footprint of a half-resolution pixel on the floor, in tiles (box-filter width)
         gx = np.abs(np.gradient(offx, axis=1)) + np.abs(np.gradient(offx, axis=0))
         gz = np.abs(np.gradient(offz, axis=1)) + np.abs(np.gradient(offz, axis=0))
-        self._offx = (offx / _TILE).astype(np.float32)
-        self._offz = (offz / _TILE).astype(np.float32)
-        self._ax = (2.0 * _TILE / np.maximum(gx, 1e-9)).astype(np.float32)
-        self._az = (2.0 * _TILE / np.maximum(gz, 1e-9)).astype(np.float32)
+        # the floor's offsets in tiles and the box filter's gains (1 / footprint in tiles), float32, as
+        # _square_wave takes them: offsets halved, gains doubled (h2, w2)
+        self._half_offx = (offx / _TILE).astype(np.float32) * np.float32(0.5)
+        self._half_offz = (offz / _TILE).astype(np.float32) * np.float32(0.5)
+        self._gain2x = (2.0 * _TILE / np.maximum(gx, 1e-9)).astype(np.float32) * np.float32(2.0)
+        self._gain2z = (2.0 * _TILE / np.maximum(gz, 1e-9)).astype(np.float32) * np.float32(2.0)
         fog = np.clip(dist / _FOG, 0.0, 1.0)[..., None] ** 1.5
         sky = self.background[self.row0 : self.row0 + 2 * h2 : 2, ::2][:h2, :w2]
-        # the sky above two floors of one tile colour each, faded into the sky; a frame blends them by the
-        # filtered checker (its blending weights, 0..255, are kept in self._blend: 0 on the sky)
-        r2 = self.row0 // 2
-        self._floor_light, self._floor_dark = self._bg_half.copy(), self._bg_half.copy()
-        self._floor_light.paste(_image(_to_mode(_TILE_A * (1 - fog) + sky * fog, self.mode), self.mode), (0, r2))
-        self._floor_dark.paste(_image(_to_mode(_TILE_B * (1 - fog) + sky * fog, self.mode), self.mode), (0, r2))
-        self._blend = np.zeros(self._half[::-1], np.uint8)
+        # the sky above the floor of the dark tile colour faded into the sky, and the floor's rows alone in the
+        # light colour; a frame blends them by the filtered checker (its blending weights, 0..255, in self._blend)
+        self._floor_dark = self._bg_half.copy()
+        dark = _image(_to_mode(_TILE_B * (1 - fog) + sky * fog, self.mode), self.mode)
+        self._floor_dark.paste(dark, (0, self.row0 // 2))
+        self._floor_light = _image(_to_mode(_TILE_A * (1 - fog) + sky * fog, self.mode), self.mode)  # (w2, h2)
+        self._blend = np.zeros((h2, w2), np.uint8)
 
     def _base(self, t: int) -> Image.Image:
         """The sky and the floor of frame ``t`` at half resolution (a new image)."""
         if not self.has_floor:
             return self._bg_half.copy()
         cx, cz = self.cam[t, 0] / _TILE, self.cam[t, 2] / _TILE
-
-        def square(off: np.ndarray, c: float, a: np.ndarray) -> np.ndarray:
-            """The box-filtered square wave of period 2 tiles, +1 on even tiles: clip(a h(x), -1, 1) with the
-            triangle wave h(x) = |((x + 1.5) mod 2) - 1| - 0.5, the signed distance to the nearest tile edge."""
-            x = off + np.float32(c + 1.5)  # in place from here: fewer arrays
-            fl = np.multiply(x, 0.5)
-            np.floor(fl, out=fl)
-            fl *= 2.0
-            x -= fl  # (x + 1.5) mod 2
-            x -= 1.0
-            np.abs(x, out=x)
-            x -= 0.5
-            x *= a
-            np.minimum(x, 1.0, out=x)
-            np.maximum(x, -1.0, out=x)
-            return x
-
-        checker = square(self._offx, cx, self._ax)
-        checker *= square(self._offz, cz, self._az)  # -1 (dark tile) .. 1 (light tile)
+        checker = _square_wave(self._half_offx, cx, self._gain2x)
+        checker *= _square_wave(self._half_offz, cz, self._gain2z)  # -1 (dark tile) .. 1 (light tile)
         checker *= 127.5
         checker += 128.0  # rounded by the cast below: 0 (dark) .. 255 (light)
-        np.copyto(self._blend[self.row0 // 2 :], checker, casting="unsafe")
-        blend = Image.frombuffer("L", self._half, self._blend, "raw", "L", 0, 1)
-        return Image.composite(self._floor_light, self._floor_dark, blend)
+        np.copyto(self._blend, checker, casting="unsafe")
+        blend = Image.frombuffer("L", self._blend.shape[::-1], self._blend, "raw", "L", 0, 1)
+        out = self._floor_dark.copy()  # Image.composite over the floor's rows only (0 on the sky: the dark image)
+        out.paste(self._floor_light, (0, self.row0 // 2), blend)
+        return out
 
     def _floor(self, t: int) -> Image.Image:
         """The floor of frame ``t``: rows ``row0`` and below, at full resolution."""
@@ -326,32 +341,50 @@ class FrameRenderer:
 
     def render(self, t: int) -> Image.Image:
         """Frame ``t`` as an image of the renderer's mode, RGB by default (``t`` is clipped to the motion's frames)."""
-        t = int(min(max(t, 0), self.scene.num_frames - 1))
-        pos = self.scene.positions[t]
-        half = self._base(t)
-        self._shadow(half, t, pos)
+        half, fig, x0, y0 = self._layers(t)
         # NEAREST: the checker is already box-filtered, the shadow soft (BILINEAR would cost 2 ms a frame)
         frame = self._double(half)
-        self._box = None  # set by _figure_region
-        if self.figure == "body" and len(self.scene.bones):
-            self._body(frame, t, pos)
-        else:
-            self._figure(frame, t, pos)
-        self._last = (frame, half, self._box)
+        if fig is not None:
+            frame.paste(fig, (x0, y0))
         return frame
 
     def render_yuv420(self, t: int) -> bytes:
         """Frame ``t`` as raw yuv420p bytes, equal to ``yuv420(self.render(t))`` (a renderer in YCbCr mode, even
-        width and height): outside the figure's region the frame is the pixel-doubled ``half``, whose chroma is
-        already the 2 x 2 mean, so only the figure's region is averaged."""
-        frame = self.render(t)
-        last, half, box = self._last
-        if last is not frame or self.mode != "YCbCr":  # not this renderer's frame (a wrapped render)
-            return yuv420(frame)
-        if box is not None:
-            x0, y0, x1, y1 = box
-            half.paste(frame.reduce(2, box=box), (x0 // 2, y0 // 2))
-        return b"".join((frame.tobytes("raw", "Y"), half.tobytes("raw", "Cb"), half.tobytes("raw", "Cr")))
+        width and height), without the full-resolution frame: outside the figure's region the frame is the
+        pixel-doubled ``half``, whose chroma is already the 2 x 2 mean, so the Y plane is ``half``'s Y doubled
+        with the figure's Y pasted in, and the chroma planes are ``half``'s with the figure's region averaged."""
+        if self.mode != "YCbCr" or self.W % 2 or self.H % 2 or getattr(self.render, "__func__", None) is not _RENDER:
+            return yuv420(self.render(t))  # a render replaced (a subclass's, a test's): its frames
+        half, fig, x0, y0 = self._layers(t)
+        w2, h2 = half.size
+        out = np.empty(self.W * self.H + 2 * w2 * h2, np.uint8)  # the yuv420p frame: Y (H, W), Cb, Cr (H/2, W/2)
+        y_plane = out[: self.W * self.H].reshape(self.H, self.W)
+        # pixel doubling of Y: each half-resolution byte times 257 is the 16-bit word of two equal bytes, and
+        # each row of words is written to two rows
+        y_half = np.frombuffer(half.getchannel("Y").tobytes(), np.uint8).reshape(h2, w2)
+        np.multiply(y_half[:, None, :], np.uint16(257), out=y_plane.view(np.uint16).reshape(h2, 2, w2))
+        if fig is not None:
+            fw, fh = fig.size
+            y_plane[y0 : y0 + fh, x0 : x0 + fw] = np.frombuffer(fig.tobytes("raw", "Y"), np.uint8).reshape(fh, fw)
+            half.paste(fig.reduce(2), (x0 // 2, y0 // 2))
+        n = w2 * h2
+        out[self.W * self.H : self.W * self.H + n] = np.frombuffer(half.tobytes("raw", "Cb"), np.uint8)
+        out[self.W * self.H + n :] = np.frombuffer(half.tobytes("raw", "Cr"), np.uint8)
+        return out.tobytes()
+
+    def _layers(self, t: int) -> tuple[Image.Image, Image.Image | None, int, int]:
+        """The parts of frame ``t`` (clipped to the motion's frames): the sky, floor and shadow at half resolution
+        (W/2, H/2, rounded up), and the figure's region at full resolution with its top-left corner ``(x0, y0)``
+        (even), which covers the pixel-doubled ``half`` there (None, 0, 0 when the figure is off screen)."""
+        t = int(min(max(t, 0), self.scene.num_frames - 1))
+        pos = self.scene.positions[t]
+        half = self._base(t)
+        self._shadow(half, t, pos)
+        if self.figure == "body" and len(self.scene.bones):
+            region = self._body(half, t, pos)
+        else:
+            region = self._figure(half, t, pos)
+        return (half, None, 0, 0) if region is None else (half, *region)
 
     def _shadow(self, half: Image.Image, t: int, pos: np.ndarray) -> None:
         """Bones projected straight down, drawn at quarter resolution, blurred and upsampled to ``half``: the frame's
@@ -376,7 +409,7 @@ class FrameRenderer:
         mask = Image.new("L", size, 0)
         draw = ImageDraw.Draw(mask)
         loc = [tuple(v) for v in ((uv - [x0, y0]) / q).tolist()]  # plain floats: numpy scalars are slow here
-        width = max(1, int(round(2.6 * _BONE_RADIUS * self.k * self.f / float(np.median(z)) / (2 * q))))
+        width = max(1, int(round(2.6 * _BONE_RADIUS * self.k * self.f / _median(z) / (2 * q))))
         r = 0.5 * width
         if _INKS is not None:  # Pillow's core, as in _body: the same pixels as the public calls below
             seg, disc = draw.draw.draw_lines, draw.draw.draw_ellipse
@@ -393,18 +426,19 @@ class FrameRenderer:
         mask = mask.resize((x1 - x0, y1 - y0), Image.BILINEAR, box=(0, 0, (x1 - x0) / q, (y1 - y0) / q))
         half.paste(self._pal["shadow"], (x0, y0, x1, y1), mask)
 
-    def _figure(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
-        """Bones (far to near) and joints drawn at ``_SS`` x resolution on a crop, then reduced."""
+    def _figure(self, half: Image.Image, t: int, pos: np.ndarray) -> tuple[Image.Image, int, int] | None:
+        """Bones (far to near) and joints drawn at ``_SS`` x resolution on a crop of the pixel-doubled ``half``,
+        then reduced: the figure's region at full resolution and its top-left corner (see :meth:`_layers`)."""
         sc = self.scene
         uv, z = self.project(t, pos)
-        zr = float(np.median(z))
+        zr = _median(z)
         rb = _BONE_RADIUS * self.k * self.f / z  # pixel radii per joint
         rj = _JOINT_RADIUS * self.k * self.f / z
         rh = _HEAD_RADIUS * self.k * self.f / z
         reach = float(max(rj.max(), rh.max() if sc.head is not None else 0.0)) + 3
-        region = self._figure_region(frame, uv, reach)
+        region = self._figure_region(half, uv, reach)
         if region is None:
-            return
+            return None
         crop, x0, y0 = region
         draw = ImageDraw.Draw(crop)
         loc = (uv - [x0, y0]) * _SS
@@ -456,13 +490,14 @@ class FrameRenderer:
             for j in range(len(pos)):
                 r = rj[j] * _SS
                 draw.ellipse([loc[j, 0] - r, loc[j, 1] - r, loc[j, 0] + r, loc[j, 1] + r], fill=self._pal["centre"])
-        frame.paste(crop.reduce(_SS), (x0, y0))
+        return crop.reduce(_SS), x0, y0
 
-    def _figure_region(self, frame: Image.Image, uv: np.ndarray,
+    def _figure_region(self, half: Image.Image, uv: np.ndarray,
                        reach: float) -> tuple[Image.Image, int, int] | None:
-        """The part of ``frame`` around the projected joints ``uv`` (J, 2) plus ``reach`` pixels, clipped to the
-        frame and upscaled ``_SS`` times for supersampled drawing, with its top-left corner ``(x0, y0)``;
-        None when less than 2 pixels of it are on screen."""
+        """The part of the frame around the projected joints ``uv`` (J, 2) plus ``reach`` pixels, clipped to the
+        frame, with even corners, as a crop of the pixel-doubled ``half`` upscaled ``_SS`` times for supersampled
+        drawing, and its top-left corner ``(x0, y0)`` in frame pixels; None when less than 2 pixels of it are on
+        screen."""
         x0 = int(max(math.floor(uv[:, 0].min() - reach), 0))
         y0 = int(max(math.floor(uv[:, 1].min() - reach), 0))
         x1 = int(min(math.ceil(uv[:, 0].max() + reach), self.W))
@@ -472,24 +507,27 @@ class FrameRenderer:
         # even corners: the region is whole 2 x 2 blocks of the half-resolution sky and floor (render_yuv420)
         x0, y0 = x0 - x0 % 2, y0 - y0 % 2
         x1, y1 = min(x1 + x1 % 2, self.W), min(y1 + y1 % 2, self.H)
-        self._box = (x0, y0, x1, y1)
-        crop = frame.resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST, box=(x0, y0, x1, y1))
+        # NEAREST by 2 * _SS from half: pixel (i, j) of the crop is half's (x0/2 + i // (2 _SS), ...), as the
+        # doubled frame's (x0 + i // _SS, ...) is (the sampling positions are exact binary fractions)
+        box = (0.5 * x0, 0.5 * y0, 0.5 * x1, 0.5 * y1)
+        crop = half.resize(((x1 - x0) * _SS, (y1 - y0) * _SS), Image.NEAREST, box=box)
         return crop, x0, y0
 
-    def _body(self, frame: Image.Image, t: int, pos: np.ndarray) -> None:
-        """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled.
+    def _body(self, half: Image.Image, t: int, pos: np.ndarray) -> tuple[Image.Image, int, int] | None:
+        """The mannequin: shaded capsules, a rounded torso outline and a head, far to near, supersampled, as
+        :meth:`_figure` draws the stick figure.
 
         The per-item work is on plain Python floats (numpy scalars cost more than the drawing).
         """
         sc = self.scene
         uv, z = self.project(t, pos)
-        zr = float(np.median(z))
+        zr = _median(z)
         pix = self.f / z  # pixels per metre at each joint
         rh = 1.15 * _HEAD_RADIUS * self.k * pix
         reach = float(max((_LIMB_RADIUS[1] * self.k * pix).max(), rh.max() if sc.head is not None else 0.0)) + 3
-        region = self._figure_region(frame, uv, reach)
+        region = self._figure_region(half, uv, reach)
         if region is None:
-            return
+            return None
         crop, x0, y0 = region
         draw = ImageDraw.Draw(crop)
         loc_np = (uv - [x0, y0]) * _SS
@@ -556,7 +594,10 @@ class FrameRenderer:
                 disc([qx - r2, qy - r2, qx + r2, qy + r2], pal[0][lv], 1)
                 r3, o = 0.35 * r, 0.3 * r
                 disc([qx - o - r3, qy - o - r3, qx - o + r3, qy - o + r3], light[0][lv], 1)
-        frame.paste(crop.reduce(_SS), (x0, y0))
+        return crop.reduce(_SS), x0, y0
+
+
+_RENDER = FrameRenderer.render  # render_yuv420 draws the same frames itself, unless render is replaced
 
 
 def yuv420(frame: Image.Image) -> bytes:
@@ -744,11 +785,6 @@ def render_mp4(
         n_frames = max(1, int(round(span.duration * scene.fps)))
     else:
         n_frames = scene.num_frames
-    # frames are drawn in YCbCr and sent as yuv420p: ffmpeg has no colour conversion to do
-    renderer = FrameRenderer(
-        scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
-        figure=options.figure, mode="YCbCr",
-    )
     rate = Fraction(scene.fps).limit_denominator(1001)
 
     cmd = [
@@ -779,6 +815,12 @@ def render_mp4(
             raise ExternalToolError(f"cannot start ffmpeg ({cmd[0]}): {exc}") from exc
         writer = _PipeWriter(proc.stdin)
         try:
+            # made while ffmpeg starts (about 0.1 s each); frames are drawn in YCbCr and sent as yuv420p, so
+            # ffmpeg has no colour conversion to do
+            renderer = FrameRenderer(
+                scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
+                figure=options.figure, mode="YCbCr",
+            )
             writer.start()
             for t in frames:
                 if writer.error is not None:
