@@ -125,3 +125,37 @@ def test_reduced_precision_and_the_lstm_keep_their_torch_loops():
     with pytest.raises(ParameterError, match="WaveNet"):
         NumpyWaveNet(lstm)
     assert np.isfinite(a.numpy()).all()
+
+
+@pytest.mark.parametrize("case", ["sampled", "mixture_sampled"])
+def test_a_given_prefix_is_the_dance_and_its_next_inputs(case):
+    """``generate(prefix=...)``: the first N frames are the prefix in both loops; frame N is the model's sample from
+    the inputs [first, prefix...] (known answer: the teacher-forced :meth:`forward` over those inputs gives its
+    mixture parameters; with temperature 0 the frame is their mean); and the loops agree after it."""
+    model_kw, gen_kw = CASES[case]
+    model = _model(**model_kw)
+    P, N = model.config.pose_dim, 9
+    music = torch.randn(2, T, model.config.music_dim, generator=torch.Generator().manual_seed(1))
+    genre = torch.tensor([2, -1])
+    prefix = torch.randn(1, N, P, generator=torch.Generator().manual_seed(4))
+    ref = model.generate(music, genre, generator=_gens([5, 6]), reference=True, prefix=prefix, **gen_kw)
+    out = model.generate(music, genre, generator=_gens([5, 6]), prefix=prefix, **gen_kw)
+    assert torch.equal(out[:, :N], prefix.expand(2, -1, -1)) and torch.equal(ref[:, :N], prefix.expand(2, -1, -1))
+    torch.testing.assert_close(out, ref, rtol=0, atol=1e-5)
+    free = model.generate(music, genre, generator=_gens([5, 6]), **gen_kw)
+    assert not torch.allclose(free[:, N], out[:, N])
+    # frame N at temperature 0, against the parallel (teacher-forced) forward pass over [0, prefix[0..N-1], ...]
+    # (causal in its input: the frames after N do not matter)
+    mean = model.generate(music[:1], genre[:1], generator=_gens([5]), prefix=prefix, temperature=0.0)
+    with torch.no_grad():
+        prev = torch.cat([torch.zeros(1, 1, P), prefix, torch.zeros(1, T - N - 1, P)], dim=1)
+        params = model(music[:1], prev, genre[:1])[:, N]
+    want = model.predict(params, temperature=0.0)
+    torch.testing.assert_close(mean[:, N], want, rtol=0, atol=1e-5)
+
+
+def test_a_prefix_of_another_pose_size_is_refused():
+    model = _model()
+    with pytest.raises(ParameterError, match="prefix"):
+        model.generate(torch.zeros(1, T, model.config.music_dim), torch.tensor([0]), generator=_gens([0]),
+                       prefix=torch.zeros(1, 3, model.config.pose_dim + 1))

@@ -478,8 +478,13 @@ class Music2DanceModel(nn.Module):
     def generate(self, music: torch.Tensor, genre: torch.Tensor | None = None, *, temperature: float = 1.0,
                  generator: torch.Generator | list[torch.Generator] | None = None, first: torch.Tensor | None = None,
                  progress: bool = False, fmap_window: int | None = None,
-                 noise_correlation: float = 0.0, genre_scale: float = 1.0, reference: bool = False) -> torch.Tensor:
+                 noise_correlation: float = 0.0, genre_scale: float = 1.0, reference: bool = False,
+                 prefix: torch.Tensor | None = None) -> torch.Tensor:
         """A dance ``(B, T, P)`` for ``music (B, T, D_m)``, frame by frame, sampling the mixture.
+
+        ``prefix (1 or B, N, P)``: the dance's first N frames, given: each is sampled as usual (the same random
+        draws) and then replaced by the given frame, which is the next frame's input (teacher forcing: the
+        WaveNet's receptive field holds the prefix), so the dance continues from the prefix's last frame.
 
         ``noise_correlation`` ρ in [0, 1): the standard normal draw of each frame is ``ε_t = ρ ε_{t-1} +
         √(1-ρ²) η_t`` (η fresh; still N(0, 1) at every frame) instead of independent draws (ρ = 0, the
@@ -508,20 +513,25 @@ class Music2DanceModel(nn.Module):
                               else genres, temperature=temperature, generator=[gen],
                               first=None if first is None else first[k : k + 1], progress=progress,
                               fmap_window=fmap_window, noise_correlation=noise_correlation, genre_scale=genre_scale,
-                              reference=reference)
+                              reference=reference,
+                              prefix=None if prefix is None else prefix[k : k + 1] if len(prefix) > 1 else prefix)
                 for k, gen in enumerate(generator)])
         B, T = music.shape[:2]
         cond, g = self._conditions(music, genre, window=fmap_window, genre_scale=genre_scale)
         if not 0.0 <= noise_correlation < 1.0:
             raise ParameterError(f"noise_correlation must be in [0, 1), got {noise_correlation!r}")
         x = first if first is not None else music.new_zeros(B, self.config.pose_dim)
+        if prefix is not None:
+            if prefix.ndim != 3 or prefix.shape[0] not in (1, B) or prefix.shape[2] != self.config.pose_dim:
+                raise ParameterError(f"prefix must be (1 or {B}, N, {self.config.pose_dim}), got {tuple(prefix.shape)}")
+            prefix = prefix.to(music.dtype).expand(B, -1, -1)
         rho, eps = float(noise_correlation), None
         fast_step = getattr(self, "fast_step", None)  # reduced precision: models/precision.py
         p = next(self.parameters())
         if (not reference and fast_step is None and self.config.generator == "wavenet" and p.device.type == "cpu"
                 and music.dtype == p.dtype and p.dtype in (torch.float32, torch.float64)):
             out = NumpyWaveNet(self).generate(cond, x, temperature=temperature, generator=generator,
-                                              noise_correlation=rho, progress=progress)
+                                              noise_correlation=rho, progress=progress, prefix=prefix)
             return torch.from_numpy(out)
         state = self.init_state(B, device=music.device, dtype=music.dtype)
         w = self._step_weights() if self.config.generator == "wavenet" else None
@@ -534,6 +544,8 @@ class Music2DanceModel(nn.Module):
                 eps = eta if eps is None else rho * eps + math.sqrt(1 - rho * rho) * eta
             x = self.predict(step(cond[:, t], g, x, state, w), temperature=temperature, generator=generator,
                              noise=eps)
+            if prefix is not None and t < prefix.shape[1]:
+                x = prefix[:, t]
             frames.append(x)
         return torch.stack(frames, dim=1)
 
@@ -608,10 +620,10 @@ class NumpyWaveNet:
 
     def generate(self, cond: torch.Tensor, first: torch.Tensor, *, temperature: float = 1.0,
                  generator: torch.Generator | list[torch.Generator] | None = None, noise_correlation: float = 0.0,
-                 progress: bool = False) -> np.ndarray:
+                 progress: bool = False, prefix: torch.Tensor | None = None) -> np.ndarray:
         """The dance ``(B, T, P)`` (the model's dtype) for the per-block conditions ``cond (B, T, L, 2C)``
-        (:meth:`Music2DanceModel._conditions`) from the input ``first (B, P)`` of frame 0; sampling as
-        :meth:`Music2DanceModel.generate`."""
+        (:meth:`Music2DanceModel._conditions`) from the input ``first (B, P)`` of frame 0; sampling (and a given
+        ``prefix (B, N, P)``) as :meth:`Music2DanceModel.generate`."""
         from tqdm import tqdm
 
         c = self.config
@@ -628,6 +640,7 @@ class NumpyWaveNet:
         z_views = [zs[:, i * C : (i + 1) * C] for i in range(L)]
         y = np.zeros((T, B, P), dt)
         prev = np.array(first.detach().cpu().numpy(), dtype=dt)
+        given = None if prefix is None else np.array(prefix.detach().cpu().numpy(), dtype=dt)  # (B, N, P)
         eps_t = None  # the correlated noise of the last frame (torch, as the torch loop computes it)
         bar = tqdm(total=T, disable=not progress, desc="dance", unit="frame")
         for t0 in range(0, T, self.CHUNK):
@@ -697,6 +710,8 @@ class NumpyWaveNet:
                         eps_t = eta if eps_t is None else rho * eps_t + math.sqrt(1 - rho * rho) * eta
                     frame[:] = self.model.predict(torch.from_numpy(params), temperature=temperature,
                                                   generator=generator, noise=eps_t).numpy()
+                if given is not None and t < given.shape[1]:
+                    frame[:] = given[:, t]
                 prev = frame
             bar.update(t1 - t0)
         bar.close()

@@ -31,7 +31,7 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.music2dance import Music2DanceModel
 from dancekit.motion import Motion
 from dancekit.motion.analysis import floor_curve
-from dancekit.motion.root_delta import decode_rootdelta
+from dancekit.motion.root_delta import decode_rootdelta, encode_rootdelta
 from dancekit.pipelines.config import CheckpointSettings, Music2DanceSampling
 from dancekit.pipelines.dance import DancePipeline, GenreChoice
 from dancekit.pipelines.music_attributes import MusicAttributePipeline
@@ -116,7 +116,7 @@ class Music2DancePipeline(DancePipeline):
     def generate_batch(self, audio_path: str | os.PathLike, *, seeds: list[int], choices: list[GenreChoice],
                        start: float | None = None, end: float | None = None, progress: bool = False,
                        temperature: float | None = None, genre_scale: float | None = None,
-                       music: np.ndarray | None = None) -> list[Motion]:
+                       music: np.ndarray | None = None, prefix: np.ndarray | None = None) -> list[Motion]:
         """The dances of ``seeds`` (each seed's frame loop on its own, one dance type per row), sampled with the
         settings of the batch's named genre (:attr:`genre_sampling`) over the plain ones.
 
@@ -129,6 +129,9 @@ class Music2DancePipeline(DancePipeline):
             named genre's)
         music : the song's features ``(T, music_dim)`` at the checkpoint's preset and fps, computed already (e.g. a
             prepared dataset's), instead of extracting them from ``audio_path``
+        prefix : world positions ``(N, J, 3)`` on this model's skeleton at its fps: the dance's first N frames
+            (their ``rotations_rootdelta`` features, the rotations by inverse kinematics), fed to the WaveNet as its
+            previous frames (:meth:`Music2DanceModel.generate`'s ``prefix``): the dance continues from the last
 
         Raises
         ------
@@ -161,9 +164,14 @@ class Music2DancePipeline(DancePipeline):
         gens = [torch.Generator().manual_seed(s) for s in seeds]
         window = self.meta.get("train", {}).get("seq_len")  # F_map on windows as long as the training ones
         x = x.to(self.model.genre_embedding.weight.device).expand(B, -1, -1)
+        given = None
+        if prefix is not None:
+            rows = encode_rootdelta(Motion(skeleton=self.skeleton, fps=self.fps,
+                                           positions=np.asarray(prefix, np.float32)))  # (N, P), IK rotations
+            given = torch.from_numpy(self.stats.normalize_dance(rows).astype(np.float32))[None].to(x.device)
         y = self.model.generate(x, index, temperature=temperature, generator=gens, progress=progress,
                                 fmap_window=window, noise_correlation=noise_correlation,
-                                genre_scale=genre_scale)  # (B, T, P)
+                                genre_scale=genre_scale, prefix=given)  # (B, T, P)
         if smooth_sigma > 0:
             from dancekit.models.foot_constraint import gaussian_smooth
 
