@@ -121,6 +121,8 @@ def main() -> None:
     ap.add_argument("--model", default="revolution")
     ap.add_argument("--data")
     ap.add_argument("--split", default="test")
+    ap.add_argument("--block-s", type=float, default=None,
+                    help="audio per block (s; default: LiveConfig's block_s)")
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="+", metavar="OUT", help="tabulate finished runs instead (needs --data)")
     ap.add_argument("-o", "--output", default="docs/results/live_quality.json")
@@ -138,6 +140,7 @@ def main() -> None:
 
     from dancekit.audio import load
     from dancekit.data import PreparedData
+    from dancekit.live import LiveConfig
     from dancekit.live.session import Block, LiveSession
     from dancekit.motion import Motion
     from dancekit.motion.formats.npz import write_npz
@@ -150,7 +153,7 @@ def main() -> None:
     with threadpool_limits(1):
         for name in data.names(args.split):
             ref = data.audio(name)
-            s = LiveSession(args.model)
+            s = LiveSession(args.model, config=None if args.block_s is None else LiveConfig(block_s=args.block_s))
             y, _ = load(ref.path, sr=s.sr, start=ref.start, end=ref.end)
             n = int(round(s.config.block_s * s.sr))
             frames = []
