@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from dancekit.errors import ParameterError
 from dancekit.models.dual import (
     DualConfig,
     DualModel,
@@ -938,3 +939,24 @@ def test_no_latent_ignores_the_generator():
     assert torch.equal(a, b) and not hasattr(model, "m2d_latent")
     with pytest.raises(Exception, match="latent_dim"):
         DualConfig(latent_dim=-1)
+
+
+def test_a_prefix_is_the_dance_and_the_decoders_context_across_windows():
+    """generate_dance(prefix=...): the first N frames (N longer than a window) are the prefix; the frame after it is
+    the decoder's output from the prefix as its inputs (known answer: :meth:`Seq2Seq.decode`, the whole-window
+    teacher-forced pass, over the window holding the seam)."""
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY)).eval()
+    music, dance = _batch(B=1, T=30)
+    N = 11  # window 8: windows start at frames 0, 7, 14, ...; the seam (frame 11) is in the second window
+    prefix = dance[:, :N]
+    with torch.no_grad():
+        out = model.generate_dance(music, start=dance[:, 5], prefix=prefix)
+        assert out.shape == (1, 30, 15) and torch.equal(out[:, :N], prefix)
+        window = music[:, 7:15]
+        want = model.m2d.decode(prefix[:, 7:N], model.m2d.encode(window))[:, -1]  # frame N from frames 7..N-1
+    torch.testing.assert_close(out[:, N], want, atol=1e-5, rtol=1e-5)
+    free = model.generate_dance(music, start=dance[:, 0])
+    assert not torch.allclose(free[:, N], out[:, N])
+    with pytest.raises(ParameterError, match="prefix"):
+        model.generate_dance(music, start=dance[:, 0], prefix=dance[:, :4, :5])

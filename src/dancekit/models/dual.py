@@ -320,20 +320,24 @@ class Seq2Seq(nn.Module):
             prev = prev + noise * torch.randn_like(prev)
         return torch.cat([tgt[:, :1], self.decode(prev, memory, cond)], dim=1)
 
-    def generate(self, src: torch.Tensor, start: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
-        """Autoregressive output for one window: ``start (B, out)`` then T - 1 generated frames → (B, T, out).
+    def generate(self, src: torch.Tensor, start: torch.Tensor, cond: torch.Tensor | None = None,
+                 given: torch.Tensor | None = None) -> torch.Tensor:
+        """Autoregressive output for one window: ``start (B, out)`` then T - 1 generated frames → (B, T, out)
+        (``given``: :meth:`rollout`'s).
 
         Incremental decoding: each layer keeps the normalised inputs of the frames decoded so far (its
         self-attention keys and values), so a new frame costs one query per layer instead of a pass over the
         whole prefix. The same numbers as :meth:`decode` on the prefix (tests/models/test_dual.py), in eval mode.
         """
-        return self.rollout(self.encode(src), start, src.shape[1], cond)
+        return self.rollout(self.encode(src), start, src.shape[1], cond, given)
 
     def rollout(self, memory: torch.Tensor, start: torch.Tensor, n: int,
-                cond: torch.Tensor | None = None) -> torch.Tensor:
+                cond: torch.Tensor | None = None, given: torch.Tensor | None = None) -> torch.Tensor:
         """Free-running decoding from ``start (B, out)`` over ``memory (B, T, d)``: ``start`` then ``n - 1``
         frames, each fed back as the next input → (B, n, out). Differentiable (used in training by
-        ``DualConfig.rollout_frames``); :meth:`generate` is this after encoding."""
+        ``DualConfig.rollout_frames``); :meth:`generate` is this after encoding. ``given (B, G, out)``: frames
+        ``1 … G - 1`` are those (each decoded, then replaced: the next input is the given frame, so the
+        self-attention's context holds them); ``given[:, 0]`` is ``start``'s place."""
         d = memory.shape[2]
         pe = sinusoidal_encoding(n, d, device=memory.device, dtype=memory.dtype)  # (n, d)
         caches: list[torch.Tensor | None] = [None] * len(self.decoder.layers)
@@ -350,7 +354,8 @@ class Seq2Seq(nn.Module):
                 h = h + layer.dropout2(layer.multihead_attn(hn, memory, memory, need_weights=False)[0])
                 h = h + layer._ff_block(layer.norm3(h))
             y = self.head(self.decoder.norm(h))  # (B, 1, out)
-            frames.append(torch.sigmoid(y) if self.sigmoid else y)
+            y = torch.sigmoid(y) if self.sigmoid else y
+            frames.append(given[:, t + 1 : t + 2] if given is not None and t + 1 < given.shape[1] else y)
         return torch.cat(frames, dim=1)
 
     @torch.no_grad()
@@ -617,12 +622,15 @@ class DualModel(nn.Module):
 
     @torch.no_grad()
     def generate_dance(self, music: torch.Tensor, *, start: torch.Tensor,
-                       generator: torch.Generator | None = None) -> torch.Tensor:
+                       generator: torch.Generator | None = None, prefix: torch.Tensor | None = None) -> torch.Tensor:
         """Dance for music of any length: ``music (B, n, music_dim)``, ``start (B, P)`` → (B, n, P).
 
         With a latent (``latent_dim > 0``) each window's z is drawn from N(0, I) with ``generator`` (one draw
-        per window and batch row, in order), so each seed dances its own choices through the whole song."""
-        return self._generate(self.m2d, music, start, generator=generator, latent=self.config.latent_dim > 0)
+        per window and batch row, in order), so each seed dances its own choices through the whole song.
+        ``prefix (B, N, P)``: the dance's first N frames (``prefix[:, 0]`` in ``start``'s place), fed to the
+        decoder as its previous frames (:meth:`Seq2Seq.rollout`'s ``given``), the dance continuing from the last."""
+        return self._generate(self.m2d, music, start, generator=generator, latent=self.config.latent_dim > 0,
+                              prefix=prefix)
 
     @torch.no_grad()
     def generate_music(self, dance: torch.Tensor, *, start: torch.Tensor) -> torch.Tensor:
@@ -630,7 +638,8 @@ class DualModel(nn.Module):
         return self._generate(self.d2m, dance, start, cached=True)
 
     def _generate(self, net: Seq2Seq, src: torch.Tensor, start: torch.Tensor, *, cached: bool = False,
-                  generator: torch.Generator | None = None, latent: bool = False) -> torch.Tensor:
+                  generator: torch.Generator | None = None, latent: bool = False,
+                  prefix: torch.Tensor | None = None) -> torch.Tensor:
         """Windows of T frames overlapping by one; each starts from the last generated frame of the previous.
         ``cached``: decode with :meth:`Seq2Seq.rollout_numpy` (G_D→M) instead of :meth:`Seq2Seq.generate`.
 
@@ -647,6 +656,11 @@ class DualModel(nn.Module):
             T = self.config.window
             if n == 0:
                 return src.new_zeros(B, 0, net.out_dim)
+            if prefix is not None:
+                if cached or prefix.ndim != 3 or prefix.shape[0] != B or prefix.shape[2] != net.out_dim:
+                    raise ParameterError(f"a prefix must be ({B}, N, {net.out_dim}) for the dance decoder, got "
+                                         f"{tuple(prefix.shape)}")
+                start = prefix[:, 0]
             out, s, prev = [start[:, None, :]], 0, start
             while s + 1 < n:
                 chunk = src[:, s: s + T]  # (B, ≤T, in)
@@ -654,8 +668,9 @@ class DualModel(nn.Module):
                 if latent:
                     z = torch.randn(B, self.config.latent_dim, generator=generator)  # (B, Z) from the prior
                     cond = self.m2d_latent(z.to(src.device, src.dtype))  # (B, d)
+                given = prefix[:, s : s + T] if prefix is not None and s + 1 < prefix.shape[1] else None
                 y = (net.rollout_numpy(net.encode(chunk), prev, chunk.shape[1]) if cached
-                     else net.generate(chunk, prev, cond))  # (B, ≤T, out)
+                     else net.generate(chunk, prev, cond, given))  # (B, ≤T, out)
                 out.append(y[:, 1:])
                 prev, s = y[:, -1], s + chunk.shape[1] - 1
             return torch.cat(out, dim=1)
