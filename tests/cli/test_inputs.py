@@ -301,3 +301,29 @@ def test_readme_says_what_the_dance_npz_holds(tmp_path):
     has_rotations = "rotations" in np.load(tmp_path / "o" / "song.npz").files
     readme = " ".join((ROOT / "README.md").read_text().split())
     assert ("so the file has no rotations" in readme) == (not has_rotations)
+
+
+def test_a_verb_alone_gets_the_parser_every_verb_gets():
+    """main() builds only the parser of the verb on the command line: for every verb, the same options as in the
+    whole parser (``dancekit --help`` and a misspelt verb still build them all)."""
+    from dancekit.cli.main import VERBS, build_parser
+
+    whole = dict(_parsers(build_parser()))
+    for verb in VERBS:
+        alone = dict(_parsers(build_parser([verb])))
+        assert {p[0] for p in alone} == {verb}
+        for path, parser in alone.items():
+            want = sorted(f for a in whole[path]._actions for f in a.option_strings)
+            assert sorted(f for a in parser._actions for f in a.option_strings) == want, (verb, path)
+
+
+def test_a_verb_imports_no_other_verbs_module():
+    import subprocess
+    import sys
+
+    code = ("import sys; from dancekit.cli.main import main; main(['models']); "
+            "print(sorted(m for m in sys.modules if m.startswith('dancekit.cli.') and m not in "
+            "('dancekit.cli.main', 'dancekit.cli.models', 'dancekit.cli._options')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"

@@ -51,15 +51,18 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(verbs: list[str] | None = None) -> argparse.ArgumentParser:
+    """The command line's parser: every verb's (None), or only those of ``verbs`` (what :func:`main` builds for a
+    command line that starts with a verb: the other verbs' modules are not imported)."""
     parser = OneLineParser(
         prog="dancekit",
         description="Turn music into dance and dance into music.",
     )
     parser.add_argument("--version", action="version", version=f"dancekit {__version__}")
     sub = parser.add_subparsers(dest="verb", metavar="VERB")
-    for module_name in VERBS.values():  # a verb whose module is missing is a bug: no silent skipping
-        importlib.import_module(module_name).add_parser(sub)
+    for verb, module_name in VERBS.items():  # a verb whose module is missing is a bug: no silent skipping
+        if verbs is None or verb in verbs:
+            importlib.import_module(module_name).add_parser(sub)
     _alias_output_flags(parser)
     return parser
 
@@ -149,8 +152,9 @@ class QuietProgress:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser([words[0]] if words and words[0] in VERBS else None)
+    args = parser.parse_args(words)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
