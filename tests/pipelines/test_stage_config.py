@@ -5,6 +5,7 @@ the layout of the previous release is converted on reading; finish runs the conf
 from __future__ import annotations
 
 import copy
+import dataclasses
 import importlib
 import inspect
 import json
@@ -239,8 +240,13 @@ def test_the_old_layout_is_converted_to_the_embedded_settings_with_one_warning(t
     assert len(lines) == 1 and "converting" in lines[0] and "\n" not in lines[0]
     want = checkpoint_settings(_meta(name), folder=ASSETS / name, sampling=sampling)
     assert got.sampling == want.sampling
-    # the same stages; the embedded tables hold all four genres where the old entries held those they used
+    # the same stages; the embedded tables hold all four genres where the old entries held those they used; the
+    # embedded music2dance's foot lock got its "plant" entry after that release (issue 44): the old one has none
     for stage in STAGE_NAMES:
+        if name == "music2dance" and stage == "foot_lock":
+            assert got.stages.foot_lock == dataclasses.replace(want.stages.foot_lock, plant=False)
+            assert want.stages.foot_lock.plant
+            continue
         assert getattr(got.stages, stage) == getattr(want.stages, stage), stage
     for table in ("jitter", "energy", "planted_share", "smoothing"):
         old_table, new_table = got.stages.genre_stats.table(table), want.stages.genre_stats.table(table)

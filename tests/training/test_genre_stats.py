@@ -17,9 +17,9 @@ ASSETS = Path(__file__).resolve().parents[2] / "src" / "dancekit" / "assets" / "
 
 #: the tables each embedded model carries: the ones its stages read (revolution: the genre draw's and the jitter
 #: cap's jitter, the energy lift's floor, the foot lock's planted share, the smoothing targets; music2dance: the
-#: jitter cap and the smoothing; dual: the jitter cap and the energy lift)
+#: jitter cap, the foot lock's planted share and the smoothing; dual: the jitter cap and the energy lift)
 TABLES = {"revolution": ("jitter", "energy", "planted_share", "smoothing"),
-          "music2dance": ("jitter", "smoothing"),
+          "music2dance": ("jitter", "planted_share", "smoothing"),
           "dual": ("jitter", "energy")}
 
 
