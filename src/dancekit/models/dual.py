@@ -670,6 +670,7 @@ class DualModel(nn.Module):
                     cond = self.m2d_latent(z.to(src.device, src.dtype))  # (B, d)
                 given = prefix[:, s : s + T] if prefix is not None and s + 1 < prefix.shape[1] else None
                 y = (net.rollout_numpy(net.encode(chunk), prev, chunk.shape[1]) if cached
+                     else net.generate(chunk, prev, cond) if given is None
                      else net.generate(chunk, prev, cond, given))  # (B, ≤T, out)
                 out.append(y[:, 1:])
                 prev, s = y[:, -1], s + chunk.shape[1] - 1
