@@ -113,13 +113,17 @@ def validate_audio(y: np.ndarray, *, sr: int, path: str | os.PathLike | None = N
         )
 
 
-def resample(y: np.ndarray, *, orig_sr: int, target_sr: int) -> np.ndarray:
+def resample(y: np.ndarray, *, orig_sr: int, target_sr: int, stream=None) -> np.ndarray:
     """Resample along the last axis with soxr (high quality); float32 out.
 
     The same samples as ``librosa.resample(y, orig_sr=..., target_sr=..., res_type="soxr_hq")``: soxr's HQ
     resampler on each channel, cut or zero-padded to ``ceil(n * target_sr / orig_sr)`` samples (soxr is
     called directly: importing librosa costs seconds in a fresh process).
     Returns ``y`` itself (as float32) when the rates are equal.
+
+    ``stream``: a ``soxr.ResampleStream(orig_sr, target_sr, 1, dtype="float32", quality="soxr_hq")`` to use for
+    each channel, cleared before each (the same samples, without building a resampler per call: for many short
+    calls, as a live feature extractor makes).
     """
     import soxr
 
@@ -132,7 +136,11 @@ def resample(y: np.ndarray, *, orig_sr: int, target_sr: int) -> np.ndarray:
     rows = y.reshape(-1, y.shape[-1])
     out = np.zeros((rows.shape[0], n_out), dtype=np.float32)
     for i, row in enumerate(rows):
-        r = soxr.resample(row, int(orig_sr), int(target_sr), quality="soxr_hq")
+        if stream is None:
+            r = soxr.resample(row, int(orig_sr), int(target_sr), quality="soxr_hq")
+        else:
+            stream.clear()
+            r = stream.resample_chunk(np.ascontiguousarray(row), last=True)
         out[i, : min(n_out, len(r))] = r[:n_out]
     return out.reshape(y.shape[:-1] + (n_out,))
 

@@ -434,11 +434,12 @@ def cqt_basis(sr: float, freqs: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarr
     return np.where(keep, fft_basis, 0).astype(np.complex64), n_fft
 
 
-def halve(y: np.ndarray, factor: int = 2) -> np.ndarray:
-    """Downsample by ``factor`` with soxr (HQ), scaled by ``sqrt(factor)`` as librosa's ``scale=True``."""
+def halve(y: np.ndarray, factor: int = 2, *, stream=None) -> np.ndarray:
+    """Downsample by ``factor`` with soxr (HQ), scaled by ``sqrt(factor)`` as librosa's ``scale=True``
+    (``stream``: a reusable resampler, :func:`dancekit.audio.io.resample`'s)."""
     from dancekit.audio.io import resample
 
-    y_hat = resample(y, orig_sr=factor, target_sr=1)
+    y_hat = resample(y, orig_sr=factor, target_sr=1, stream=stream)
     y_hat /= np.sqrt(1.0 / factor)
     return y_hat
 

@@ -84,19 +84,13 @@ class OnlineChroma:
         self._halver = None  # the octave decimation's resampler, built once
 
     def _halve(self, y: np.ndarray) -> np.ndarray:
-        """:func:`dancekit.features.dsp.halve` (the same samples: soxr HQ, ``ceil(n / 2)`` of them, scaled by
-        ``sqrt(2)``) with one soxr resampler cleared between calls instead of one built per call."""
+        """:func:`dancekit.features.dsp.halve` (the same samples) with one soxr resampler, built once and cleared
+        between calls, instead of one built per call."""
         import soxr
 
         if self._halver is None:
             self._halver = soxr.ResampleStream(2, 1, 1, dtype="float32", quality="soxr_hq")
-        self._halver.clear()
-        r = self._halver.resample_chunk(np.ascontiguousarray(y, np.float32), last=True)
-        n_out = -(-len(y) // 2)
-        out = np.zeros(n_out, np.float32)
-        out[: min(n_out, len(r))] = r[:n_out]
-        out /= np.sqrt(1.0 / 2)
-        return out
+        return _dsp.halve(y, stream=self._halver)
 
     def frames(self, seg: np.ndarray, rel_frames: np.ndarray) -> np.ndarray:
         """Chroma ``(len(rel_frames), n_chroma)`` float32 of frames ``rel_frames`` of ``seg`` (frame ``j`` centred
