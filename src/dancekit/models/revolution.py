@@ -939,7 +939,7 @@ class RevolutionModel(nn.Module):
         variety's draws) of ``generator`` → (B, n, pose_dim); the steps are run in pieces of ``chunk`` frames
         (or the variety's phrases), the pieces shown by ``progress``. ``prefix`` (1 or B, N, pose_dim), normalised
         poses: the first N frames are those poses, fed to the decoder as its previous poses (teacher forcing: its
-        state is built from them), and the dance continues from the last (:func:`_forced_piece`)."""
+        state is built from them), and the dance continues from the last (:func:`_decode_piece`)."""
         B, n, _ = z.shape
         variety = variety or SeedVariety()
         z, state, noise = self._decode_start(z, generator, variety, device=device)
@@ -949,10 +949,8 @@ class RevolutionModel(nn.Module):
         outputs = []
         for a0, b0 in _pieces(n, variety, chunk or self.config.encoder_chunk, progress):
             state = _perturb_state(state, noise, a0, variety)
-            if prefix is not None and a0 < prefix.shape[1]:
-                y, prev, state = _forced_piece(self._autoregress, z, prefix.expand(B, -1, -1), a0, b0, prev, state)
-            else:
-                y, prev, state = self._autoregress(z[:, a0:b0], prev, state)
+            y, prev, state = _decode_piece(self._autoregress, z, None if prefix is None else prefix.expand(B, -1, -1),
+                                           a0, b0, prev, state)
             outputs.append(y)
         return torch.cat(outputs, dim=1)
 
@@ -1055,12 +1053,15 @@ def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], gen
     return torch.cat(out, dim=0)
 
 
-def _forced_piece(step, z: torch.Tensor, prefix: torch.Tensor, a0: int, b0: int, prev: torch.Tensor, state):
-    """Frames ``[a0, b0)`` of a decoding whose first ``N = prefix.shape[1]`` frames are given (``a0 < N``):
-    each frame ``t < N`` is stepped with ``step`` (``(z (B, L, d), prev (B, 1, P), state) -> (ŷ, last ŷ,
-    state)``) from its given previous pose (the begin-of-pose or ``prefix[:, t - 1]``) and its output is
-    ``prefix[:, t]``; the frames from N on are decoded from ``prefix[:, N - 1]``. Returns ``(y (B, b0 - a0, P),
-    last pose (B, 1, P), state)``."""
+def _decode_piece(step, z: torch.Tensor, prefix: torch.Tensor | None, a0: int, b0: int, prev: torch.Tensor,
+                  state):
+    """Frames ``[a0, b0)`` of a decoding stepped by ``step`` (``(z (B, L, d), prev (B, 1, P), state) -> (ŷ,
+    last ŷ, state)``) from ``prev``. When the first ``N = prefix.shape[1]`` frames are given (``prefix`` not None,
+    ``a0 < N``), each frame ``t < N`` is stepped from its given previous pose (the begin-of-pose or
+    ``prefix[:, t - 1]``) and its output is ``prefix[:, t]``; the frames from N on are decoded from
+    ``prefix[:, N - 1]``. Returns ``(y (B, b0 - a0, P), last pose (B, 1, P), state)``."""
+    if prefix is None or a0 >= prefix.shape[1]:
+        return step(z[:, a0:b0], prev, state)
     n_pre = prefix.shape[1]
     for t in range(a0, min(b0, n_pre)):
         _, _, state = step(z[:, t : t + 1], prev, state)
@@ -1104,10 +1105,7 @@ def _decode_rows(models: list[RevolutionModel], latents: list[torch.Tensor], gen
     outputs = []
     for a0, b0 in _pieces(n, variety, chunk or models[0].config.encoder_chunk, progress):
         state = _perturb_state(state, noise, a0, variety)
-        if given is not None and a0 < given.shape[1]:
-            y, prev, state = _forced_piece(step, z, given, a0, b0, prev, state)
-        else:
-            y, prev, state = step(z[:, a0:b0], prev, state)
+        y, prev, state = _decode_piece(step, z, given, a0, b0, prev, state)
         outputs.append(y)
     return torch.cat(outputs, dim=1)  # (B, n, P)
 

@@ -251,11 +251,11 @@ class RevolutionPipeline(DancePipeline):
         music.clear()
         prefixes = None
         if prefix is not None:
+            if self.representation != "positions3d":  # the genre models share it (genre_pipeline checks)
+                raise ParameterError(f"a prefix needs a positions3d model, {self.folder} is {self.representation}")
             given = {}
             for pipe, _ in rows:
                 if id(pipe) not in given:
-                    if self.representation != "positions3d":
-                        raise ParameterError(f"a prefix needs a positions3d model, {self.folder} is {self.representation}")
                     x = encode_motion(Motion(skeleton=pipe.skeleton, fps=pipe.fps,
                                              positions=np.asarray(prefix, np.float32)), pipe.representation)
                     given[id(pipe)] = torch.from_numpy(
