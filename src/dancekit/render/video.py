@@ -27,6 +27,7 @@ import functools
 import math
 import os
 import queue
+import statistics
 import subprocess
 import tempfile
 import threading
@@ -141,13 +142,13 @@ _INKS = _inks()
 
 
 def _median(values: np.ndarray) -> float:
-    """``float(np.median(values))`` of a 1-D float64 array, the same value in a microsecond rather than 40 (the
-    middle value, or the mean of the two middle ones as numpy takes it: (a + b) / 2)."""
-    s = sorted(values.tolist())
-    n = len(s)
-    if values.dtype != np.float64 or n == 0 or not math.isfinite(s[0] + s[-1]):
+    """``float(np.median(values))`` of a 1-D float64 array, the same value in a microsecond rather than 40:
+    :func:`statistics.median` of its finite values (the middle value, or the mean of the two middle ones as numpy
+    takes it: (a + b) / 2)."""
+    v = values.tolist()
+    if values.dtype != np.float64 or not v or not math.isfinite(sum(v)):
         return float(np.median(values))  # numpy's answer (and warnings) for other types, empty or non-finite
-    return s[n // 2] if n % 2 else (s[n // 2 - 1] + s[n // 2]) / 2
+    return statistics.median(v)
 
 
 def _square_wave(half_off: np.ndarray, c: float, gain2: np.ndarray) -> np.ndarray:
