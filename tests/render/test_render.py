@@ -275,6 +275,29 @@ def test_mp4_without_audio(tmp_path):
     assert info["video_s"] == pytest.approx(0.8, abs=0.05)
 
 
+def test_mp4_is_the_same_whatever_the_drawing_processes(tmp_path, song):
+    """Frames drawn by 3 processes (every third by the caller) or by the caller alone: the same file, byte for
+    byte (a moving figure, so that a frame put in the wrong place would show)."""
+    kw = {"parents": PARENTS, "fps": FPS, "unit_scale": 1.0, "audio": song, "progress": False}
+    moving = figure(1.2, speed=0.5)
+    render_mp4(tmp_path / "one.mp4", moving, options=RenderOptions(width=64, height=48, workers=1), **kw)
+    render_mp4(tmp_path / "three.mp4", moving, options=RenderOptions(width=64, height=48, workers=3), **kw)
+    assert (tmp_path / "one.mp4").read_bytes() == (tmp_path / "three.mp4").read_bytes()
+    with pytest.raises(ParameterError, match="workers"):
+        RenderOptions(workers=0)
+
+
+def test_a_drawing_process_that_fails_is_a_named_error():
+    from dancekit.render.video import _FrameWorkers
+
+    scene = prepare_scene(figure(0.4), parents=PARENTS, fps=FPS, unit_scale=1.0)
+    with _FrameWorkers(scene, {"width": 64, "height": 48, "no_such_option": 1}, 10, 2) as helpers:
+        assert helpers.draws(1) and not helpers.draws(2)
+        with pytest.raises(DancekitError, match="drawing frame 1 failed: TypeError"):
+            helpers.frame(1)
+    assert all(not p.is_alive() for p in helpers.procs)
+
+
 @pytest.mark.parametrize("width, height", [(161, 120), (160, 8), (True, 120)])
 def test_mp4_rejects_bad_sizes(tmp_path, width, height):
     with pytest.raises(ParameterError, match="width|height"):

@@ -37,7 +37,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFilter
 
 from dancekit._io import atomic_path
-from dancekit.errors import ExternalToolError, ParameterError
+from dancekit.errors import DancekitError, ExternalToolError, ParameterError
 from dancekit.render._ffmpeg import AudioSpan, audio_span, ffmpeg_exe, last_line
 from dancekit.render._scene import Scene, camera_basis, default_azimuth, fit_distance, prepare_scene
 from dancekit.render.options import AudioClip, RenderOptions, resolve
@@ -795,7 +795,7 @@ def render_mp4(
     ]  # fmt: skip
     if span is not None:
         cmd += ["-ss", f"{span.start:.6f}", "-t", f"{span.duration:.6f}", "-i", str(span.path)]
-        cmd += ["-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-b:a", "160k"]
+        cmd += ["-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-aac_coder", "fast", "-b:a", "160k"]
     cmd += [
         "-c:v", "libx264", "-preset", "ultrafast", "-tune", "animation", "-crf", str(options.crf), "-threads", "1",
         "-pix_fmt", "yuv420p", "-movflags", "+faststart", "-f", "mp4",
@@ -806,7 +806,13 @@ def render_mp4(
         from tqdm import tqdm
 
         frames = tqdm(frames, desc=f"render {os.path.basename(os.fspath(path))}", unit="frame", leave=False)
-    with atomic_path(path) as tmp, tempfile.TemporaryFile() as err:
+    workers = options.workers
+    if workers is None:  # a core is left to ffmpeg; on 2 cores drawing and encoding already fill both (measured)
+        workers = max(1, min(4, (os.cpu_count() or 1) - 1)) if n_frames > 10 * scene.fps else 1
+    draw = dict(width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
+                figure=options.figure, mode="YCbCr")
+    with atomic_path(path) as tmp, tempfile.TemporaryFile() as err, _FrameWorkers(scene, draw, n_frames,
+                                                                                   workers) as helpers:
         # Popen rather than run: the frames stream to ffmpeg's stdin while they are drawn.
         try:
             proc = subprocess.Popen(  # own process group: a terminal's Ctrl-C reaches dancekit, which stops it
@@ -818,15 +824,12 @@ def render_mp4(
         try:
             # made while ffmpeg starts (about 0.1 s each); frames are drawn in YCbCr and sent as yuv420p, so
             # ffmpeg has no colour conversion to do
-            renderer = FrameRenderer(
-                scene, width=width, height=height, azimuth=options.azimuth, elevation=options.elevation,
-                figure=options.figure, mode="YCbCr",
-            )
+            renderer = FrameRenderer(scene, **draw)
             writer.start()
             for t in frames:
                 if writer.error is not None:
                     break  # ffmpeg died; its message is read below
-                writer.put(renderer.render_yuv420(t))
+                writer.put(helpers.frame(t) if helpers.draws(t) else renderer.render_yuv420(t))
             writer.finish()
             if writer.error is not None and not isinstance(writer.error, OSError):
                 raise writer.error
@@ -844,6 +847,75 @@ def render_mp4(
         if rc != 0:
             err.seek(0)
             raise ExternalToolError(f"ffmpeg failed writing {path} (exit {rc}): {last_line(err.read())}")
+
+
+def _draw_frames(scene: Scene, draw: dict, first: int, step: int, stop: int, queue) -> None:
+    """A worker process of :class:`_FrameWorkers`: frames ``first, first + step, … < stop`` as yuv420 bytes into
+    ``queue`` (an exception as ``("error", message)``)."""
+    try:
+        renderer = FrameRenderer(scene, **draw)
+        for t in range(first, stop, step):
+            queue.put(renderer.render_yuv420(t))
+    except BaseException as exc:  # handed to the parent, which raises it
+        queue.put(("error", f"{type(exc).__name__}: {exc}"))
+
+
+class _FrameWorkers:
+    """Processes that draw every frame ``t`` with ``t % n != 0`` of an mp4 (``n`` = ``workers``; the caller draws
+    the others): each frame is a pure function of the scene and its index, so the video is the same whatever
+    ``n``. Spawned (not forked: the caller may hold threads), ahead of the caller by at most 8 frames each;
+    stopped when the context ends, whatever happened."""
+
+    def __init__(self, scene: Scene, draw: dict, n_frames: int, workers: int):
+        self.n = max(1, min(int(workers), n_frames))
+        self.args = (scene, draw, n_frames)
+        self.procs, self.queues = [], []
+
+    def __enter__(self) -> _FrameWorkers:
+        if self.n > 1:
+            import multiprocessing as mp
+
+            ctx = mp.get_context("spawn")
+            scene, draw, n_frames = self.args
+            for k in range(1, self.n):
+                q = ctx.Queue(maxsize=8)
+                p = ctx.Process(target=_draw_frames, args=(scene, draw, k, self.n, n_frames, q), daemon=True,
+                                name=f"dancekit-render-{k}")
+                p.start()
+                self.procs.append(p)
+                self.queues.append(q)
+        return self
+
+    def draws(self, t: int) -> bool:
+        """Whether a worker draws frame ``t``."""
+        return self.n > 1 and t % self.n != 0
+
+    def frame(self, t: int) -> bytes:
+        """Frame ``t`` from its worker (frames are asked for in order)."""
+        import queue
+
+        k = t % self.n
+        while True:
+            try:
+                item = self.queues[k - 1].get(timeout=1.0)
+                break
+            except queue.Empty:
+                if not self.procs[k - 1].is_alive():
+                    raise DancekitError(f"the process drawing frame {t} stopped (exit {self.procs[k - 1].exitcode})") \
+                        from None
+        if isinstance(item, tuple):
+            raise DancekitError(f"drawing frame {t} failed: {item[1]}")
+        return item
+
+    def __exit__(self, *exc) -> None:
+        for p in self.procs:
+            if p.is_alive():
+                p.terminate()
+        for p in self.procs:
+            p.join()
+        for q in self.queues:
+            q.cancel_join_thread()
+            q.close()
 
 
 def render_motion_mp4(
