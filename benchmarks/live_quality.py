@@ -107,8 +107,8 @@ def table(folders: list[str], output: str, data: str) -> None:
            "note": "6 test songs of tang2018, one dance each (seed 0). Live: fed block by block (0.04 s, as a "
                    "real-time run that keeps up), the model alone (no genre model), the online stages (the beat "
                    "nudge within the model's offline warp bound; calm, smoothing, floor; no online foot lock); "
-                   "music2dance's samples smoothed as offline, each frame held back 0.24 s (LiveConfig."
-                   "sample_smoothing 'delay'). Offline: the pipeline with every stage. Per-song bounds (issue 15): "
+                   "music2dance's samples smoothed by the offline Gaussian, each frame held back 0.08 s (LiveConfig."
+                   "smoothing_hold_s). Offline: the pipeline with every stage. Per-song bounds (issue 15): "
                    "stillness ≤ 5 %, smoothed energy ≥ 0.6 x and jitter ≤ 1.2 x the song's real dance; outside "
                    "them: " + ("; ".join(failures) if failures else "none") + ". FID reference: the training "
                    "dances (dancekit evaluate's default)."}
@@ -123,6 +123,9 @@ def main() -> None:
     ap.add_argument("--split", default="test")
     ap.add_argument("--block-s", type=float, default=None,
                     help="audio per block (s; default: LiveConfig's block_s)")
+    ap.add_argument("--seeds", default="0", help="seeds of each song's live dances: K or A-B (NAME__k.npz when several)")
+    ap.add_argument("--live-set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a LiveConfig setting (repeatable; VALUE as JSON, else a string)")
     ap.add_argument("--out")
     ap.add_argument("--table", nargs="+", metavar="OUT", help="tabulate finished runs instead (needs --data)")
     ap.add_argument("-o", "--output", default="docs/results/live_quality.json")
@@ -150,10 +153,21 @@ def main() -> None:
     out = Path(args.out) / "live"
     out.mkdir(parents=True, exist_ok=True)
     log = {}
+    spec = {}
+    for item in args.live_set:
+        key, _, value = item.partition("=")
+        try:
+            spec[key] = json.loads(value)
+        except json.JSONDecodeError:
+            spec[key] = value
+    if args.block_s is not None:
+        spec["block_s"] = args.block_s
+    a_, _, b_ = args.seeds.partition("-")
+    seeds = list(range(int(a_), int(b_ or a_) + 1))
     with threadpool_limits(1):
-        for name in data.names(args.split):
+        for name, seed in [(n, k) for n in data.names(args.split) for k in seeds]:
             ref = data.audio(name)
-            s = LiveSession(args.model, config=None if args.block_s is None else LiveConfig(block_s=args.block_s))
+            s = LiveSession(args.model, config=LiveConfig.from_dict({**spec, "seed": seed}))
             y, _ = load(ref.path, sr=s.sr, start=ref.start, end=ref.end)
             n = int(round(s.config.block_s * s.sr))
             frames = []
@@ -162,10 +176,11 @@ def main() -> None:
                 frames.extend(s.feed([Block(y[a : a + n], time.monotonic())]))
             frames.extend(s.finish())
             p = np.stack([f.joints for f in frames]).astype(np.float32)
-            write_npz(out / f"{name}.npz", Motion(skeleton=s.skeleton, fps=s.fps, positions=p))
-            log[name] = {"seconds": len(y) / s.sr, "frames": len(frames), "cpu_s": time.process_time() - c0,
+            key = name if len(seeds) == 1 else f"{name}__{seed}"
+            write_npz(out / f"{key}.npz", Motion(skeleton=s.skeleton, fps=s.fps, positions=p))
+            log[key] = {"seconds": len(y) / s.sr, "frames": len(frames), "cpu_s": time.process_time() - c0,
                          "wall_s": time.monotonic() - t0}
-            print(name, log[name], flush=True)
+            print(key, log[key], flush=True)
     (Path(args.out) / "live_log.json").write_text(json.dumps(log, indent=1))
 
 

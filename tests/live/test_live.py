@@ -86,7 +86,7 @@ def test_online_chroma_equals_the_offline_chromagram_of_its_segment(song, rng):
     centred frames' zero padding), odd and even lengths — is the offline chromagram of that segment at those
     frames, its octave decimation (one resampler, cleared between calls) the offline ``halve``'s samples."""
     from dancekit.features import dsp, spectral
-    from dancekit.live.features import OnlineChroma
+    from dancekit.features.online import OnlineChroma
 
     ch = OnlineChroma(sr=SR, hop_length=512)
     for n in (1001, 4096, 17000):
@@ -206,6 +206,74 @@ def test_revolution_stepper_equals_one_offline_pass(revolution, rng):
     np.testing.assert_allclose(on, off, atol=1e-2)  # cm, float rounding of two encoder chunkings
 
 
+def _tiny_revolution(lookahead):
+    """A small Dance Revolution pipeline (random weights) whose encoder looks ``lookahead`` frames ahead per layer."""
+    from dancekit.models.revolution import RevolutionConfig, RevolutionModel
+    from dancekit.pipelines import load_pipeline
+    from dancekit.pipelines.revolution import RevolutionPipeline
+
+    ref = load_pipeline("revolution")
+    torch.manual_seed(0)
+    model = RevolutionModel(RevolutionConfig(music_dim=438, pose_dim=72, d_model=16, n_heads=2, d_ff=32, window=20,
+                                             lookahead=lookahead, decoder_hidden=16)).eval()
+    meta = {"fps": 25.0, "skeleton": ref.skeleton.to_dict(), "representation": "positions3d", "preset": "revolution"}
+    return RevolutionPipeline(model, meta=meta, stats=ref.stats, folder="tiny")
+
+
+def test_revolution_stepper_of_a_lookahead_encoder_is_the_same_for_any_block(rng):
+    """An encoder that looks 1 frame ahead per layer (2 in all): stepped with a lookahead of 2 frames, the dance is
+    one offline pass, whatever the blocks (1, 2, 5 or uneven rows at a time) — its latents never see the stream's
+    end. The symmetric encoder stepped the same way is not (its latents near the end see less than offline)."""
+    from dancekit.live.steppers import RevolutionStepper
+
+    T = 120
+    for lookahead, same in ((1, True), (None, False)):
+        pipe = _tiny_revolution(lookahead)
+        raw = rng.standard_normal((T, 438)).astype(np.float32) * pipe.stats.music_std + pipe.stats.music_mean
+        dances = []
+        for sizes in ((1,), (2,), (5,), (3, 1, 7, 2)):
+            st = RevolutionStepper(pipe, lookahead=2, context=20, seed=3, variety=False)
+            out, a, i = [], 0, 0
+            while a < T:
+                n = sizes[i % len(sizes)]
+                out.append(st.push(raw[a : a + n]))
+                a, i = a + n, i + 1
+            out.append(st.finish())
+            dances.append(np.concatenate(out))
+        whole = RevolutionStepper(pipe, lookahead=T, context=20, seed=3, variety=False)
+        off = np.concatenate([whole.push(raw), whole.finish()])
+        for d in dances:
+            assert d.shape == off.shape
+            assert np.allclose(d, off, atol=1e-3) == same
+
+
+def test_session_steps_the_live_component_and_waits_no_longer_than_its_encoder(tmp_path):
+    """A checkpoint declaring a ``live`` component: the session steps that model (its encoder's 2 frames are the
+    lookahead, even when the config allows more); without one, the model itself with the config's lookahead."""
+    import shutil
+
+    from dancekit.checkpoints import write_pretrained
+    from dancekit.checkpoints.hub import resolve_model
+    from dancekit.live.session import model_lookahead_frames
+
+    src = resolve_model("revolution")
+    folder = tmp_path / "rev"
+    shutil.copytree(src, folder)
+    live = _tiny_revolution(1)
+    (folder / "live").mkdir()
+    meta = json.loads((folder / "config.json").read_text())
+    write_pretrained(folder / "live", live.model, live.model.config, stats=live.stats,
+                     extra={k: meta[k] for k in ("representation", "preset", "fps", "hop_length", "skeleton")})
+    meta["components"]["live"] = "live"
+    (folder / "config.json").write_text(json.dumps(meta))
+    s = LiveSession(str(folder), config=LiveConfig(model_lookahead_s=0.4))
+    assert s.live_pipe is not s.pipe and s.live_pipe.model.config.lookahead == 1
+    assert s.stepper.model is s.live_pipe.model and s.stepper.lookahead == 2 == model_lookahead_frames(live.model)
+    assert s.live_pipe.variety == s.pipe.variety  # the parent's seed variety
+    plain = LiveSession("revolution", config=LiveConfig(model_lookahead_s=0.4))
+    assert plain.live_pipe is plain.pipe and plain.stepper.lookahead == 10
+
+
 def _tiny_music2dance(sampling=None):
     """A small Music2Dance model whose music condition is the features themselves (no F_map): causal
     end to end, so a stepped dance must equal one offline pass whatever the blocks; ``sampling``: its
@@ -248,10 +316,11 @@ def test_music2dance_stepper_carries_its_state_across_blocks(rng):
 
 
 def _gaussian_reference(x, sigma, *, ahead):
-    """Row t: the Gaussian-weighted mean of rows t - r ... t + a (r = round(3 sigma), a = r or 0), the first and
-    last rows repeated beyond the ends: written out sum by sum, apart from the code under test."""
+    """Row t: the Gaussian-weighted mean of rows t - r ... t + a (r = round(3 sigma), a = r or 0 for True / False,
+    else min(ahead, r)), the first and last rows repeated beyond the ends: written out sum by sum, apart from the
+    code under test."""
     r = int(round(3 * sigma))
-    a = r if ahead else 0
+    a = (r if ahead else 0) if isinstance(ahead, bool) else min(ahead, r)
     T = len(x)
     out = np.empty((T, x.shape[1]))
     for t in range(T):
@@ -264,11 +333,12 @@ def _gaussian_reference(x, sigma, *, ahead):
     return out
 
 
-@pytest.mark.parametrize("ahead", [True, False])
+@pytest.mark.parametrize("ahead", [True, False, 2, 0, 9])
 def test_sample_smoother_equals_the_gaussian_of_the_whole_stream(ahead, rng):
     """Rows pushed in uneven blocks: the delayed smoother gives the centred Gaussian of the whole stream (the offline
-    smoothing, edges repeated), the causal one the Gaussian's past half; the columns after ``columns`` (the contacts)
-    pass unchanged; the delay holds back exactly the radius (6 rows for sigma 2)."""
+    smoothing, edges repeated), the causal one the Gaussian's past half, a hold-back of a frames the lags up to a;
+    the columns after ``columns`` (the contacts) pass unchanged; the delay holds back exactly the radius (6 rows for
+    sigma 2) or the hold-back (at most the radius)."""
     from dancekit.live.steppers import SampleSmoother
     from dancekit.models.foot_constraint import gaussian_smooth
 
@@ -284,10 +354,10 @@ def test_sample_smoother_equals_the_gaussian_of_the_whole_stream(ahead, rng):
     out.append(sm.push(x[:0], final=True))
     on = np.concatenate(out)
     assert on.shape == x.shape
-    assert set(held[2:]) == {6 if ahead else 0}
+    assert set(held[2:]) == {(6 if ahead else 0) if isinstance(ahead, bool) else min(ahead, 6)}
     np.testing.assert_allclose(on[:, :3], _gaussian_reference(x[:, :3], 2.0, ahead=ahead), atol=1e-5)
     np.testing.assert_array_equal(on[:, 3:], x[:, 3:])
-    if ahead:
+    if ahead is True or ahead == 9:
         off = gaussian_smooth(torch.from_numpy(x[None, :, :3]), 2.0)[0].numpy()
         np.testing.assert_allclose(on[:, :3], off, atol=1e-5)
 
@@ -423,16 +493,19 @@ def test_session_nudges_within_the_offline_warp_bound_of_its_model():
     assert LiveSession("music2dance", config=LiveConfig(rate_bound=0.0)).nudge is None
 
 
-@pytest.mark.parametrize("model, smoothing, floor", [("revolution", "delay", 0.12), ("music2dance", "delay", 0.36),
-                                                     ("music2dance", "causal", 0.12)])
-def test_session_latency_is_logged_apart_from_the_lookahead(model, smoothing, floor, song):
+@pytest.mark.parametrize("model, smoothing, hold, floor", [("revolution", "delay", 0.08, 0.12),
+                                                           ("music2dance", "delay", None, 0.36),
+                                                           ("music2dance", "delay", 0.08, 0.20),
+                                                           ("music2dance", "causal", 0.08, 0.12)])
+def test_session_latency_is_logged_apart_from_the_lookahead(model, smoothing, hold, floor, song):
     """Blocks of 0.04 s arriving on a clock (block k at (k + 1) · 0.04 s) and handled 10 ms after arrival: each
     frame's latency is its lookahead plus those 10 ms. The lookahead, from the arrival of the block holding the
     frame's centre (block f for frame f, at (f + 1) · 0.04 s) to the arrival of the block that completes its
     0.08 s feature and 2-frame model lookahead (block f + 3: its rows up to f + 2 need samples up to
     (f + 2) · 512 + 1024), is 3 blocks: 0.12 s for every frame but the last ones (danced at the end); music2dance's
-    delayed smoothing holds each frame back 6 frames more (its Gaussian's radius, sigma 2): 0.36 s."""
-    s = LiveSession(model, config=LiveConfig(sample_smoothing=smoothing))
+    delayed smoothing holds each frame back 6 frames more (its Gaussian's radius, sigma 2): 0.36 s; with a hold of
+    0.08 s (the default), 2 frames more: 0.20 s."""
+    s = LiveSession(model, config=LiveConfig(sample_smoothing=smoothing, smoothing_hold_s=hold))
     y = song[: 4 * SR]
     n = 512
     for k, a in enumerate(range(0, len(y), n)):

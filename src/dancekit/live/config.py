@@ -54,6 +54,10 @@ class LiveConfig:
         exactly; ``r / fps`` s more lookahead: 0.24 s for the embedded model), or ``"causal"``, the kernel's
         past half (no frame held back; a weaker low-pass that lags the movement by about 0.65 σ frames).
         Chosen on the validation songs (docs/research/live.md)
+    smoothing_hold_s : with ``"delay"``, hold each frame back at most this long (s, ≥ 0; the kernel's lags
+        beyond it dropped, the rest renormalised); None: the kernel's radius (the offline smoothing exactly,
+        0.24 s for the embedded model). 0.08 s keeps music2dance's latency within 0.3 s; chosen on the validation
+        songs (docs/research/live.md)
     """
 
     block_s: float = 0.04
@@ -71,6 +75,7 @@ class LiveConfig:
     max_lag_s: float = 0.25
     seed: int = 0
     sample_smoothing: str = "delay"
+    smoothing_hold_s: float | None = 0.08
 
     #: lookahead (s) at which the online features equal the offline extractor's (the constant-Q support)
     EXACT_LOOKAHEAD_S = 1.0
@@ -89,13 +94,15 @@ class LiveConfig:
             "floor_window_s": lambda v: 0 < v <= 60.0, "silence_db": lambda v: -120 <= v <= 0,
             "calm": lambda v: 0 <= v <= 1, "calm_glide_s": lambda v: 0 < v <= 10,
             "rate_bound": lambda v: 0 <= v < 0.5, "max_lag_s": lambda v: 0 < v <= 10,
+            "smoothing_hold_s": lambda v: 0 <= v <= 10,
         }
         ranges = {"block_s": "(0, 2] s", "lookahead_s": "[0, 10] s", "model_lookahead_s": "[0, 10] s", "context_s": "[5, 60] s",
                   "encoder_context_s": "[0, 60] s", "beat_window_s": "[2, 30] s", "smooth_hz": "> 0 Hz",
                   "floor_window_s": "(0, 60] s", "silence_db": "[-120, 0] dB", "calm": "[0, 1]",
-                  "calm_glide_s": "(0, 10] s", "rate_bound": "[0, 0.5)", "max_lag_s": "(0, 10] s"}
+                  "calm_glide_s": "(0, 10] s", "rate_bound": "[0, 0.5)", "max_lag_s": "(0, 10] s",
+                  "smoothing_hold_s": "[0, 10] s"}
         for name, ok in checks.items():
-            if name == "rate_bound" and self.rate_bound is None:
+            if name in ("rate_bound", "smoothing_hold_s") and getattr(self, name) is None:
                 continue
             if not ok(number(name)):
                 raise ParameterError(f"LiveConfig.{name} must be in {ranges[name]}, got {getattr(self, name)!r}")

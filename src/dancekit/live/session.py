@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dancekit.errors import AudioError, ParameterError
+from dancekit.features.online import OnlineFeatures
 from dancekit.live.config import LiveConfig
-from dancekit.live.features import OnlineFeatures
 from dancekit.live.stages import BeatNudge, OnlineStages
 from dancekit.live.steppers import make_stepper
 
@@ -140,8 +140,15 @@ class LiveSession:
                                        beat_window_s=c.beat_window_s)
         self.sr = self.features.sr
         la_frames = int(np.ceil(c.model_lookahead_s * self.fps - 1e-9))
-        self.stepper = make_stepper(self.pipe, lookahead=la_frames, context=int(round(c.encoder_context_s * self.fps)),
-                                    seed=c.seed, genre=genre, smoothing=c.sample_smoothing)
+        #: the model stepped: the checkpoint's live component where it has one (trained on the online features)
+        self.live_pipe = self.pipe.live_pipeline() if hasattr(self.pipe, "live_pipeline") else self.pipe
+        exact = model_lookahead_frames(self.live_pipe.model)
+        if exact is not None:  # an encoder that looks no further: waiting longer changes nothing
+            la_frames = min(la_frames, exact)
+        self.stepper = make_stepper(self.live_pipe, lookahead=la_frames, context=int(round(c.encoder_context_s * self.fps)),
+                                    seed=c.seed, genre=genre, smoothing=c.sample_smoothing,
+                                    hold_back=None if c.smoothing_hold_s is None
+                                    else int(round(c.smoothing_hold_s * self.fps)))
         if hasattr(self.stepper, "raw"):
             self.stepper.raw = True  # the online stages set the bone lengths
         self.skeleton = self.pipe.skeleton
@@ -287,6 +294,15 @@ class LiveSession:
         if self.stats.merged_blocks:
             self.notes.append(f"{self.stats.merged_blocks} blocks fed together with the one before (behind the clock)")
         return self.stats
+
+
+def model_lookahead_frames(model) -> int | None:
+    """Frames of music after a frame that a model's latents depend on, where that is bounded by the model itself
+    (a Dance Revolution local encoder with ``lookahead`` set: ``n_layers · lookahead``), else None."""
+    c = getattr(model, "config", None)
+    if getattr(c, "encoder", None) == "local" and getattr(c, "lookahead", None) is not None:
+        return int(c.n_layers * c.lookahead)
+    return None
 
 
 def offline_rate_bound(pipe) -> float:

@@ -12,7 +12,10 @@ skeleton and units) of the frames it can dance now; :meth:`finish` dances the re
   computed on the frames they see alone: :meth:`~dancekit.models.revolution.MusicEncoder.forward_range`), and
   the dance — the LSTM decoder stepped with its state carried from block to block — equals one offline pass
   (``tests/live/test_live.py``); the default lookahead is the latency floor's 3 frames, an approximation whose
-  cost the quality benchmark measures. The seed draws the initial state; the checkpoint's per-phrase state noise is drawn phrase by
+  cost the quality benchmark measures. A model whose encoder itself looks only ``lookahead`` frames ahead (a
+  checkpoint's ``live`` component, ``RevolutionConfig.lookahead``) is stepped exactly: each latent is computed once,
+  as its music comes (:class:`~dancekit.models.revolution.StreamingEncoder`), and equals the offline one whatever
+  the blocks. The seed draws the initial state; the checkpoint's per-phrase state noise is drawn phrase by
   phrase as the phrases come.
 * :class:`Music2DanceStepper` (Music2Dance): the WaveNet is causal; its F_map (convolutions and a BiLSTM) is
   run on the last ``context`` frames up to ``lookahead`` frames ahead, and each frame is stepped with the
@@ -107,6 +110,17 @@ class RevolutionStepper(_Stepper):
         #: the local encoder's embedding of the music history (1, frames, d), embedded as the rows come
         self.embedded = model.encoder.config.encoder == "local"
         self.emb = torch.zeros(1, 0, model.config.d_model)
+        #: an encoder whose lookahead is this stepper's: each latent computed once, as its music comes
+        #: (:class:`~dancekit.models.revolution.StreamingEncoder`), kept from frame ``z_start`` on
+        ec = model.encoder.config
+        self.stream = None
+        if ec.encoder == "local" and ec.lookahead is not None and ec.pos_encoding == "relative" \
+                and self.lookahead == ec.n_layers * ec.lookahead:
+            from dancekit.models.revolution import StreamingEncoder
+
+            self.stream = StreamingEncoder(model.encoder)
+        self.z = torch.zeros(1, 0, model.config.d_model)
+        self.z_start = 0
         #: True: the decoded positions as they are (the live stages set the bone lengths); False: rest bone
         #: lengths, as the offline pipeline's ``postprocess`` without its floor
         self.raw = False
@@ -118,7 +132,10 @@ class RevolutionStepper(_Stepper):
         super()._append(rows)
         if self.embedded and len(self.music) > n:
             new = torch.from_numpy(np.ascontiguousarray(self.music[n:]))[None]  # (1, k, D)
-            self.emb = torch.cat([self.emb, self.model.encoder.embed(new)], dim=1)
+            e = self.model.encoder.embed(new)
+            self.emb = torch.cat([self.emb, e], dim=1)
+            if self.stream is not None:
+                self.z = torch.cat([self.z, self.stream.push(e)], dim=1)
 
     def _trim(self, keep_from: int) -> None:
         start = self.music_start
@@ -131,13 +148,18 @@ class RevolutionStepper(_Stepper):
         t0 = self.n_out
         if upto <= t0:
             return np.zeros((0, self.skeleton.num_joints, 3), np.float32)
-        a = max(self.music_start, t0 - self.context)
-        b = min(self.n_music, upto + self.lookahead)
-        if self.embedded:
-            x = self.emb[:, a - self.music_start : b - self.music_start]  # (1, b - a, d)
+        z_end = self.z_start + self.z.shape[1]
+        if self.stream is not None and upto <= z_end:  # the streamed latents (every frame but a stream's last few)
+            z = self.z[:, t0 - self.z_start : upto - self.z_start]
         else:
-            x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
-        z = self.model.encoder.forward_range(x, t0 - a, upto - a, embedded=self.embedded)
+            a = max(self.music_start, t0 - self.context)
+            b = min(self.n_music, upto + self.lookahead)
+            if self.embedded:
+                x = self.emb[:, a - self.music_start : b - self.music_start]  # (1, b - a, d)
+            else:
+                x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
+            z = self.model.encoder.forward_range(x, t0 - a, upto - a, embedded=self.embedded)
+        self.z, self.z_start = self.z[:, max(0, upto - self.z_start) :], max(self.z_start, min(upto, z_end))
         z = self.model._condition(z, None)  # (1, upto - t0, d)
         ys = []
         for p0, p1 in self._pieces(t0, upto):
@@ -188,17 +210,24 @@ class SampleSmoother:
       given out ``r`` rows after it is sampled — the offline smoothing exactly, ``r / fps`` s more lookahead;
     * ``ahead=False`` (``"causal"``): the kernel's past half (``k = -r … 0``), renormalised — nothing held back,
       a weaker low-pass (at 25 fps and ``sigma = 2``: 36 % of a 5-Hz movement left against 4 %) that lags the
-      movement by ``Σ_k |k| w_k`` ≈ 0.65 sigma frames.
+      movement by ``Σ_k |k| w_k`` ≈ 0.65 sigma frames;
+    * ``ahead=a`` (an integer, ``0 ≤ a``): the kernel's lags ``-r … min(a, r)``, renormalised — each row held back
+      ``min(a, r)`` rows (``0``: ``"causal"``; ``r`` or more: ``"delay"``).
 
     ``sigma = 0``: the rows as they come.
     """
 
-    def __init__(self, sigma: float, *, ahead: bool, columns: int):
+    def __init__(self, sigma: float, *, ahead: bool | int, columns: int):
         if not sigma >= 0:
             raise ParameterError(f"smoothing sigma must be >= 0 frames, got {sigma!r}")
         self.sigma, self.columns = float(sigma), int(columns)
         self.radius = max(1, int(round(3 * self.sigma))) if self.sigma > 0 else 0
-        self.ahead = self.radius if ahead else 0
+        if isinstance(ahead, bool):
+            self.ahead = self.radius if ahead else 0
+        elif isinstance(ahead, int) and ahead >= 0:
+            self.ahead = min(self.radius, ahead)
+        else:
+            raise ParameterError(f"the smoothing's hold-back must be True, False or frames >= 0, got {ahead!r}")
         k = np.arange(-self.radius, self.ahead + 1, dtype=np.float64)
         w = np.exp(-0.5 * (k / self.sigma) ** 2) if self.sigma > 0 else np.ones(1)
         self.weights = w / w.sum()  # (radius + ahead + 1,) for the lags -radius … ahead
@@ -241,10 +270,12 @@ class Music2DanceStepper(_Stepper):
         checkpoint's for that genre (temperature, noise correlation, guidance, smoothing), as offline
     smoothing : how the checkpoint's Gaussian smoothing of the samples runs online (:class:`SampleSmoother`):
         ``"delay"`` (centred, each frame held back its radius) or ``"causal"`` (the kernel's past half)
+    hold_back : with ``"delay"``, hold each frame back at most this many frames (the kernel's lags beyond it
+        dropped and the rest renormalised); None: the kernel's radius (the offline smoothing exactly)
     """
 
     def __init__(self, pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None,
-                 smoothing: str = "delay"):
+                 smoothing: str = "delay", hold_back: int | None = None):
         super().__init__(pipe, lookahead=lookahead, context=context)
         if smoothing not in SMOOTHING:
             raise ParameterError(f"smoothing must be one of {', '.join(SMOOTHING)}, got {smoothing!r}")
@@ -262,7 +293,8 @@ class Music2DanceStepper(_Stepper):
         self.rho = float(steer.get("noise_correlation", pipe.noise_correlation))
         scale = float(steer.get("genre_scale", pipe.genre_scale))
         sigma = float(steer.get("smooth_sigma", pipe.smooth_sigma))
-        self.smoother = SampleSmoother(sigma, ahead=smoothing == "delay", columns=model.config.gmm_dim)
+        ahead = (hold_back if hold_back is not None else True) if smoothing == "delay" else False
+        self.smoother = SampleSmoother(sigma, ahead=ahead, columns=model.config.gmm_dim)
         #: frames each danced frame waits for after its own is sampled (the smoothing's lookahead)
         self.delay = self.smoother.ahead
         self.g = model.guided_genre_vector(torch.tensor([index]), 1, torch.device("cpu"), genre_scale=scale)
@@ -337,9 +369,9 @@ class Music2DanceStepper(_Stepper):
 
 
 def make_stepper(pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None,
-                 smoothing: str = "delay"):
-    """The stepper of a loaded dance pipeline (Dance Revolution or Music2Dance; ``smoothing``: Music2Dance's,
-    :class:`SampleSmoother`)."""
+                 smoothing: str = "delay", hold_back: int | None = None):
+    """The stepper of a loaded dance pipeline (Dance Revolution or Music2Dance; ``smoothing`` and ``hold_back``:
+    Music2Dance's, :class:`SampleSmoother`)."""
     from dancekit.models.music2dance import Music2DanceModel
     from dancekit.models.revolution import RevolutionModel
 
@@ -349,5 +381,5 @@ def make_stepper(pipe, *, lookahead: int, context: int, seed: int = 0, genre: st
         return RevolutionStepper(pipe, lookahead=lookahead, context=context, seed=seed)
     if isinstance(pipe.model, Music2DanceModel):
         return Music2DanceStepper(pipe, lookahead=lookahead, context=context, seed=seed, genre=genre,
-                                  smoothing=smoothing)
+                                  smoothing=smoothing, hold_back=hold_back)
     raise ParameterError(f"live dancing runs Dance Revolution and Music2Dance models, not {type(pipe.model).__name__}")
