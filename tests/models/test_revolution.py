@@ -94,6 +94,77 @@ def test_attention_of_a_range_of_queries_equals_band_masked_global(half):
             torch.testing.assert_close(out, ref[:, :, s:e], rtol=0, atol=1e-12)
 
 
+def _ahead_mask(n: int, half: int, ahead: int) -> torch.Tensor:
+    """(n, n) True where ``-half <= j - i <= ahead``: written from the definition, apart from the code under test."""
+    return torch.tensor([[-half <= j - i <= ahead for j in range(n)] for i in range(n)])
+
+
+@pytest.mark.parametrize("half, ahead", [(3, 0), (3, 1), (5, 2), (5, 5), (50, 1)])
+def test_attention_with_a_shorter_lookahead_equals_its_masked_global(half, ahead):
+    """``ahead``: keys from ``half`` frames back to ``ahead`` frames ahead, for the whole sequence (blocked) and for a
+    range of queries (blocked and one score matrix); the relative bias as in the symmetric band."""
+    n = 23
+    g = gen(half * 10 + ahead)
+    q, k, v = (torch.randn(2, 3, n, 4, generator=g, dtype=torch.float64) for _ in range(3))
+    bias = torch.randn(3, 2 * half + 1, generator=g, dtype=torch.float64)
+    for b in (None, bias):
+        ref = global_attention(q, k, v, half_window=half, bias=b, mask=_ahead_mask(n, half, ahead))
+        torch.testing.assert_close(local_attention(q, k, v, half_window=half, bias=b, ahead=ahead), ref, rtol=0,
+                                   atol=1e-12)
+        for s, e in [(0, 1), (2, 3), (4, 16), (22, 23)]:
+            ka, kb = max(0, s - half), min(n, e + ahead)
+            for fn in (local_attention, band_attention):
+                out = fn(q[:, :, s:e], k[:, :, ka:kb], v[:, :, ka:kb], half_window=half, bias=b, q_offset=s - ka,
+                         ahead=ahead)
+                torch.testing.assert_close(out, ref[:, :, s:e], rtol=0, atol=1e-12)
+    with pytest.raises(ParameterError, match="ahead"):
+        local_attention(q, k, v, half_window=half, ahead=half + 1)
+
+
+def test_encoder_with_a_lookahead_depends_on_no_later_music():
+    """``lookahead=1`` with 2 layers: latent t depends on the music up to frame t + 2 and not after (changing
+    frame t + 3 leaves it, changing t + 2 moves it); forward_range on the music up to t + 2 gives it."""
+    from dancekit.models.revolution import MusicEncoder
+
+    enc = _random_weights(MusicEncoder(tiny(window=10, lookahead=1)))
+    music = torch.randn(1, 40, D, generator=gen(4))
+    with torch.no_grad():
+        whole = enc(music)
+        for t in (0, 12, 30, 37):
+            later = music.clone()
+            later[:, t + 3 :] += 5.0
+            torch.testing.assert_close(enc(later)[:, t], whole[:, t], rtol=0, atol=1e-5)
+            nearer = music.clone()
+            nearer[:, t + 2] += 5.0
+            assert (enc(nearer)[:, t] - whole[:, t]).abs().max() > 1e-4  # far above the 1e-5 of float rounding
+            torch.testing.assert_close(enc.forward_range(music[:, : t + 3], t, t + 1)[:, 0], whole[:, t], rtol=0,
+                                       atol=1e-5)
+
+
+@pytest.mark.parametrize("n_layers, lookahead", [(2, 1), (3, 2), (1, 0)])
+def test_streaming_encoder_gives_each_latent_once_as_forward_does(n_layers, lookahead):
+    """Music pushed in uneven chunks: the latents come out once each, in order, as soon as the music up to
+    ``n_layers · lookahead`` frames after them has come, and equal the whole stream's forward pass."""
+    from dancekit.models.revolution import MusicEncoder, StreamingEncoder
+
+    enc = _random_weights(MusicEncoder(tiny(window=10, lookahead=lookahead, n_layers=n_layers)))
+    music = torch.randn(1, 70, D, generator=gen(5))
+    with torch.no_grad():
+        whole = enc(music)
+        for sizes in ((1,), (4,), (3, 1, 12, 2)):
+            stream, out, a, i = StreamingEncoder(enc), [], 0, 0
+            assert stream.latency == n_layers * lookahead
+            while a < 70:
+                n = sizes[i % len(sizes)]
+                z = stream.push(enc.embed(music[:, a : a + n]))
+                a, i = min(70, a + n), i + 1
+                assert sum(o.shape[1] for o in out) + z.shape[1] == max(0, a - stream.latency)
+                out.append(z)
+            torch.testing.assert_close(torch.cat(out, 1), whole[:, : 70 - stream.latency], rtol=0, atol=1e-5)
+    with pytest.raises(ParameterError, match="lookahead"):
+        StreamingEncoder(MusicEncoder(tiny()))
+
+
 def _random_weights(model: torch.nn.Module, seed: int = 0) -> torch.nn.Module:
     torch.manual_seed(seed)
     with torch.no_grad():
@@ -336,6 +407,9 @@ def test_generate_restores_training_mode():
         ({"bop": "mean"}, "bop"),
         ({"baseline": True}, "baseline"),
         ({"window": -2}, "window"),
+        ({"window": 10, "lookahead": 6}, "lookahead"),
+        ({"lookahead": -1}, "lookahead"),
+        ({"encoder": "conv", "lookahead": 1}, "lookahead"),
     ],
 )
 def test_bad_config_names_the_field(kw, match):

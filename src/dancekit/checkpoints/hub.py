@@ -147,7 +147,8 @@ def model_card(folder: str | os.PathLike) -> dict:
 def model_cards() -> dict[str, dict]:
     """Name → card of every model :func:`available_models` finds (what ``dancekit models`` prints): ``name``,
     ``family``, ``kind`` (the registry's: dance, classifier, postprocess; ``unknown`` for an unregistered
-    family), ``folder``, ``default``, ``size_mb``, ``genre_models`` (names), ``reads_genre_from_music``, ``genre_condition`` (the genres a model takes as
+    family), ``folder``, ``default``, ``size_mb``, ``genre_models`` (names), ``reads_genre_from_music``, ``live_model`` (a ``live`` component: the model
+    ``dancekit live`` steps), ``genre_condition`` (the genres a model takes as
     an input, e.g. music2dance's dance type) and the
     fields of its ``card.json`` (``description``, ``training_data``, ``metrics``, ...)."""
     from dancekit import registry
@@ -163,6 +164,7 @@ def model_cards() -> dict[str, dict]:
                 "default": name == DEFAULT_MODEL, "size_mb": round(size / 1e6, 2),
                 "genre_models": list(parts.get("genres", {})),
                 "reads_genre_from_music": "genre_reader" in parts,
+                "live_model": "live" in parts,
                 "genre_condition": list(meta.get("genres", [])) if meta.get("config", {}).get("n_genres") else [],
                 **model_card(folder)}
         if not card.get("description"):  # a model without a card.json still says what it is

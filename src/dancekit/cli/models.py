@@ -57,6 +57,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"  --genre: {auto}, {', '.join(card['genre_models'])} (genre models)")
         elif card["genre_condition"]:
             print(f"  --genre: {auto}, {', '.join(card['genre_condition'])} (the model's dance-type condition)")
+        if card.get("live_model"):
+            print("  live: its own live model (trained on the features `dancekit live` computes)")
         for key in ("training_data", "training_time", "parameters"):
             if key in card:
                 print(f"  {key.replace('_', ' ')}: {card[key]}")

@@ -1,4 +1,7 @@
-"""``dancekit prepare tang2018|pairs SRC -o DIR``: paired dataset preparation.
+"""``dancekit prepare tang2018|pairs|aistpp|online SRC -o DIR``: paired dataset preparation.
+
+``online``: a copy of a prepared dataset ``SRC`` with its features as a live session computes them
+(:mod:`dancekit.data.online`), to train a model for ``dancekit live``.
 
 ``pairs``: a folder of the user's songs and motion files paired by name (:mod:`dancekit.data.pairs`);
 ``aistpp``: the AIST++ release layout (:mod:`dancekit.data.aistpp`). Broken or unmatched files are skipped
@@ -18,15 +21,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Write aligned music features (every preset), motion (positions + IK rotations), "
         "genre labels and whole-dance train/val/test splits.",
     )
-    p.add_argument("source", choices=["tang2018", "pairs", "aistpp"],
+    p.add_argument("source", choices=["tang2018", "pairs", "aistpp", "online"],
                    help="dataset kind: tang2018; pairs (songs + npz/BVH/AIST++ pkl/OpenPose motions paired by name); "
-                        "aistpp (the AIST++ release: motions/*.pkl, wavs/, splits/, ignore_list.txt)")
+                        "aistpp (the AIST++ release: motions/*.pkl, wavs/, splits/, ignore_list.txt); online (a "
+                        "prepared dataset copied with --presets' features as `dancekit live` computes them; default "
+                        "preset revolution)")
     p.add_argument("src", help="source folder (e.g. ../shared/data/tang2018)")
     p.add_argument("-o", "--out", required=True, help="output folder (replaced when complete)")
     p.add_argument("--fps", type=float, default=25.0, help="motion and feature frame rate (default 25)")
-    p.add_argument("--presets", default="revolution,music2dance,dual", help="comma-separated feature presets")
+    p.add_argument("--presets", default=None,
+                   help="comma-separated feature presets (default revolution,music2dance,dual; online: revolution)")
     p.add_argument("--seed", type=int, default=0, help="seed of the split (default 0)")
-    p.add_argument("--workers", type=int, default=1, help="pairs, aistpp: processes preparing pairs (default 1)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="pairs, aistpp, online: processes preparing pairs (default 1)")
     p.set_defaults(func=run)
 
 
@@ -34,9 +41,18 @@ def run(args: argparse.Namespace) -> int:
     from dancekit.data import PreparedData, prepare_tang2018
 
     t0 = time.perf_counter()
-    presets = tuple(p.strip() for p in args.presets.split(",") if p.strip())
+    default = "revolution" if args.source == "online" else "revolution,music2dance,dual"
+    presets = tuple(p.strip() for p in (args.presets or default).split(",") if p.strip())
     report = None
-    if args.source == "pairs":
+    if args.source == "online":
+        from dancekit.data.online import prepare_online
+
+        if args.fps != 25.0:
+            from dancekit.errors import ParameterError
+
+            raise ParameterError("--fps does not apply to `prepare online` (the source dataset's rate is kept)")
+        out = prepare_online(args.src, args.out, presets=presets, workers=args.workers)
+    elif args.source == "pairs":
         from dancekit.data.pairs import prepare_pairs
 
         out, report = prepare_pairs(args.src, args.out, fps=args.fps, presets=presets, seed=args.seed,

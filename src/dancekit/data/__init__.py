@@ -4,6 +4,7 @@ How a dance becomes a model's vector lives in :mod:`dancekit.motion.representati
 statistics in :mod:`dancekit.checkpoints.stats` (they travel with checkpoints).
 """
 
+from dancekit.data.online import prepare_online
 from dancekit.data.pairs import prepare_pairs
 from dancekit.data.prepared import (
     DEFAULT_PRESETS,
@@ -24,6 +25,7 @@ __all__ = [
     "WindowDataset",
     "compute_stats",
     "load_pairs",
+    "prepare_online",
     "prepare_pairs",
     "prepare_tang2018",
     "split_by_genre",

@@ -14,7 +14,7 @@ columns) computed on the audio received so far, a frame at a time:
   offline tempogram of frame ``f - 192`` (the window that ends at ``f``): the same values, delayed by half
   the window; the first 192 rows' windows reach before the offline padding (the linear ramp to the first
   envelope value over 192 frames), and there they see zeros.
-* the beat (and downbeat) columns come from the causal beat tracker (:class:`dancekit.live.beats.BeatTracker`),
+* the beat (and downbeat) columns come from the causal beat tracker (:class:`dancekit.features.online_beats.BeatTracker`),
   which runs on a 100-Hz onset envelope of its own; a beat is marked on frame ``round(t · fps)``.
 """
 
@@ -25,10 +25,10 @@ import numpy as np
 from dancekit.errors import ParameterError
 from dancekit.features import dsp as _dsp
 from dancekit.features import spectral
+from dancekit.features.online_beats import BeatTracker
 from dancekit.features.presets import PRESET_DIMS, PRESETS, feature_sr
-from dancekit.live.beats import BeatTracker
 
-__all__ = ["EXACT_LOOKAHEAD_S", "OnlineChroma", "OnlineFeatures", "TEMPOGRAM_WINDOW"]
+__all__ = ["EXACT_LOOKAHEAD_S", "OnlineChroma", "OnlineFeatures", "TEMPOGRAM_WINDOW", "online_rows"]
 
 #: lookahead (s) from which every column but the tempogram and the beats equals the offline extractor's
 EXACT_LOOKAHEAD_S = 1.0
@@ -347,3 +347,29 @@ class OnlineFeatures:
             self.env_hist = self.env_hist[excess:]
             self.env_offset += excess
         return rows
+
+
+def online_rows(y: np.ndarray, *, preset: str, fps: float, hop_length: int = 512, block_s: float = 0.04,
+                lookahead_s: float = 0.08, context_s: float = 6.0,
+                beat_window_s: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+    """The rows a live session computes for a whole recording: ``y`` (mono samples at ``fps · hop_length`` Hz)
+    fed to :class:`OnlineFeatures` in blocks of ``block_s`` seconds, then :meth:`~OnlineFeatures.finish`.
+
+    Returns ``(rows (1 + len(y) // hop_length, D) float32, beat_times (s) float64)`` — the same frame count as the
+    offline extractor on the same samples; the beats are the causal tracker's.
+
+    Examples
+    --------
+    >>> rows, beats = online_rows(np.zeros(12800, np.float32), preset="music2dance", fps=25)
+    >>> rows.shape, len(beats)
+    ((26, 15), 0)
+    """
+    if not block_s > 0:
+        raise ParameterError(f"block_s must be > 0 s, got {block_s!r}")
+    f = OnlineFeatures(preset=preset, fps=fps, hop_length=hop_length, lookahead_s=lookahead_s, context_s=context_s,
+                       beat_window_s=beat_window_s)
+    y = np.asarray(y, np.float32).reshape(-1)
+    n = max(1, int(round(block_s * f.sr)))
+    rows = [f.feed(y[a : a + n]) for a in range(0, len(y), n)]
+    rows.append(f.finish())
+    return np.concatenate(rows).astype(np.float32), np.array([b.time for b in f.tracker.beats], np.float64)

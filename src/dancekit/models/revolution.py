@@ -70,6 +70,7 @@ class RevolutionConfig:
     n_heads: int = 4
     d_ff: int = 512  # hidden units of the position-wise feed-forward sublayer
     window: int = 100  # k: frame i attends to |i - j| <= k // 2 (frames at the dataset fps; ±2 s at 25 fps)
+    lookahead: int | None = None  # local encoder: frames after frame i that it attends to (None: k // 2, symmetric)
     dropout: float = 0.1
     encoder: str = "local"  # local | global | lstm | conv (Table 3)
     pos_encoding: str = "relative"  # relative | sinusoidal
@@ -110,6 +111,13 @@ class RevolutionConfig:
                                  f"{self.style_beta!r}, {self.style_free_bits!r}")
         if not isinstance(self.window, int) or self.window < 0:
             raise ParameterError(f"RevolutionConfig.window must be a non-negative integer, got {self.window!r}")
+        if self.lookahead is not None:
+            if isinstance(self.lookahead, bool) or not isinstance(self.lookahead, int) \
+                    or not 0 <= self.lookahead <= self.window // 2:
+                raise ParameterError(f"RevolutionConfig.lookahead must be None or an integer in [0, window // 2 = "
+                                     f"{self.window // 2}], got {self.lookahead!r}")
+            if self.encoder != "local":
+                raise ParameterError(f"RevolutionConfig.lookahead is for the local encoder, not {self.encoder!r}")
         if self.encoder not in ENCODERS:
             raise ParameterError(f"RevolutionConfig.encoder must be one of {ENCODERS}, got {self.encoder!r}")
         if self.pos_encoding not in POS_ENCODINGS:
@@ -133,8 +141,13 @@ class RevolutionConfig:
 
     @property
     def half_window(self) -> int:
-        """``k // 2``: the attention reaches this many frames on each side."""
+        """``k // 2``: the attention reaches this many frames back (and ahead, unless ``lookahead`` is set)."""
         return self.window // 2
+
+    @property
+    def ahead(self) -> int:
+        """Frames ahead that a local attention layer reaches: ``lookahead``, else ``k // 2``."""
+        return self.window // 2 if self.lookahead is None else self.lookahead
 
     @classmethod
     def lstm_baseline(cls, **overrides) -> RevolutionConfig:
@@ -281,8 +294,10 @@ def local_attention(
     dropout: float = 0.0,
     training: bool = False,
     q_offset: int = 0,
+    ahead: int | None = None,
 ) -> torch.Tensor:
-    """Banded scaled dot-product attention: query ``i`` attends to keys ``|i - j| <= half_window``.
+    """Banded scaled dot-product attention: query ``i`` attends to keys ``-half_window <= j - i <= ahead``
+    (``ahead`` None: ``half_window``, the symmetric band).
 
     Computed in blocks of ``w = max(half_window, 1)`` frames: each query block scores the keys of its
     own block and of its two neighbours, so the score tensor is ``(B, H, n/w, w, 3w)`` — O(n·k)
@@ -296,6 +311,7 @@ def local_attention(
     half_window : h = k // 2
     bias : optional (H, 2h + 1) learned bias per head and relative offset ``j - i``
     q_offset : frame of the first query among the keys (≥ 0)
+    ahead : keys after a query that it sees (0 … ``half_window``; None: ``half_window``)
 
     Returns
     -------
@@ -303,13 +319,16 @@ def local_attention(
     """
     B, H, n, d = q.shape
     h = int(half_window)
+    ahead = h if ahead is None else int(ahead)
+    if not 0 <= ahead <= h:
+        raise ParameterError(f"ahead must be in [0, half_window = {h}], got {ahead}")
     w = max(h, 1)
     if q_offset < 0:
         raise ParameterError(f"q_offset must be >= 0, got {q_offset}")
     if q_offset > h:  # keys before the first query's band are never looked at
         k, v = k[:, :, q_offset - h :], v[:, :, q_offset - h :]
         q_offset = h
-    m = min(k.shape[2], q_offset + n + h)  # nor are keys after the last query's band
+    m = min(k.shape[2], q_offset + n + ahead)  # nor are keys after the last query's band
     k, v = k[:, :, :m], v[:, :, :m]
     nb = -(-n // w)  # number of blocks
     pad = nb * w - n
@@ -328,7 +347,8 @@ def local_attention(
     query_pos = torch.arange(nb, device=dev)[:, None] * w + torch.arange(w, device=dev)[None, :]  # (nb, w)
     key_ok = (key_pos >= 0) & (key_pos < m)
     # padded queries (beyond n) may look at padded keys so that no row is empty (their output is dropped)
-    allowed = (offsets.abs() <= h)[None] & (key_ok[:, None, :] | (query_pos >= n)[:, :, None])  # (nb, w, 3w)
+    band = (offsets >= -h) & (offsets <= ahead)
+    allowed = band[None] & (key_ok[:, None, :] | (query_pos >= n)[:, :, None])  # (nb, w, 3w)
     if bias is not None:
         scores = scores + _relative_bias(bias, offsets, h)[:, None]  # (H, 1, w, 3w) broadcast
     scores = scores.masked_fill(~allowed, float("-inf"))
@@ -349,16 +369,18 @@ def band_attention(
     dropout: float = 0.0,
     training: bool = False,
     q_offset: int = 0,
+    ahead: int | None = None,
 ) -> torch.Tensor:
     """:func:`local_attention` with one ``(B, H, n, m)`` score matrix: fewer operations for a few queries
     (O(n·m) memory). Shapes and arguments as :func:`local_attention`."""
     n, m, d = q.shape[2], k.shape[2], q.shape[3]
     h = int(half_window)
+    ahead = h if ahead is None else int(ahead)
     offsets = torch.arange(m, device=q.device)[None, :] - torch.arange(q_offset, q_offset + n, device=q.device)[:, None]
     scores = q @ k.transpose(-1, -2) / math.sqrt(d)  # (B, H, n, m)
     if bias is not None:
         scores = scores + _relative_bias(bias, offsets, h)  # (H, n, m) broadcast
-    scores = scores.masked_fill(offsets.abs() > h, float("-inf"))
+    scores = scores.masked_fill((offsets < -h) | (offsets > ahead), float("-inf"))
     attn = torch.softmax(scores, dim=-1)
     if dropout and training:
         attn = F.dropout(attn, p=dropout)
@@ -418,6 +440,7 @@ class SelfAttention(nn.Module):
         self.local = local
         self.n_heads = config.n_heads
         self.half = config.half_window
+        self.ahead = config.ahead
         self.dropout = config.dropout
         self.qkv = nn.Linear(config.d_model, 3 * config.d_model)
         self.proj = nn.Linear(config.d_model, config.d_model)
@@ -428,8 +451,12 @@ class SelfAttention(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         B, n, d = x.shape
         q, k, v = self.qkv(x).view(B, n, 3, self.n_heads, d // self.n_heads).permute(2, 0, 3, 1, 4)  # (B, H, n, dh)
-        fn = local_attention if self.local else global_attention
-        y = fn(q, k, v, half_window=self.half, bias=self.rel_bias, dropout=self.dropout, training=self.training)
+        if self.local:
+            y = local_attention(q, k, v, half_window=self.half, bias=self.rel_bias, dropout=self.dropout,
+                                training=self.training, ahead=self.ahead)
+        else:
+            y = global_attention(q, k, v, half_window=self.half, bias=self.rel_bias, dropout=self.dropout,
+                                 training=self.training)
         return self.proj(y.transpose(1, 2).reshape(B, n, d))  # (B, n, d)
 
     def forward_range(self, x: torch.Tensor, start: int, stop: int) -> torch.Tensor:
@@ -440,7 +467,7 @@ class SelfAttention(nn.Module):
             raise ParameterError("forward_range needs the local (banded) attention")
         B, n, d = x.shape
         h, H = self.half, self.n_heads
-        a, b = max(0, start - h), min(n, stop + h)  # the keys looked at
+        a, b = max(0, start - h), min(n, stop + self.ahead)  # the keys looked at
         if type(self.qkv) is nn.Linear:  # the queries of [start, stop) alone
             W, c = self.qkv.weight, self.qkv.bias
             q = F.linear(x[:, start:stop], W[:d], c[:d]).view(B, stop - start, H, d // H).transpose(1, 2)
@@ -452,7 +479,7 @@ class SelfAttention(nn.Module):
         k, v = kv.reshape(B, b - a, 2, H, d // H).permute(2, 0, 3, 1, 4)  # (B, H, m, dh) each
         fn = band_attention if stop - start <= 4 * max(h, 1) else local_attention  # few queries: one score matrix
         y = fn(q, k, v, half_window=h, bias=self.rel_bias, dropout=self.dropout, training=self.training,
-               q_offset=start - a)
+               q_offset=start - a, ahead=self.ahead)
         return self.proj(y.transpose(1, 2).reshape(B, stop - start, d))  # (B, stop - start, d)
 
 
@@ -551,18 +578,72 @@ class MusicEncoder(nn.Module):
             raise ParameterError(f"embedded frames are for the local encoder, not {c.encoder!r}")
         if c.encoder != "local" or stop <= start:
             return self.forward(music)[:, start:stop]
-        h, L = c.half_window, len(self.layers)
-        lo, hi = max(0, start - L * h), min(n, stop + L * h)  # the frames embedded
+        h, ah, L = c.half_window, c.ahead, len(self.layers)
+        lo, hi = max(0, start - L * h), min(n, stop + L * ah)  # the frames embedded
         x = music[:, lo:hi] if embedded else self.embed(music[:, lo:hi])  # (B, hi - lo, d)
         if c.pos_encoding == "sinusoidal":
             x = x + sinusoidal_encoding(hi, x.shape[2], device=x.device)[lo:]
         x = self.drop(x)
         for i, layer in enumerate(self.layers):
-            r = (L - 1 - i) * h  # the frames this layer's outputs are needed at: [start - r, stop + r)
-            a, b = max(0, start - r), min(n, stop + r)
+            r = L - 1 - i  # the frames this layer's outputs are needed at: [start - r·h, stop + r·ahead)
+            a, b = max(0, start - r * h), min(n, stop + r * ah)
             x = layer.forward_range(x, a - lo, b - lo)  # (B, b - a, d)
             lo = a
         return self.norm(x)  # (B, stop - start, d)
+
+
+class StreamingEncoder:
+    """The latents of a local encoder with a bounded lookahead (``lookahead`` set), computed as the music comes.
+
+    Layer ``i``'s output at frame ``s`` depends on layer ``i - 1``'s outputs at ``[s - h, s + a]`` (``h`` the half
+    window, ``a`` the lookahead): it is final once those have come, and is computed once and kept (the last ``h``
+    frames of each layer, what later frames still need). :meth:`push` takes the embedded rows
+    (``encoder.embed(music)``, ``(1, k, d)``) and returns the latents ``(1, m, d)`` of the frames that became
+    final: frame ``s`` once the music up to ``s + n_layers · a`` has come. They equal
+    :meth:`MusicEncoder.forward` of the whole stream at those frames (``tests/models/test_revolution.py``); the
+    last ``n_layers · a`` frames of a stream that ends see its end as a song's end: ``forward_range`` gives them.
+    """
+
+    def __init__(self, encoder: MusicEncoder):
+        c = encoder.config
+        if c.encoder != "local" or c.lookahead is None or c.pos_encoding != "relative":
+            raise ParameterError("a streaming encoder needs the local encoder with a lookahead and relative positions")
+        self.encoder, self.h, self.a = encoder, c.half_window, c.ahead
+        L = len(encoder.layers)
+        # per level (0: the embedded input, i: layer i's output): kept frames and the frame of the first one
+        self.levels: list[torch.Tensor] = [torch.zeros(1, 0, c.d_model) for _ in range(L + 1)]
+        self.first = [0] * (L + 1)
+        self.done = 0  # latents given out so far
+
+    @property
+    def latency(self) -> int:
+        """Frames of music after a frame that its latent waits for (``n_layers · lookahead``)."""
+        return len(self.encoder.layers) * self.a
+
+    def end(self, level: int) -> int:
+        return self.first[level] + self.levels[level].shape[1]
+
+    @torch.no_grad()
+    def push(self, embedded: torch.Tensor) -> torch.Tensor:
+        self.levels[0] = torch.cat([self.levels[0], embedded], dim=1)
+        for i, layer in enumerate(self.encoder.layers, start=1):
+            below, b0 = self.levels[i - 1], self.first[i - 1]
+            start, stop = self.end(i), self.end(i - 1) - self.a  # the outputs whose inputs have all come
+            if stop > start:
+                lo = max(b0, start - self.h)  # frames before b0 were never there (the stream's start) or not needed
+                new = layer.forward_range(below[:, lo - b0 : stop + self.a - b0], start - lo, stop - lo)
+                self.levels[i] = torch.cat([self.levels[i], new], dim=1)
+            keep = max(self.first[i - 1], self.end(i) - self.h)  # what layer i's next outputs may still read
+            cut = keep - self.first[i - 1]
+            if cut > 0:
+                self.levels[i - 1] = self.levels[i - 1][:, cut:]
+                self.first[i - 1] = keep
+        top = len(self.encoder.layers)
+        out = self.encoder.norm(self.levels[top][:, self.done - self.first[top] :])
+        self.done = self.end(top)
+        cut = max(0, self.levels[top].shape[1] - self.h)
+        self.levels[top], self.first[top] = self.levels[top][:, cut:], self.first[top] + cut
+        return out  # (1, m, d)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -82,7 +82,7 @@ class RevolutionPipeline(DancePipeline):
 
     family = "revolution"
     sampling_config = RevolutionSampling
-    component_names = ("genres", "genre_reader")
+    component_names = ("genres", "genre_reader", "live")  # live: the model `dancekit live` steps
 
     def __init__(self, model: RevolutionModel, *, meta: dict[str, Any], stats: NormStats, folder: str = "?",
                  genre_models: dict[str, Path] | None = None, genre_reader: MusicAttributePipeline | None = None,
@@ -128,8 +128,31 @@ class RevolutionPipeline(DancePipeline):
             raise CheckpointError(f"checkpoint {folder}: genre models {unknown} are not genres of its data {sorted(known)}")
         reader_folder = parts.get("genre_reader")
         reader = None if reader_folder is None else MusicAttributePipeline.from_pretrained(reader_folder, device=device)
-        return cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
+        pipe = cls(model, meta=meta, stats=stats, folder=str(Path(folder)), genre_models=genre_models,
                    genre_reader=reader, settings=settings)
+        pipe.live_folder = parts.get("live")
+        return pipe
+
+    #: the folder of the model that ``dancekit live`` steps (``"components": {"live": ...}``: a model of this
+    #: family trained on the online features, whose encoder looks only as far ahead as live dancing can wait;
+    #: None: live steps this model)
+    live_folder = None
+
+    def live_pipeline(self) -> RevolutionPipeline:
+        """The pipeline ``dancekit live`` steps: the ``"live"`` component (loaded once, dancing with this model's
+        seed variety), else this one."""
+        if self.live_folder is None:
+            return self
+        if getattr(self, "_live_pipe", None) is None:
+            live = RevolutionPipeline.from_pretrained(self.live_folder)
+            if not isinstance(live, RevolutionPipeline) or live.representation != self.representation \
+                    or live.fps != self.fps or live.preset != self.preset:
+                raise CheckpointError(f"checkpoint {self.folder}: its live component {self.live_folder} is not a "
+                                      f"{self.representation} Dance Revolution model at {self.fps:g} fps on the "
+                                      f"{self.preset} features")
+            live.variety = self.variety
+            self._live_pipe = live
+        return self._live_pipe
 
     def set_precision(self, precision: str) -> None:
         """Decode at ``precision`` from now on (``"fp32"``, ``"bf16"`` or ``"int8"``; genre models too)."""
