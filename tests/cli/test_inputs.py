@@ -170,6 +170,18 @@ def test_output_path_that_is_a_file(tmp_path, capfd):
     assert (tmp_path / "taken").read_text() == "mine"
 
 
+def test_output_named_like_a_file_is_a_folder_and_says_so(tmp_path, capfd):
+    """``-o d.npz``: -o is a folder, so the dance goes inside it, and one line on stderr says so (a newcomer may
+    have meant a file); a plain folder name gets no such line."""
+    song = _wav(tmp_path / "song.wav", 3.0)
+    code = main(["dance", str(song), "-o", str(tmp_path / "d.npz"), "--format", "npz", "--quiet"])
+    lines = capfd.readouterr().err.strip().splitlines()
+    assert code == 0 and len(lines) == 1 and "is an output folder" in lines[0] and "d.npz" in lines[0]
+    assert (tmp_path / "d.npz" / "song.npz").is_file()
+    code = main(["dance", str(song), "-o", str(tmp_path / "plain"), "--format", "npz", "--quiet"])
+    assert code == 0 and capfd.readouterr().err == ""
+
+
 def test_huge_seeds_reduce_to_64_bits_and_keep_small_ones():
     assert reduce_seed(0) == 0 and reduce_seed(2**63 - 1) == 2**63 - 1
     big = [reduce_seed(2**64), reduce_seed(2**64 + 1), reduce_seed(-1), reduce_seed(10**40)]

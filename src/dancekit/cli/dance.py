@@ -126,6 +126,11 @@ def run(args: argparse.Namespace) -> int:
     clip = AudioClip(audio, args.start, args.end)
     options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
     out = check_output_folder(args.out)  # before the dance is made, not after
+    if not out.exists() and out.suffix[1:].lower() in FORMATS:  # "-o d.npz": a folder, which may surprise
+        import sys
+
+        print(f"dancekit dance: note: -o {out} is an output folder: the files are written inside it "
+              f"(--format chooses them)", file=sys.stderr)
     # the song's features computed in a second process while this one imports torch and loads the model
     prefetch = prefetch_for_model(audio, args.checkpoint if args.checkpoint is not None else args.model,
                                   start=args.start, end=args.end)
