@@ -29,13 +29,13 @@ ONLINE_DEFAULTS = {"block_s": 0.04, "lookahead_s": 0.08, "context_s": 6.0, "beat
 
 def _one(job: tuple) -> tuple[str, int]:
     """One dance's online rows written to ``dance_dir`` (a worker's task)."""
+    from threadpoolctl import threadpool_limits
+
     from dancekit.audio import load
     from dancekit.features.online import online_rows
     from dancekit.features.presets import feature_sr
 
     name, path, start, end, preset, fps, hop, settings, dance_dir, offline_frames, names = job
-    from threadpoolctl import threadpool_limits
-
     y, _ = load(path, sr=feature_sr(fps=fps, hop_length=hop), start=start, end=end)
     with threadpool_limits(1):  # one BLAS thread per dance: several workers would oversubscribe the cores
         rows, beats = online_rows(y, preset=preset, fps=fps, hop_length=hop, **settings)
@@ -77,13 +77,14 @@ def prepare_online(src: str | os.PathLike, out: str | os.PathLike, *, presets: t
     if Path(out).resolve() == data.root.resolve():
         raise ParameterError(f"the online copy must go to another folder than its source {data.root}")
     fps, hop = data.fps, int(data.meta["hop_length"])
+    replaced = {f"features_{p}.npz" for p in presets}
     with atomic_dir(out) as tmp:
         jobs = []
         for name in data.names():
             dance_dir = tmp / "dances" / name
             dance_dir.mkdir(parents=True)
             for f in sorted((data.root / "dances" / name).iterdir()):
-                if f.is_file() and f.name not in {f"features_{p}.npz" for p in presets}:
+                if f.is_file() and f.name not in replaced:
                     shutil.copy2(f, dance_dir / f.name)
             ref = data.audio(name)
             for p in presets:

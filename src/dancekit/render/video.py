@@ -849,15 +849,15 @@ def render_mp4(
             raise ExternalToolError(f"ffmpeg failed writing {path} (exit {rc}): {last_line(err.read())}")
 
 
-def _draw_frames(scene: Scene, draw: dict, first: int, step: int, stop: int, queue) -> None:
+def _draw_frames(scene: Scene, draw: dict, first: int, step: int, stop: int, out) -> None:
     """A worker process of :class:`_FrameWorkers`: frames ``first, first + step, … < stop`` as yuv420 bytes into
-    ``queue`` (an exception as ``("error", message)``)."""
+    the queue ``out`` (an exception as ``("error", message)``)."""
     try:
         renderer = FrameRenderer(scene, **draw)
         for t in range(first, stop, step):
-            queue.put(renderer.render_yuv420(t))
+            out.put(renderer.render_yuv420(t))
     except BaseException as exc:  # handed to the parent, which raises it
-        queue.put(("error", f"{type(exc).__name__}: {exc}"))
+        out.put(("error", f"{type(exc).__name__}: {exc}"))
 
 
 class _FrameWorkers:
@@ -868,7 +868,7 @@ class _FrameWorkers:
 
     def __init__(self, scene: Scene, draw: dict, n_frames: int, workers: int):
         self.n = max(1, min(int(workers), n_frames))
-        self.args = (scene, draw, n_frames)
+        self.scene, self.draw, self.n_frames = scene, draw, n_frames
         self.procs, self.queues = [], []
 
     def __enter__(self) -> _FrameWorkers:
@@ -876,11 +876,10 @@ class _FrameWorkers:
             import multiprocessing as mp
 
             ctx = mp.get_context("spawn")
-            scene, draw, n_frames = self.args
             for k in range(1, self.n):
                 q = ctx.Queue(maxsize=8)
-                p = ctx.Process(target=_draw_frames, args=(scene, draw, k, self.n, n_frames, q), daemon=True,
-                                name=f"dancekit-render-{k}")
+                p = ctx.Process(target=_draw_frames, args=(self.scene, self.draw, k, self.n, self.n_frames, q),
+                                daemon=True, name=f"dancekit-render-{k}")
                 p.start()
                 self.procs.append(p)
                 self.queues.append(q)
@@ -892,8 +891,6 @@ class _FrameWorkers:
 
     def frame(self, t: int) -> bytes:
         """Frame ``t`` from its worker (frames are asked for in order)."""
-        import queue
-
         k = t % self.n
         while True:
             try:
