@@ -254,8 +254,6 @@ def test_session_steps_the_live_component_and_waits_no_longer_than_its_encoder(t
 
     from dancekit.checkpoints import write_pretrained
     from dancekit.checkpoints.hub import resolve_model
-    from dancekit.live.session import model_lookahead_frames
-
     src = resolve_model("revolution")
     folder = tmp_path / "rev"
     shutil.copytree(src, folder)
@@ -268,7 +266,7 @@ def test_session_steps_the_live_component_and_waits_no_longer_than_its_encoder(t
     (folder / "config.json").write_text(json.dumps(meta))
     s = LiveSession(str(folder), config=LiveConfig(model_lookahead_s=0.4))
     assert s.live_pipe is not s.pipe and s.live_pipe.model.config.lookahead == 1
-    assert s.stepper.model is s.live_pipe.model and s.stepper.lookahead == 2 == model_lookahead_frames(live.model)
+    assert s.stepper.model is s.live_pipe.model and s.stepper.lookahead == 2 == live.model.encoder.bounded_lookahead
     assert s.live_pipe.variety == s.pipe.variety  # the parent's seed variety
     plain = LiveSession("revolution", config=LiveConfig(model_lookahead_s=0.4))
     assert plain.live_pipe is plain.pipe and plain.stepper.lookahead == 10

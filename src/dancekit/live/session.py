@@ -142,7 +142,8 @@ class LiveSession:
         la_frames = int(np.ceil(c.model_lookahead_s * self.fps - 1e-9))
         #: the model stepped: the checkpoint's live component where it has one (trained on the online features)
         self.live_pipe = self.pipe.live_pipeline() if hasattr(self.pipe, "live_pipeline") else self.pipe
-        exact = model_lookahead_frames(self.live_pipe.model)
+        encoder = getattr(self.live_pipe.model, "encoder", None)
+        exact = getattr(encoder, "bounded_lookahead", None)
         if exact is not None:  # an encoder that looks no further: waiting longer changes nothing
             la_frames = min(la_frames, exact)
         self.stepper = make_stepper(self.live_pipe, lookahead=la_frames, context=int(round(c.encoder_context_s * self.fps)),
@@ -294,15 +295,6 @@ class LiveSession:
         if self.stats.merged_blocks:
             self.notes.append(f"{self.stats.merged_blocks} blocks fed together with the one before (behind the clock)")
         return self.stats
-
-
-def model_lookahead_frames(model) -> int | None:
-    """Frames of music after a frame that a model's latents depend on, where that is bounded by the model itself
-    (a Dance Revolution local encoder with ``lookahead`` set: ``n_layers · lookahead``), else None."""
-    c = getattr(model, "config", None)
-    if getattr(c, "encoder", None) == "local" and getattr(c, "lookahead", None) is not None:
-        return int(c.n_layers * c.lookahead)
-    return None
 
 
 def offline_rate_bound(pipe) -> float:

@@ -112,10 +112,8 @@ class RevolutionStepper(_Stepper):
         self.emb = torch.zeros(1, 0, model.config.d_model)
         #: an encoder whose lookahead is this stepper's: each latent computed once, as its music comes
         #: (:class:`~dancekit.models.revolution.StreamingEncoder`), kept from frame ``z_start`` on
-        ec = model.encoder.config
         self.stream = None
-        if ec.encoder == "local" and ec.lookahead is not None and ec.pos_encoding == "relative" \
-                and self.lookahead == ec.n_layers * ec.lookahead:
+        if model.encoder.config.pos_encoding == "relative" and self.lookahead == model.encoder.bounded_lookahead:
             from dancekit.models.revolution import StreamingEncoder
 
             self.stream = StreamingEncoder(model.encoder)

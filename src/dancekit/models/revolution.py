@@ -553,6 +553,13 @@ class MusicEncoder(nn.Module):
             return c.n_layers * (c.conv_kernel // 2)
         return None
 
+    @property
+    def bounded_lookahead(self) -> int | None:
+        """Frames after a frame that its latent depends on, where the encoder itself bounds them (the local
+        encoder with ``lookahead`` set: ``n_layers · lookahead``); None otherwise (the sequence's end decides)."""
+        c = self.config
+        return c.n_layers * c.ahead if c.encoder == "local" and c.lookahead is not None else None
+
     def forward(self, music: torch.Tensor) -> torch.Tensor:
         x = self.embed(music)  # (B, n, d)
         if self.config.pos_encoding == "sinusoidal" and self.config.encoder in ("local", "global"):
@@ -606,7 +613,7 @@ class StreamingEncoder:
 
     def __init__(self, encoder: MusicEncoder):
         c = encoder.config
-        if c.encoder != "local" or c.lookahead is None or c.pos_encoding != "relative":
+        if encoder.bounded_lookahead is None or c.pos_encoding != "relative":
             raise ParameterError("a streaming encoder needs the local encoder with a lookahead and relative positions")
         self.encoder, self.h, self.a = encoder, c.half_window, c.ahead
         L = len(encoder.layers)
@@ -618,7 +625,7 @@ class StreamingEncoder:
     @property
     def latency(self) -> int:
         """Frames of music after a frame that its latent waits for (``n_layers · lookahead``)."""
-        return len(self.encoder.layers) * self.a
+        return self.encoder.bounded_lookahead
 
     def end(self, level: int) -> int:
         return self.first[level] + self.levels[level].shape[1]
