@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 import torch
 
+from dancekit.errors import ParameterError
 from dancekit.motion import Motion, get_skeleton
 from dancekit.motion.representations import decode_motion, encode_motion, pose_dim
-from dancekit.motion.root_delta import decode_rootdelta, encode_rootdelta, rootdelta_layout
+from dancekit.motion.root_delta import RootDeltaDecoder, decode_rootdelta, encode_rootdelta, rootdelta_layout
 from dancekit.motion.rotations import axis_angle_to_matrix, euler_angles_to_matrix
 
 SK = get_skeleton("tang2018")
@@ -59,6 +60,28 @@ def test_rootdelta_round_trip_is_exact(rng):
                                atol=1e-9)
     # heading deltas are wrapped: no 2π jumps although the heading crosses ±π
     assert np.abs(x[:, 3]).max() < 2.0
+
+
+def test_the_numpy_decoder_gives_the_positions_of_the_torch_one(rng):
+    """RootDeltaDecoder (NumPy, the live stepper's) against the motion itself and decode_rootdelta (torch's rotations
+    and per-joint FK): the whole dance, one and two rows from a carried origin, and degenerate 6D blocks."""
+    m = _random_motion(rng, T=40)
+    x = encode_rootdelta(m)
+    heading0 = float(np.arctan2(m.rotations[0, SK.root, 0, 2], m.rotations[0, SK.root, 2, 2]))
+    origin = (m.root_translation[0, 0], m.root_translation[0, 2], heading0)
+    dec = RootDeltaDecoder(SK)
+    pos, tr = dec(x, origin=origin)
+    np.testing.assert_allclose(pos, m.to_positions(), atol=1e-4)
+    np.testing.assert_allclose(tr, m.root_translation, atol=1e-4)
+    x[5, 6:12] = 0.0  # a zero block
+    x[6, 9:12] = x[6, 6:9]  # parallel columns
+    for rows, o in ((x, origin), (x[7:8], (1.5, -2.0, 0.7)), (x[10:12], (0.0, 3.0, -2.9))):
+        pos, tr = dec(rows, origin=o)
+        ref = decode_rootdelta(rows, SK, 25.0, origin=o)
+        np.testing.assert_allclose(pos, ref.positions, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(tr, ref.root_translation, rtol=0, atol=1e-9)
+    with pytest.raises(ParameterError, match=r"\(T, 155\)"):
+        dec(x[:, :-1])
 
 
 def test_rootdelta_decodes_from_the_origin_facing_forward(rng):

@@ -35,6 +35,7 @@ import torch
 from dancekit.errors import ParameterError
 from dancekit.live.config import SMOOTHING
 from dancekit.motion.kinematics import normalize_bone_lengths
+from dancekit.motion.root_delta import RootDeltaDecoder
 
 __all__ = ["SMOOTHING", "Music2DanceStepper", "RevolutionStepper", "SampleSmoother", "make_stepper"]
 
@@ -303,6 +304,7 @@ class Music2DanceStepper(_Stepper):
         self.x = torch.zeros(1, model.config.pose_dim)
         self.eps = None
         self.prev_row: np.ndarray | None = None  # the last decoded feature row and where it left the root
+        self.decoder = RootDeltaDecoder(self.skeleton)  # decode_rootdelta's positions, in NumPy
         self.origin = (0.0, 0.0, 0.0)
 
     @torch.no_grad()
@@ -347,23 +349,19 @@ class Music2DanceStepper(_Stepper):
     def _decode(self, poses: np.ndarray) -> np.ndarray:
         """Denormalised feature rows ``(k, P)`` → positions ``(k, J, 3)`` float32, the root's place and heading
         carried on from the rows decoded before."""
-        from dancekit.motion.root_delta import decode_rootdelta
-
         if self.prev_row is None:
-            motion = decode_rootdelta(poses, self.skeleton, self.fps, origin=self.origin)
+            positions, tr = self.decoder(poses, origin=self.origin)
             new = slice(0, None)
         else:
-            motion = decode_rootdelta(np.concatenate([self.prev_row[None], poses]), self.skeleton, self.fps,
-                                      origin=self.origin)
+            positions, tr = self.decoder(np.concatenate([self.prev_row[None], poses]), origin=self.origin)
             new = slice(1, None)
-        tr = motion.root_translation
         heading = self.origin[2] + float(np.sum(poses[:, 3])) if self.prev_row is not None \
             else self.origin[2] + float(np.sum(poses[1:, 3]))
         up = self.skeleton.up_index
         horiz = [i for i in range(3) if i != up]
         self.origin = (float(tr[-1, horiz[0]]), float(tr[-1, horiz[1]]), heading)
         self.prev_row = poses[-1].copy()
-        return np.asarray(motion.positions[new], np.float32)
+        return np.asarray(positions[new], np.float32)
 
 
 def make_stepper(pipe, *, lookahead: int, context: int, seed: int = 0, genre: str | None = None,
