@@ -82,6 +82,9 @@ def main() -> None:
     work = Path(tempfile.mkdtemp(prefix="dk_doors_"))
     env = dict(os.environ, DANCEKIT_CACHE=str(work / "cache"),
                PYTHONPATH=str(ROOT / "src") + (os.pathsep + os.environ["PYTHONPATH"] if os.environ.get("PYTHONPATH") else ""))
+    # bytecode written (by the untimed run) and reused, as for a user's install; a shell that sets
+    # PYTHONDONTWRITEBYTECODE would otherwise compile dancekit's modules in every timed run (about 0.3 s)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     try:
         import imageio_ffmpeg
 
@@ -121,7 +124,8 @@ def main() -> None:
         "columns": cols,
         "rows": [[r[c] for c in cols] for r in rows],
         "note": "median of the runs, each a fresh process; wall and CPU (user + system, children included) seconds; "
-                "render rows are per minute of music. The feature cache is warm (filled by one untimed run). "
+                "render rows are per minute of music. The feature cache is warm and the bytecode written (by one untimed "
+                "run). "
                 "Targets (issue 45): dance ≤ 4 s, seeds 0-7 ≤ 2 x one seed, stick ≤ 6 s and body ≤ 10 s per minute, "
                 "tools ≤ 1 s. Under load the wall time grows with the load average; the CPU time is the figure to "
                 "compare between runs.",
