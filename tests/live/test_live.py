@@ -27,8 +27,8 @@ def song():
     return ode_to_joy(sr=SR, bpm=120)[: 12 * SR].astype(np.float32)
 
 
-def _online(y, *, preset, lookahead_s, block=512):
-    f = OnlineFeatures(preset=preset, fps=25, lookahead_s=lookahead_s)
+def _online(y, *, preset, lookahead_s, block=512, tempogram_future="bar"):
+    f = OnlineFeatures(preset=preset, fps=25, lookahead_s=lookahead_s, tempogram_future=tempogram_future)
     rows = [f.feed(y[a : a + block]) for a in range(0, len(y), block)] + [f.finish()]
     return f, np.concatenate(rows)
 
@@ -54,7 +54,7 @@ def test_online_features_equal_offline_with_full_lookahead(song):
     every column once the loudest frame has been heard (the dB floor is 80 dB under the loudest frame so far),
     the tempogram delayed by half its window (192 frames), not the beat column (its own tracker)."""
     off = extract(song, sr=SR, fps=25, preset="revolution")
-    f, on = _online(song, preset="revolution", lookahead_s=1.0)
+    f, on = _online(song, preset="revolution", lookahead_s=1.0, tempogram_future="none")
     assert on.shape == off.features.shape == (1 + len(song) // 512, 438)
     from dancekit.features import spectral
 
@@ -79,6 +79,40 @@ def test_online_features_equal_offline_with_full_lookahead(song):
         ref = ac / np.abs(ac).max() if ac.any() else ac  # all zeros before any sound (the song starts silent)
         np.testing.assert_allclose(on[fr, tg], ref, atol=1e-4, err_msg=f"row {fr}")
     assert on[100:192, tg].any(axis=1).all()
+
+
+def test_the_bar_tempogram_is_the_centred_one_when_the_bars_repeat():
+    """``tempogram_future="bar"``: each row's window is centred on its frame, its future half the envelope's last
+    bar repeated. Clicks whose pattern repeats every 2 s (50 frames, sample-exact) make an envelope that repeats
+    exactly, so once the first bars have passed each row is the offline (centred) tempogram of the whole envelope,
+    computed here by np.correlate as in the test above; the delayed rows (``"none"``) are 7.7 s late instead."""
+    bar = 2 * SR
+    y = np.zeros(15 * bar, np.float32)
+    click = (np.hanning(64) * np.sin(2 * np.pi * 1000 * np.arange(64) / SR)).astype(np.float32)
+    for start in range(0, len(y) - bar + 1, bar):
+        for k, gain in enumerate((1.0, 0.3, 0.5, 0.3)):  # a loud downbeat, three softer beats
+            a = start + k * bar // 4
+            y[a : a + 64] += gain * click
+    f, on = _online(y, preset="revolution", lookahead_s=1.0)
+    _, delayed = _online(y, preset="revolution", lookahead_s=1.0, tempogram_future="none")
+    tg = f.cols["tempogram"]
+    env = on[:, f.cols["onset_strength"]][:, 0].astype(np.float64)
+    assert np.allclose(env[100:150], env[150:200], atol=1e-6)  # the envelope repeats every bar
+    padded = np.concatenate([np.linspace(0.0, env[0], 193)[:-1], env, np.linspace(env[-1], 0.0, 193)[1:]])
+    for fr in (250, 301, 453, len(env) - 193):
+        # frames fr - 192 … fr + 191 under the periodic Hann window, autocorrelated, scaled to a peak of 1
+        np.testing.assert_allclose(on[fr, tg], _centred_row(padded, fr), atol=1e-4, err_msg=f"row {fr}")
+    # the delayed row of frame 250 is the centred one of frame 58, whose window reaches into the song's padding
+    np.testing.assert_allclose(delayed[250, tg], _centred_row(padded, 58), atol=1e-4)
+    assert not np.allclose(delayed[250, tg], on[250, tg], atol=1e-2)
+    with pytest.raises(ParameterError, match="tempogram_future"):
+        LiveConfig(tempogram_future="beat")
+
+
+def _centred_row(padded: np.ndarray, fr: int) -> np.ndarray:
+    w = padded[fr : fr + 384] * np.hanning(385)[:-1]
+    ac = np.correlate(w, w, mode="full")[383:]
+    return ac / np.abs(ac).max()
 
 
 def test_online_chroma_equals_the_offline_chromagram_of_its_segment(song, rng):

@@ -24,7 +24,8 @@ from dancekit.errors import DatasetError, ParameterError
 __all__ = ["ONLINE_DEFAULTS", "prepare_online"]
 
 #: the live session's defaults (``dancekit.live.LiveConfig``: block, feature lookahead, context, beat window; s)
-ONLINE_DEFAULTS = {"block_s": 0.04, "lookahead_s": 0.08, "context_s": 6.0, "beat_window_s": 6.0}
+ONLINE_DEFAULTS = {"block_s": 0.04, "lookahead_s": 0.08, "context_s": 6.0, "beat_window_s": 6.0,
+                   "tempogram_future": "bar"}
 
 
 def _one(job: tuple) -> tuple[str, int]:
@@ -57,8 +58,8 @@ def prepare_online(src: str | os.PathLike, out: str | os.PathLike, *, presets: t
     out : folder to create (replaced once complete)
     presets : presets to recompute (``revolution``, ``music2dance``: the ones live dancing runs)
     workers : processes (one dance each at a time)
-    settings : ``block_s``, ``lookahead_s``, ``context_s``, ``beat_window_s`` (s; default :data:`ONLINE_DEFAULTS`,
-        the live session's)
+    settings : ``block_s``, ``lookahead_s``, ``context_s``, ``beat_window_s`` (s) and ``tempogram_future``
+        (``"bar"`` or ``"none"``); default :data:`ONLINE_DEFAULTS`, the live session's
     """
     from concurrent.futures import ProcessPoolExecutor
 
@@ -68,7 +69,7 @@ def prepare_online(src: str | os.PathLike, out: str | os.PathLike, *, presets: t
     unknown = sorted(set(settings) - set(ONLINE_DEFAULTS))
     if unknown:
         raise ParameterError(f"unknown online feature setting(s) {unknown}; known: {sorted(ONLINE_DEFAULTS)}")
-    settings = {**ONLINE_DEFAULTS, **{k: float(v) for k, v in settings.items()}}
+    settings = {**ONLINE_DEFAULTS, **{k: v if k == "tempogram_future" else float(v) for k, v in settings.items()}}
     for p in presets:
         if p not in ("revolution", "music2dance"):
             raise ParameterError(f"online features exist for the presets revolution and music2dance, not {p!r}")

@@ -10,10 +10,14 @@ columns) computed on the audio received so far, a frame at a time:
   the delta's ±4 frames); a shorter lookahead zero-pads the frames' right edge as the offline extractor does at
   a song's end (what the test measures: ``tests/live/test_live.py``). The dB floor (80 dB under the loudest frame)
   is the loudest frame *so far*.
-* the tempogram (384 frames, ±7.7 s at 25 fps) cannot wait for its centred window: row ``f`` holds the
-  offline tempogram of frame ``f - 192`` (the window that ends at ``f``): the same values, delayed by half
-  the window; the first 192 rows' windows reach before the offline padding (the linear ramp to the first
-  envelope value over 192 frames), and there they see zeros.
+* the tempogram (384 frames, ±7.7 s at 25 fps) cannot wait for its centred window. With
+  ``tempogram_future="bar"`` (the default) row ``f`` is the tempogram of the window centred on ``f`` whose future
+  half is predicted: the onset envelope's last bar repeated (the bar: the strongest lag between 1.2 and 4 s of
+  the autocorrelation of the last 384 frames, Hann-windowed). The frames before the song are the offline
+  padding (the linear ramp to the first envelope value over 192 frames). With ``"none"`` row ``f`` holds the
+  offline tempogram of frame ``f - 192`` (the window that ends at ``f``): the same values, delayed by half the
+  window, the first 192 rows' windows seeing zeros before the padding. The model sees a tempogram up to date
+  with ``"bar"``; the delayed one is 7.7 s late (docs/research/live.md).
 * the beat (and downbeat) columns come from the causal beat tracker (:class:`dancekit.features.online_beats.BeatTracker`),
   which runs on a 100-Hz onset envelope of its own; a beat is marked on frame ``round(t · fps)``.
 """
@@ -28,12 +32,17 @@ from dancekit.features import spectral
 from dancekit.features.online_beats import BeatTracker
 from dancekit.features.presets import PRESET_DIMS, PRESETS, feature_sr
 
-__all__ = ["EXACT_LOOKAHEAD_S", "OnlineChroma", "OnlineFeatures", "TEMPOGRAM_WINDOW", "online_rows"]
+__all__ = ["EXACT_LOOKAHEAD_S", "OnlineChroma", "OnlineFeatures", "TEMPOGRAM_FUTURES", "TEMPOGRAM_WINDOW",
+           "online_rows"]
 
 #: lookahead (s) from which every column but the tempogram and the beats equals the offline extractor's
 EXACT_LOOKAHEAD_S = 1.0
 #: the offline tempogram's window (frames)
 TEMPOGRAM_WINDOW = 384
+#: how the online tempogram fills its window's future half: the last bar repeated, or nothing (delayed rows)
+TEMPOGRAM_FUTURES = ("bar", "none")
+#: the bar's range (s): the lag of the envelope's strongest autocorrelation in it is repeated
+BAR_RANGE_S = (1.2, 4.0)
 #: audio before the first new frame that each block's analysis re-reads (s): the chromagram's lowest
 #: octaves and the resampler's support
 LEFT_CONTEXT_S = 1.2
@@ -149,9 +158,14 @@ class OnlineFeatures:
     """
 
     def __init__(self, *, preset: str, fps: float, hop_length: int = 512, lookahead_s: float = 0.12,
-                 context_s: float = 6.0, beat_delay_s: float | None = None, beat_window_s: float = 6.0):
+                 context_s: float = 6.0, beat_delay_s: float | None = None, beat_window_s: float = 6.0,
+                 tempogram_future: str = "bar"):
         if preset not in PRESETS or preset == "dual":
             raise ParameterError(f"live features support the presets revolution and music2dance, not {preset!r}")
+        if tempogram_future not in TEMPOGRAM_FUTURES:
+            raise ParameterError(f"tempogram_future must be one of {TEMPOGRAM_FUTURES}, got {tempogram_future!r}")
+        self.tempogram_future = tempogram_future
+        self._bar_lags = (max(1, int(round(BAR_RANGE_S[0] * fps))), int(round(BAR_RANGE_S[1] * fps)))
         self.preset, self.fps, self.hop = preset, float(fps), int(hop_length)
         self.sr = feature_sr(fps=fps, hop_length=hop_length)
         self.n_fft = spectral.default_n_fft(None, self.hop)
@@ -324,10 +338,14 @@ class OnlineFeatures:
         return out
 
     def _tempogram(self, env_new: np.ndarray, f0: int) -> np.ndarray:
-        """Rows ``f0 …`` of the delayed tempogram: row ``f`` is the tempogram of the envelope of frames
-        ``[f - 2·half, f)`` — the offline tempogram's frame ``f - half`` (its padding before the song: the linear
-        ramp to ``env[0]`` over ``half`` frames), and before that zeros (the first ``half`` rows, whose windows
-        reach beyond the offline padding)."""
+        """Rows ``f0 …`` of the online tempogram (see the module's description). ``env_hist`` holds the envelope
+        of the frames before ``f0`` (the last ``TEMPOGRAM_WINDOW``), preceded at the stream's start by the offline
+        padding (the linear ramp to ``env[0]`` over ``half`` frames) and zeros.
+
+        ``"none"``: row ``f`` is the tempogram of the envelope of frames ``[f - 2·half, f)``, the offline
+        tempogram's frame ``f - half``. ``"bar"``: row ``f`` is that of frames ``[f - half, f + half)``, those
+        after ``f`` the envelope's last ``P`` frames repeated (``P``: the lag of the strongest autocorrelation of
+        frames ``(f - 2·half, f]`` within :data:`BAR_RANGE_S`)."""
         win, half = TEMPOGRAM_WINDOW, TEMPOGRAM_WINDOW // 2
         if self.env_first is None and len(env_new):
             self.env_first = float(env_new[0])
@@ -336,12 +354,26 @@ class OnlineFeatures:
             self.env_offset = -win
         rows = np.zeros((len(env_new), win), np.float32)
         hann = self._tempo_win
+        bar = self.tempogram_future == "bar"
+        lo_lag, hi_lag = self._bar_lags
         for k, e in enumerate(env_new):
-            lo = f0 + k - win - self.env_offset  # the window of frames [f - win, f)
-            frame = self.env_hist[lo : lo + win].astype(np.float64)
+            f = f0 + k
+            if not bar:
+                lo = f - win - self.env_offset  # the window of frames [f - win, f)
+                frame = self.env_hist[lo : lo + win].astype(np.float64)
+                self.env_hist = np.append(self.env_hist, np.float32(e))
+            else:
+                self.env_hist = np.append(self.env_hist, np.float32(e))
+                end = f + 1 - self.env_offset  # env_hist[:end]: the frames up to f
+                past = self.env_hist[end - win : end].astype(np.float64)  # frames (f - win, f]
+                ac = _dsp.autocorrelate(past * hann, axis=-1)
+                P = lo_lag + int(np.argmax(ac[lo_lag : hi_lag + 1]))
+                frame = np.empty(win)
+                frame[: half + 1] = past[win - half - 1 :]  # frames [f - half, f]
+                for i in range(half + 1, win):  # frame f - half + i: the frame P (or 2P, ...) before it
+                    frame[i] = frame[i - P * ((i - half - 1) // P + 1)]
             ac = _dsp.autocorrelate(frame * hann, axis=-1)
             rows[k] = np.nan_to_num(_dsp.normalize_max(ac[:, None], axis=0)[:, 0], nan=0.0)
-            self.env_hist = np.append(self.env_hist, np.float32(e))
         excess = len(self.env_hist) - win
         if excess > 0:
             self.env_hist = self.env_hist[excess:]
@@ -350,8 +382,8 @@ class OnlineFeatures:
 
 
 def online_rows(y: np.ndarray, *, preset: str, fps: float, hop_length: int = 512, block_s: float = 0.04,
-                lookahead_s: float = 0.08, context_s: float = 6.0,
-                beat_window_s: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+                lookahead_s: float = 0.08, context_s: float = 6.0, beat_window_s: float = 6.0,
+                tempogram_future: str = "bar") -> tuple[np.ndarray, np.ndarray]:
     """The rows a live session computes for a whole recording: ``y`` (mono samples at ``fps · hop_length`` Hz)
     fed to :class:`OnlineFeatures` in blocks of ``block_s`` seconds, then :meth:`~OnlineFeatures.finish`.
 
@@ -367,7 +399,7 @@ def online_rows(y: np.ndarray, *, preset: str, fps: float, hop_length: int = 512
     if not block_s > 0:
         raise ParameterError(f"block_s must be > 0 s, got {block_s!r}")
     f = OnlineFeatures(preset=preset, fps=fps, hop_length=hop_length, lookahead_s=lookahead_s, context_s=context_s,
-                       beat_window_s=beat_window_s)
+                       beat_window_s=beat_window_s, tempogram_future=tempogram_future)
     y = np.asarray(y, np.float32).reshape(-1)
     n = max(1, int(round(block_s * f.sr)))
     rows = [f.feed(y[a : a + n]) for a in range(0, len(y), n)]

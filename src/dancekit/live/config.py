@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, fields
 
 from dancekit.errors import ParameterError
+from dancekit.features.online import TEMPOGRAM_FUTURES
 
 __all__ = ["SMOOTHING", "LiveConfig"]
 
@@ -37,6 +38,10 @@ class LiveConfig:
     encoder_context_s : music history the Dance Revolution encoder sees for each new latent (s, ≥ 0); its
         receptive field (4 s for the embedded model) makes the history exact
     beat_window_s : onset history the beat tracker's tempo and phase are estimated over (s, ≥ 2)
+    tempogram_future : how Dance Revolution's tempogram (a window of ±7.7 s at 25 fps) fills its future half:
+        ``"bar"``, the onset envelope's last bar repeated (the row up to date), or ``"none"``, the rows delayed by
+        half the window (:class:`dancekit.features.online.OnlineFeatures`). Chosen on the validation songs
+        (docs/research/live.md)
     smooth_hz : cut-off of the causal one-pole smoothing of the joints (Hz, > 0; ``inf``: off)
     floor_window_s : the floor is the lowest joint's lowest height over this past window (s, > 0)
     silence_db : a block whose RMS is below this level (dB full scale) is silence (the dancer calms)
@@ -66,6 +71,7 @@ class LiveConfig:
     context_s: float = 6.0
     encoder_context_s: float = 4.0
     beat_window_s: float = 6.0
+    tempogram_future: str = "bar"
     smooth_hz: float = 6.0
     floor_window_s: float = 2.0
     silence_db: float = -50.0
@@ -108,6 +114,9 @@ class LiveConfig:
                 raise ParameterError(f"LiveConfig.{name} must be in {ranges[name]}, got {getattr(self, name)!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ParameterError(f"LiveConfig.seed must be an integer, got {self.seed!r}")
+        if self.tempogram_future not in TEMPOGRAM_FUTURES:
+            raise ParameterError(f"LiveConfig.tempogram_future must be one of {TEMPOGRAM_FUTURES}, "
+                                 f"got {self.tempogram_future!r}")
         if self.sample_smoothing not in SMOOTHING:
             raise ParameterError(f"LiveConfig.sample_smoothing must be 'delay' or 'causal', got {self.sample_smoothing!r}")
 

@@ -137,7 +137,7 @@ class LiveSession:
         self.hop = int(self.pipe.hop_length)
         self.features = OnlineFeatures(preset=self.pipe.preset, fps=self.fps, hop_length=self.hop,
                                        lookahead_s=c.lookahead_s, context_s=c.context_s,
-                                       beat_window_s=c.beat_window_s)
+                                       beat_window_s=c.beat_window_s, tempogram_future=c.tempogram_future)
         self.sr = self.features.sr
         la_frames = int(np.ceil(c.model_lookahead_s * self.fps - 1e-9))
         #: the model stepped: the checkpoint's live component where it has one (trained on the online features)
