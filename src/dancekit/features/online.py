@@ -147,6 +147,9 @@ class OnlineFeatures:
     lookahead_s : audio after a frame awaited before its row is computed (s)
     context_s : audio kept (s, ≥ 5)
     beat_delay_s : how long after a beat the tracker places it (s; default ``min(lookahead_s, 0.1)``)
+    beat_window_s : onset history the beat tracker estimates its tempo and phase over (s)
+    tempogram_future : ``"bar"`` (the tempogram's window centred, its future half the envelope's last bar
+        repeated) or ``"none"`` (the rows delayed by half the window); see the module's description
 
     Examples
     --------
