@@ -169,6 +169,7 @@ class OnlineFeatures:
             raise ParameterError(f"tempogram_future must be one of {TEMPOGRAM_FUTURES}, got {tempogram_future!r}")
         self.tempogram_future = tempogram_future
         self._bar_lags = (max(1, int(round(BAR_RANGE_S[0] * fps))), int(round(BAR_RANGE_S[1] * fps)))
+        self._future = np.arange(TEMPOGRAM_WINDOW // 2 + 1, TEMPOGRAM_WINDOW)  # the window's future half
         self.preset, self.fps, self.hop = preset, float(fps), int(hop_length)
         self.sr = feature_sr(fps=fps, hop_length=hop_length)
         self.n_fft = spectral.default_n_fft(None, self.hop)
@@ -373,8 +374,8 @@ class OnlineFeatures:
                 P = lo_lag + int(np.argmax(ac[lo_lag : hi_lag + 1]))
                 frame = np.empty(win)
                 frame[: half + 1] = past[win - half - 1 :]  # frames [f - half, f]
-                for i in range(half + 1, win):  # frame f - half + i: the frame P (or 2P, ...) before it
-                    frame[i] = frame[i - P * ((i - half - 1) // P + 1)]
+                i = self._future  # frame f - half + i (i > half): the known frame P (or 2P, ...) before it
+                frame[half + 1 :] = frame[i - P * ((i - half - 1) // P + 1)]
             ac = _dsp.autocorrelate(frame * hann, axis=-1)
             rows[k] = np.nan_to_num(_dsp.normalize_max(ac[:, None], axis=0)[:, 0], nan=0.0)
         excess = len(self.env_hist) - win
