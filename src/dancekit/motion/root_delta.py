@@ -236,14 +236,10 @@ def encode_rootdelta(motion: Motion) -> np.ndarray:
     return np.concatenate([root, rot6, ends, contacts], axis=1)
 
 
-def decode_rootdelta(x: np.ndarray, skeleton: Skeleton, fps: float, *,
-                     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Motion:
-    """``rotations_rootdelta`` features ``(T, P)`` → a :class:`Motion` (rig rotations, root, FK positions).
-
-    ``origin = (x, z, heading)``: where the root stands and which way it faces at frame 0 (zeros: the
-    horizontal origin, facing +z). The 6D blocks need not be orthonormal (Gram-Schmidt).
-    """
-    lay = rootdelta_layout(skeleton)
+def _root_path(x: np.ndarray, lay: RootDeltaLayout, skeleton: Skeleton, origin: tuple[float, float, float]
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The checked features ``x (T, P)`` float64 and the root they integrate to from ``origin = (x, z, heading)``:
+    ``(x, heading (T,), R_Y(heading) (T, 3, 3), root translation (T, 3))`` (the decoders' shared first step)."""
     x = np.asarray(x, np.float64)
     if x.ndim != 2 or x.shape[1] != lay.dim:
         raise ParameterError(f"rotations_rootdelta features must have shape (T, {lay.dim}) for skeleton "
@@ -258,6 +254,19 @@ def decode_rootdelta(x: np.ndarray, skeleton: Skeleton, fps: float, *,
     tr[:, 0] = float(origin[0]) + np.concatenate([[0.0], np.cumsum(world[:, 0])])
     tr[:, 2] = float(origin[1]) + np.concatenate([[0.0], np.cumsum(world[:, 2])])
     tr[:, 1] = x[:, 1]
+    return x, heading, yaw, tr
+
+
+def decode_rootdelta(x: np.ndarray, skeleton: Skeleton, fps: float, *,
+                     origin: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Motion:
+    """``rotations_rootdelta`` features ``(T, P)`` → a :class:`Motion` (rig rotations, root, FK positions).
+
+    ``origin = (x, z, heading)``: where the root stands and which way it faces at frame 0 (zeros: the
+    horizontal origin, facing +z). The 6D blocks need not be orthonormal (Gram-Schmidt).
+    """
+    lay = rootdelta_layout(skeleton)
+    x, heading, yaw, tr = _root_path(x, lay, skeleton, origin)
+    T = len(x)
     rig = skeleton.rig()
     R = np.broadcast_to(np.eye(3), (T, rig.num_joints, 3, 3)).copy()
     R[:, skeleton.root] = euler_angles_to_matrix(torch.from_numpy(np.stack([heading, x[:, 4], x[:, 5]], -1)),
@@ -295,21 +304,9 @@ class RootDeltaDecoder:
 
     def __call__(self, x: np.ndarray, *, origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
                  ) -> tuple[np.ndarray, np.ndarray]:
-        lay, sk = self.layout, self.skeleton
-        x = np.asarray(x, np.float64)
-        if x.ndim != 2 or x.shape[1] != lay.dim:
-            raise ParameterError(f"rotations_rootdelta features must have shape (T, {lay.dim}) for skeleton "
-                                 f"{sk.name!r}, got {x.shape}")
+        sk = self.skeleton
+        x, _, yaw, tr = _root_path(x, self.layout, sk, origin)
         T = len(x)
-        heading = float(origin[2]) + np.cumsum(np.concatenate([[0.0], x[1:, 3]]))  # (T,)
-        yaw = _yaw_matrix(heading)
-        step = np.zeros((T, 3))
-        step[:, 0], step[:, 2] = x[:, 0], x[:, 2]
-        world = np.einsum("tij,tj->ti", yaw[:-1], step[1:]) if T > 1 else np.zeros((0, 3))
-        tr = np.zeros((T, 3))
-        tr[:, 0] = float(origin[0]) + np.concatenate([[0.0], np.cumsum(world[:, 0])])
-        tr[:, 2] = float(origin[1]) + np.concatenate([[0.0], np.cumsum(world[:, 2])])
-        tr[:, 1] = x[:, 1]
         R = np.broadcast_to(np.eye(3), (T, self.num_rig_joints, 3, 3)).copy()
         root = sk.root
         R[:, root] = yaw @ _axis_x(x[:, 4]) @ _axis_z(x[:, 5])  # R_Y(r_y) R_X(r_x) R_Z(r_z)
