@@ -362,13 +362,12 @@ class OnlineFeatures:
         lo_lag, hi_lag = self._bar_lags
         for k, e in enumerate(env_new):
             f = f0 + k
+            self.env_hist = np.append(self.env_hist, np.float32(e))  # env_hist[: f + 1 - env_offset]: frames up to f
             if not bar:
                 lo = f - win - self.env_offset  # the window of frames [f - win, f)
                 frame = self.env_hist[lo : lo + win].astype(np.float64)
-                self.env_hist = np.append(self.env_hist, np.float32(e))
             else:
-                self.env_hist = np.append(self.env_hist, np.float32(e))
-                end = f + 1 - self.env_offset  # env_hist[:end]: the frames up to f
+                end = f + 1 - self.env_offset
                 past = self.env_hist[end - win : end].astype(np.float64)  # frames (f - win, f]
                 ac = _dsp.autocorrelate(past * hann, axis=-1)
                 P = lo_lag + int(np.argmax(ac[lo_lag : hi_lag + 1]))
