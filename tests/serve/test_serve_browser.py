@@ -99,3 +99,41 @@ def test_upload_progress_playing_player_and_downloads(server, tmp_path):
     info = stream_info(got["ode.mp4"])
     assert info["video"] and info["audio"], info
     assert abs(info["video_s"] - 8.0) < 0.2 and abs(info["audio_s"] - 8.0) < 0.2, info
+
+
+@pytest.mark.slow
+def test_the_live_page_dances_to_the_browsers_microphone(server, tmp_path):
+    """/live in Chromium, its microphone a song (Chromium's fake capture device plays a wav): the button starts
+    it, the poses come back over /api/live in order, and the figure moves."""
+    exe = chromium()
+    song = ode_wav(tmp_path / "mic.wav", 30.0)
+    args = [*FLAGS, "--use-fake-ui-for-media-stream", "--use-fake-device-for-media-stream",
+            f"--use-file-for-fake-audio-capture={song}"]
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=exe, headless=True, args=args)
+        try:
+            context = browser.new_context(viewport={"width": 640, "height": 480})
+            context.grant_permissions(["microphone"], origin=server.url)
+            page = context.new_page()
+            page.goto(server.url + "/live")
+            page.wait_for_selector("#model option", state="attached")
+            assert page.locator("#model").input_value() == "revolution"
+            page.click("#start")
+            page.wait_for_function("window.live.frames > 25 || window.live.error", timeout=90000)
+            assert not page.evaluate("window.live.error"), page.evaluate("window.live.error")
+            first = page.evaluate("({frame: window.live.lastFrame, t: window.live.lastT})")
+            shot1 = page.screenshot()
+            page.wait_for_function(f"window.live.lastFrame > {first['frame']} + 25", timeout=60000)
+            shot2 = page.screenshot()
+            later = page.evaluate("({frame: window.live.lastFrame, t: window.live.lastT, sent: window.live.sentBlocks,"
+                                  " joints: window.live.hello.joint_names.length, latency: window.live.latency})")
+            page.click("#stop")
+            page.wait_for_function("window.live.ended || window.live.closed", timeout=30000)
+        finally:
+            browser.close()
+    assert later["frame"] > first["frame"] + 25 and later["t"] > first["t"]
+    assert later["sent"] > 50 and later["joints"] == 23 and 0 <= later["latency"] < 2.0
+    a, b = _pixels(shot1), _pixels(shot2)
+    figure = np.abs(a - np.array([0x15, 0x17, 0x1C])).sum(-1) > 60  # not the page's background
+    assert figure.sum() > 500, "no figure drawn"
+    assert (np.abs(a - b).sum(-1) > 60).sum() > 200, "the figure did not move"

@@ -32,6 +32,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-upload-mb", type=float, default=100, help="largest upload, MB (default 100)")
     p.add_argument("--max-minutes", type=float, default=20, help="longest song, minutes (default 20)")
     p.add_argument("--threads", type=int, default=1, help="torch threads per worker (default 1)")
+    p.add_argument("--live", type=int, default=1, metavar="N",
+                   help="live sessions at once on /live (the browser's microphone danced as it plays; each takes "
+                        "about a third of a core); 0: none (default 1)")
     p.set_defaults(func=run)
 
 
@@ -39,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
     for name in ("workers", "queue", "threads"):
         if getattr(args, name) < 1:
             raise ParameterError(f"--{name} must be at least 1, got {getattr(args, name)}")
+    if args.live < 0:
+        raise ParameterError(f"--live must be at least 0, got {args.live}")
     for name in ("cache_mb", "cache_days", "max_upload_mb", "max_minutes"):
         if not getattr(args, name) > 0:
             raise ParameterError(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name):g}")
@@ -57,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     config = ServeConfig(cache=Path(args.cache), workers=args.workers, max_queue=args.queue,
                          max_upload_bytes=int(args.max_upload_mb * 1e6), max_seconds=args.max_minutes * 60,
                          max_bytes=int(args.cache_mb * 1e6), max_age_s=args.cache_days * 86400,
-                         threads=args.threads, preload=["revolution"], token=args.token or None, host=args.host)
+                         threads=args.threads, preload=["revolution"], token=args.token or None, host=args.host,
+                         max_live=args.live)
     if not is_loopback(args.host) and not config.token:
         raise ParameterError(f"--host {args.host} opens the server to other machines: give it a --token "
                              "(or $DANCEKIT_SERVE_TOKEN)")
@@ -66,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"dancekit serve: {where}?token=<your token>  (every request must carry the token; bound to "
               f"{args.host})", flush=True)
     else:
-        print(f"dancekit serve: open {where}  (this machine only; API: {where}docs)", flush=True)
+        print(f"dancekit serve: open {where}  (this machine only; API: {where}docs; live: {where}live)", flush=True)
     print(f"  {args.workers} worker(s), queue {args.queue}, jobs in {config.cache} (Ctrl-C stops)", flush=True)
     serve(config, port=args.port)
     return 0

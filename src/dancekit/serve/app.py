@@ -2,7 +2,9 @@
 
 Routes (every one behind the token when the server has one: ``Authorization: Bearer T`` or ``?token=T``):
 
-- ``GET /``, ``/compose``, ``/models``: the dance, compose and models pages (static html + js);
+- ``GET /``, ``/compose``, ``/models``: the dance, compose and models pages (static html + js); ``GET /live``: the
+  live page (the browser's microphone danced as it plays) and its WebSocket ``/api/live``
+  (:mod:`dancekit.serve.live`; the token as ``?token=T``);
 - ``GET /api/options``: dance models with their genres, the output formats, the limits;
 - ``GET /api/models``: every model's card (as ``dancekit models --json``);
 - ``POST /api/jobs/dance`` (multipart: ``file`` or ``demo=true``, ``model``, ``genre``, ``seeds``,
@@ -27,7 +29,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from fastapi import FastAPI, HTTPException, Request
+from fastapi import FastAPI, HTTPException, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
@@ -35,6 +37,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from dancekit.errors import ParameterError
 from dancekit.serve.jobs import JobConflict, JobManager, QueueFull, ServeConfig, UnknownJob
+from dancekit.serve.live import LiveRooms, live_socket
 from dancekit.serve.uploads import AUDIO_KINDS, DANCE_KINDS, copy_capped, safe_stem, sniff
 
 #: Outputs of a dance job on the web (``coco18`` and the rest of :data:`dancekit.export.FORMATS` by request).
@@ -61,7 +64,8 @@ def _options_table() -> dict[str, Any]:
             continue
         genres = ["auto", "none", *card["genre_models"]]
         dance[name] = {"genres": genres, "reads_genre_from_music": card["reads_genre_from_music"],
-                       "description": card.get("description", "")}
+                       "description": card.get("description", ""),
+                       "live": card["family"] in ("revolution", "music2dance")}
         if card["family"] == "dual":
             compose.append(name)
     return {"dance_models": dance, "default_model": DEFAULT_MODEL if DEFAULT_MODEL in dance else next(iter(dance), None),
@@ -163,6 +167,29 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
     @app.get("/models", include_in_schema=False)
     def models_page():
         return page("models.html")
+
+    @app.get("/live", include_in_schema=False)
+    def live_page():
+        from dancekit.live.server import page_html
+
+        html = page_html().decode("utf-8").replace("<body>", '<body data-source="mic">', 1)
+        return HTMLResponse(html, headers={"Cache-Control": "no-store"})
+
+    rooms = LiveRooms(config.max_live)
+
+    @app.websocket("/api/live")
+    async def live(ws: WebSocket):
+        if config.token is not None:
+            given = ws.headers.get("authorization", "").removeprefix("Bearer ").strip() \
+                or ws.query_params.get("token", "")
+            if not hmac.compare_digest(given.encode(), config.token.encode()):
+                await ws.close(code=1008, reason="this server needs its token (?token=...)")
+                return
+        elif not _host_ok(ws.headers.get("host", "")):
+            await ws.close(code=1008, reason="unexpected Host header; open the server as 127.0.0.1 or localhost")
+            return
+        await live_socket(ws, rooms=rooms, models=table["dance_models"], default=table["default_model"],
+                          threads=config.threads)
 
     app.mount("/static", StaticFiles(directory=str(static)), name="static")
 

@@ -55,7 +55,8 @@ class ServeConfig:
     for a worker; ``max_upload_bytes``: the largest upload; ``max_seconds``: the longest song (seconds);
     ``max_bytes`` / ``max_age_s``: the cache folder's bounds; ``threads``: torch threads per worker;
     ``preload``: models each worker loads before it takes jobs; ``token``: when set, every request must
-    carry it; ``max_seeds``: seeds in one dance job.
+    carry it; ``max_seeds``: seeds in one dance job; ``max_live``: live sessions (the browser's microphone, ``/live``)
+    at once, each on the server's own process (0: none).
     """
 
     cache: Path
@@ -70,6 +71,7 @@ class ServeConfig:
     token: str | None = None
     max_seeds: int = 8
     host: str = "127.0.0.1"
+    max_live: int = 1
 
     def __post_init__(self):
         self.cache = Path(self.cache).expanduser()

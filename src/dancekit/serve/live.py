@@ -1,0 +1,213 @@
+"""The browser's microphone danced live by ``dancekit serve``: the ``/live`` page and its WebSocket ``/api/live``.
+
+The page captures the microphone (``getUserMedia``, an AudioWorklet) and sends it to the server; the server feeds
+it to a :class:`~dancekit.live.LiveSession` as it comes and sends the poses back on the same socket, in the pose
+stream's messages (docs/LIVE.md). The protocol:
+
+- client → server: first one JSON text message ``{"type": "start", "sample_rate": 48000, "model": "revolution",
+  "seed": 0}`` (``model`` and ``seed`` optional: the server's default model, seed 0); then binary messages, each
+  mono little-endian float32 PCM at ``sample_rate`` (at most :data:`MAX_BLOCK_S` seconds each); ``{"type":
+  "stop"}`` ends the session;
+- server → client: ``hello`` (the skeleton, once the model is loaded), then one ``pose`` message per frame, and
+  ``end`` when the session stops; a bad request or a busy server is one ``{"type": "error", "detail": "..."}``
+  message (one line), then the socket is closed (code 1008, or 1013 when the server is busy: try again later).
+
+The audio is resampled on the server to the model's feature rate (soxr, streamed). At most
+``ServeConfig.max_live`` sessions run at once; each runs on the server's own process, one thread for its model.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import threading
+import time
+
+import numpy as np
+
+__all__ = ["MAX_BLOCK_S", "LiveRooms", "live_socket", "start_message"]
+
+#: the longest audio message accepted (s)
+MAX_BLOCK_S = 2.0
+#: how long the server waits for the start message (s)
+START_TIMEOUT_S = 30.0
+#: the sample rates a client may send (Hz)
+RATES = (8000, 192000)
+
+
+class LiveRooms:
+    """How many live sessions run, at most ``limit`` (thread-safe)."""
+
+    def __init__(self, limit: int):
+        self.limit, self.running = int(limit), 0
+        self.lock = threading.Lock()
+
+    def enter(self) -> bool:
+        with self.lock:
+            if self.running >= self.limit:
+                return False
+            self.running += 1
+            return True
+
+    def leave(self) -> None:
+        with self.lock:
+            self.running -= 1
+
+
+def start_message(text: str, *, models: dict, default: str | None) -> tuple[str, int, int]:
+    """The client's first message → (model, sample rate, seed); :class:`~dancekit.errors.ParameterError` (one line)
+    for anything else. ``models``: the server's dance models (name → its options entry, ``live`` True where the model
+    can dance live)."""
+    from dancekit.errors import ParameterError
+
+    try:
+        m = json.loads(text)
+    except (TypeError, ValueError):
+        raise ParameterError("the first message must be JSON: {\"type\": \"start\", \"sample_rate\": …}") from None
+    if not isinstance(m, dict) or m.get("type") != "start":
+        raise ParameterError("the first message must be {\"type\": \"start\", \"sample_rate\": …}")
+    rate = m.get("sample_rate")
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not RATES[0] <= rate <= RATES[1] \
+            or rate != int(rate):
+        raise ParameterError(f"sample_rate must be a whole number of Hz in [{RATES[0]}, {RATES[1]}], got {rate!r}")
+    model = m.get("model") or default
+    if model not in models:
+        raise ParameterError(f"unknown model {model!r}; this server has {', '.join(models) or 'none'}")
+    if not models[model].get("live"):
+        raise ParameterError(f"the model {model!r} cannot dance live (live: revolution and music2dance models)")
+    seed = m.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**31:
+        raise ParameterError(f"seed must be an integer in [0, 2^31), got {seed!r}")
+    return str(model), int(rate), int(seed)
+
+
+class _Resampler:
+    """Mono float32 at ``rate`` → float32 at ``sr``, streamed (soxr)."""
+
+    def __init__(self, rate: int, sr: int):
+        import soxr
+
+        self.same = rate == sr
+        self.stream = None if self.same else soxr.ResampleStream(rate, sr, 1, dtype="float32", quality="soxr_hq")
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return x if self.same else self.stream.resample_chunk(x)
+
+
+async def live_socket(ws, *, rooms: LiveRooms, models: dict, default: str | None, threads: int = 1) -> None:
+    """Serve one client of ``/api/live`` (a Starlette ``WebSocket``, accepted here) until it stops or leaves."""
+    from starlette.websockets import WebSocketDisconnect
+
+    from dancekit.errors import DancekitError
+
+    await ws.accept()
+
+    async def refuse(detail: str, code: int = 1008) -> None:
+        await ws.send_text(json.dumps({"type": "error", "detail": " ".join(str(detail).split())}))
+        await ws.close(code=code)
+
+    try:
+        first = await asyncio.wait_for(ws.receive(), timeout=START_TIMEOUT_S)
+    except TimeoutError:
+        await refuse(f"no start message in {START_TIMEOUT_S:g} s")
+        return
+    except (WebSocketDisconnect, RuntimeError):
+        return
+    if first["type"] == "websocket.disconnect":
+        return
+    try:
+        model, rate, seed = start_message(first.get("text"), models=models, default=default)
+    except DancekitError as exc:
+        await refuse(str(exc))
+        return
+    if not rooms.enter():
+        await refuse(f"{rooms.limit} live session(s) already running on this server; try again later", code=1013)
+        return
+    try:
+        await _run(ws, model=model, rate=rate, seed=seed, threads=threads, refuse=refuse)
+    finally:
+        rooms.leave()
+
+
+def _open(model: str, seed: int, threads: int):
+    import torch
+    from threadpoolctl import threadpool_limits
+
+    from dancekit.live import LiveConfig
+    from dancekit.live.session import LiveSession
+
+    torch.set_num_threads(max(1, int(threads)))
+    threadpool_limits(1)  # the features' BLAS on one thread (process-wide: the server's own process)
+    return LiveSession(model, config=LiveConfig(seed=seed))
+
+
+async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) -> None:
+    from starlette.concurrency import run_in_threadpool
+    from starlette.websockets import WebSocketDisconnect
+
+    from dancekit.errors import DancekitError
+    from dancekit.live.server import hello_message
+    from dancekit.live.session import Block
+
+    try:
+        session = await run_in_threadpool(_open, model, seed, threads)
+    except DancekitError as exc:
+        await refuse(str(exc))
+        return
+    resample = _Resampler(rate, session.sr)
+    await ws.send_text(json.dumps(hello_message(session.skeleton, fps=session.fps, model=model)))
+    blocks: asyncio.Queue = asyncio.Queue()
+    offset = time.time() - time.monotonic()
+    most = int(MAX_BLOCK_S * rate) * 4
+
+    async def receive() -> None:
+        try:
+            while True:
+                msg = await ws.receive()
+                if msg["type"] == "websocket.disconnect":
+                    break
+                data = msg.get("bytes")
+                if data is None:  # text: only {"type": "stop"} means something now
+                    try:
+                        stop = json.loads(msg.get("text") or "").get("type") == "stop"
+                    except (ValueError, AttributeError):
+                        stop = False
+                    if stop:
+                        break
+                    continue
+                arrival = time.monotonic()
+                if len(data) % 4 or len(data) > most:
+                    await refuse(f"an audio message must be whole float32 samples, at most {MAX_BLOCK_S:g} s; "
+                                 f"got {len(data)} bytes")
+                    break
+                y = resample(np.frombuffer(data, "<f4").astype(np.float32))
+                if len(y):
+                    await blocks.put(Block(np.nan_to_num(y, nan=0.0, posinf=0.0, neginf=0.0), arrival))
+        except WebSocketDisconnect:
+            pass
+        finally:
+            await blocks.put(None)
+
+    reader = asyncio.create_task(receive())
+    try:
+        ended = False
+        while not ended:
+            item = await blocks.get()
+            if item is None:
+                break
+            waiting = [item]
+            while not blocks.empty():  # every block already waiting: one analysis (the session's own rule)
+                nxt = blocks.get_nowait()
+                if nxt is None:
+                    ended = True
+                    break
+                waiting.append(nxt)
+            frames = await run_in_threadpool(session.feed, waiting)
+            for f in frames:
+                await ws.send_text(json.dumps(f.to_message(wall_offset=offset)))
+        await ws.send_text(json.dumps({"type": "end"}))
+        await ws.close()
+    except (WebSocketDisconnect, RuntimeError):  # the client left
+        pass
+    finally:
+        reader.cancel()
