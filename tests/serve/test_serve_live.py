@@ -129,3 +129,21 @@ def test_a_server_with_a_token_needs_it_on_the_socket_too(tmp_path):
         with c.websocket_connect(WS + "?token=s3cret") as ws:
             ws.send_text(json.dumps({"type": "start", "sample_rate": 16000}))
             assert json.loads(ws.receive_text())["type"] == "hello"
+
+
+def test_the_server_feeds_blocks_of_the_sessions_length_whatever_the_pieces():
+    """Rebuffer: pieces of 1, 7, 64 and 300 samples give the same blocks of 64 samples, in order, each arriving
+    when the piece that completed it did; what is left is one last shorter block."""
+    from dancekit.serve.live import Rebuffer
+
+    y = np.arange(1000, dtype=np.float32)
+    for piece in (1, 7, 64, 300):
+        r, blocks = Rebuffer(64), []
+        for a in range(0, len(y), piece):
+            blocks += [(b, a) for b in r.push(y[a : a + piece], arrival=float(a))]
+        assert [len(b.samples) for b, _ in blocks] == [64] * 15
+        assert np.array_equal(np.concatenate([b.samples for b, _ in blocks]), y[:960])
+        for k, (b, _) in enumerate(blocks):  # the piece that brought sample 64·k + 63
+            assert b.arrival == float((64 * k + 63) // piece * piece)
+        last = r.rest(arrival=9.0)
+        assert np.array_equal(last.samples, y[960:]) and last.arrival == 9.0 and r.rest(arrival=10.0) is None

@@ -12,7 +12,9 @@ stream's messages (docs/LIVE.md). The protocol:
   ``end`` when the session stops; a bad request or a busy server is one ``{"type": "error", "detail": "..."}``
   message (one line), then the socket is closed (code 1008, or 1013 when the server is busy: try again later).
 
-The audio is resampled on the server to the model's feature rate (soxr, streamed). At most
+The audio is resampled on the server to the model's feature rate (soxr, streamed) and fed in blocks of the
+session's ``LiveConfig.block_s`` whatever the length of the client's messages (a live dance depends on the block
+length: the same audio sent in other pieces dances the same). At most
 ``ServeConfig.max_live`` sessions run at once; each runs on the server's own process, one thread for its model.
 """
 
@@ -25,7 +27,7 @@ import time
 
 import numpy as np
 
-__all__ = ["MAX_BLOCK_S", "LiveRooms", "live_socket", "start_message"]
+__all__ = ["MAX_BLOCK_S", "LiveRooms", "Rebuffer", "live_socket", "start_message"]
 
 #: the longest audio message accepted (s)
 MAX_BLOCK_S = 2.0
@@ -79,6 +81,32 @@ def start_message(text: str, *, models: dict, default: str | None) -> tuple[str,
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**31:
         raise ParameterError(f"seed must be an integer in [0, 2^31), got {seed!r}")
     return str(model), int(rate), int(seed)
+
+
+class Rebuffer:
+    """Audio in pieces of any length → :class:`~dancekit.live.session.Block` of ``size`` samples each (the session's
+    block), each arriving when the piece that completed it did."""
+
+    def __init__(self, size: int):
+        self.size = int(size)
+        self.held = np.zeros(0, np.float32)
+
+    def push(self, y: np.ndarray, arrival: float) -> list:
+        from dancekit.live.session import Block
+
+        y = np.concatenate([self.held, np.asarray(y, np.float32)])
+        cut = len(y) - len(y) % self.size
+        self.held = y[cut:]
+        return [Block(y[a : a + self.size], arrival) for a in range(0, cut, self.size)]
+
+    def rest(self, arrival: float):
+        """What is held, as a last shorter block (None: nothing)."""
+        from dancekit.live.session import Block
+
+        if not len(self.held):
+            return None
+        block, self.held = Block(self.held, arrival), np.zeros(0, np.float32)
+        return block
 
 
 class _Resampler:
@@ -147,7 +175,6 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
 
     from dancekit.errors import DancekitError
     from dancekit.live.server import hello_message
-    from dancekit.live.session import Block
 
     try:
         session = await run_in_threadpool(_open, model, seed, threads)
@@ -159,6 +186,7 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
     blocks: asyncio.Queue = asyncio.Queue()
     offset = time.time() - time.monotonic()
     most = int(MAX_BLOCK_S * rate) * 4
+    rebuffer = Rebuffer(max(1, int(round(session.config.block_s * session.sr))))
 
     async def receive() -> None:
         try:
@@ -181,11 +209,14 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
                                  f"got {len(data)} bytes")
                     break
                 y = resample(np.frombuffer(data, "<f4").astype(np.float32))
-                if len(y):
-                    await blocks.put(Block(np.nan_to_num(y, nan=0.0, posinf=0.0, neginf=0.0), arrival))
+                for block in rebuffer.push(np.nan_to_num(y, nan=0.0, posinf=0.0, neginf=0.0), arrival):
+                    await blocks.put(block)
         except WebSocketDisconnect:
             pass
         finally:
+            rest = rebuffer.rest(time.monotonic())
+            if rest is not None:
+                await blocks.put(rest)
             await blocks.put(None)
 
     reader = asyncio.create_task(receive())
