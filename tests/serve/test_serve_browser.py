@@ -126,14 +126,40 @@ def test_the_live_page_dances_to_the_browsers_microphone(server, tmp_path):
             page.wait_for_function(f"window.live.lastFrame > {first['frame']} + 25", timeout=60000)
             shot2 = page.screenshot()
             later = page.evaluate("({frame: window.live.lastFrame, t: window.live.lastT, sent: window.live.sentBlocks,"
-                                  " joints: window.live.hello.joint_names.length, latency: window.live.latency})")
+                                  " joints: window.live.hello.joint_names.length, latency: window.live.latency,"
+                                  " music: window.live.musicFrames})")
             page.click("#stop")
             page.wait_for_function("window.live.ended || window.live.closed", timeout=30000)
         finally:
             browser.close()
     assert later["frame"] > first["frame"] + 25 and later["t"] > first["t"]
     assert later["sent"] > 50 and later["joints"] == 23 and 0 <= later["latency"] < 2.0
+    assert later["music"] > 25  # danced to the song the microphone heard, not calmed as in silence
     a, b = _pixels(shot1), _pixels(shot2)
     figure = np.abs(a - np.array([0x15, 0x17, 0x1C])).sum(-1) > 60  # not the page's background
     assert figure.sum() > 500, "no figure drawn"
     assert (np.abs(a - b).sum(-1) > 60).sum() > 200, "the figure did not move"
+
+
+@pytest.mark.slow
+def test_the_live_page_dances_to_a_file_played_in_the_browser(server, tmp_path):
+    """/live with a song picked instead of the microphone: it plays in the page once the model is ready, is sent as
+    the microphone would be, and the poses come back danced to music; the song's end stops the session."""
+    exe = chromium()
+    song = ode_wav(tmp_path / "pick.wav", 6.0)
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=exe, headless=True, args=FLAGS)
+        try:
+            page = browser.new_page(viewport={"width": 640, "height": 480})
+            page.goto(server.url + "/live")
+            page.wait_for_selector("#model option", state="attached")
+            page.set_input_files("#file", str(song))
+            page.wait_for_function("window.live.frames > 50 || window.live.error", timeout=90000)
+            assert not page.evaluate("window.live.error"), page.evaluate("window.live.error")
+            page.wait_for_function("window.live.ended", timeout=60000)  # the song ended: stop sent, end received
+            done = page.evaluate("({frames: window.live.frames, music: window.live.musicFrames, t: window.live.lastT,"
+                                 " disabled: document.getElementById('start').disabled})")
+        finally:
+            browser.close()
+    assert 100 <= done["frames"] <= 151 and 4.0 <= done["t"] <= 6.1 and done["disabled"] is False
+    assert done["music"] > 50  # danced to the song, not calmed as in silence
