@@ -62,8 +62,12 @@ def test_online_settings_are_the_live_sessions_defaults():
     assert ONLINE_DEFAULTS == {k: getattr(c, k) for k in ONLINE_DEFAULTS}
 
 
-def test_online_copy_refuses_what_it_cannot_make(dataset, tmp_path):
+def test_online_copy_refuses_what_it_cannot_make(dataset, tmp_path, monkeypatch):
+    from dancekit.data import online
     from dancekit.data.online import prepare_online
+
+    copied = []
+    monkeypatch.setattr(online.shutil, "copy2", lambda *a, **k: copied.append(a))
 
     with pytest.raises(ParameterError, match="presets revolution and music2dance"):
         prepare_online(dataset, tmp_path / "a", presets=("dual",), progress=False)
@@ -73,4 +77,12 @@ def test_online_copy_refuses_what_it_cannot_make(dataset, tmp_path):
         prepare_online(dataset, dataset, progress=False)
     with pytest.raises(ParameterError, match="unknown online feature setting"):
         prepare_online(dataset, tmp_path / "c", progress=False, hop=3)
-    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+    # bad values are refused before anything is written or any worker starts, each naming its setting
+    for setting, match in ((dict(tempogram_future="later"), "tempogram_future must be one of"),
+                           (dict(lookahead_s="soon"), "lookahead_s must be a number of seconds"),
+                           (dict(block_s=0), "block_s must be in"),
+                           (dict(context_s=1.0), r"context_s must be a number of seconds in \[5, 60\]"),
+                           (dict(beat_window_s=-3), "beat_window_s must be")):
+        with pytest.raises(ParameterError, match=match):
+            prepare_online(dataset, tmp_path / "d", progress=False, **setting)
+    assert not any((tmp_path / n).exists() for n in "abcd") and copied == []

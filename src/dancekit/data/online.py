@@ -65,16 +65,32 @@ def prepare_online(src: str | os.PathLike, out: str | os.PathLike, *, presets: t
 
     from tqdm import tqdm
 
+    from dancekit.features.online import OnlineFeatures
+
     data = PreparedData(src)
     unknown = sorted(set(settings) - set(ONLINE_DEFAULTS))
     if unknown:
         raise ParameterError(f"unknown online feature setting(s) {unknown}; known: {sorted(ONLINE_DEFAULTS)}")
-    settings = {**ONLINE_DEFAULTS, **{k: v if k == "tempogram_future" else float(v) for k, v in settings.items()}}
+    merged = dict(ONLINE_DEFAULTS)
+    for key, value in settings.items():
+        if key != "tempogram_future":
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"online feature setting {key} must be a number of seconds, got {value!r}") \
+                    from None
+        merged[key] = value
+    settings = merged
+    if not 0 < settings["block_s"] <= 2.0:
+        raise ParameterError(f"online feature setting block_s must be in (0, 2] s, got {settings['block_s']!r}")
     for p in presets:
         if p not in ("revolution", "music2dance"):
             raise ParameterError(f"online features exist for the presets revolution and music2dance, not {p!r}")
         if p not in data.presets:
             raise DatasetError(f"{data.root} has no {p!r} features to replace (prepared presets: {data.presets})")
+        # the features' own checks of the settings, here rather than in a worker
+        OnlineFeatures(preset=p, fps=data.fps, hop_length=int(data.meta["hop_length"]),
+                       **{k: v for k, v in settings.items() if k != "block_s"})
     if Path(out).resolve() == data.root.resolve():
         raise ParameterError(f"the online copy must go to another folder than its source {data.root}")
     fps, hop = data.fps, int(data.meta["hop_length"])

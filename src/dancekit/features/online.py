@@ -37,6 +37,8 @@ __all__ = ["EXACT_LOOKAHEAD_S", "OnlineChroma", "OnlineFeatures", "TEMPOGRAM_FUT
 
 #: lookahead (s) from which every column but the tempogram and the beats equals the offline extractor's
 EXACT_LOOKAHEAD_S = 1.0
+#: the shortest audio history (s) the features are recomputed over: the constant-Q chromagram's margin fits
+MIN_CONTEXT_S = 5.0
 #: the offline tempogram's window (frames)
 TEMPOGRAM_WINDOW = 384
 #: how the online tempogram fills its window's future half: the last bar repeated, or nothing (delayed rows)
@@ -167,6 +169,10 @@ class OnlineFeatures:
             raise ParameterError(f"live features support the presets revolution and music2dance, not {preset!r}")
         if tempogram_future not in TEMPOGRAM_FUTURES:
             raise ParameterError(f"tempogram_future must be one of {TEMPOGRAM_FUTURES}, got {tempogram_future!r}")
+        for name, value, low in (("lookahead_s", lookahead_s, 0.0), ("context_s", context_s, MIN_CONTEXT_S),
+                                 ("beat_window_s", beat_window_s, 2.0)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= 60.0:
+                raise ParameterError(f"{name} must be a number of seconds in [{low:g}, 60], got {value!r}")
         self.tempogram_future = tempogram_future
         self._bar_lags = (max(1, int(round(BAR_RANGE_S[0] * fps))), int(round(BAR_RANGE_S[1] * fps)))
         self._future = np.arange(TEMPOGRAM_WINDOW // 2 + 1, TEMPOGRAM_WINDOW)  # the window's future half
