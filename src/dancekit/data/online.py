@@ -81,6 +81,7 @@ def prepare_online(src: str | os.PathLike, out: str | os.PathLike, *, presets: t
                     from None
         merged[key] = value
     settings = merged
+    fps, hop = data.fps, int(data.meta["hop_length"])
     if not 0 < settings["block_s"] <= 2.0:
         raise ParameterError(f"online feature setting block_s must be in (0, 2] s, got {settings['block_s']!r}")
     for p in presets:
@@ -89,11 +90,9 @@ def prepare_online(src: str | os.PathLike, out: str | os.PathLike, *, presets: t
         if p not in data.presets:
             raise DatasetError(f"{data.root} has no {p!r} features to replace (prepared presets: {data.presets})")
         # the features' own checks of the settings, here rather than in a worker
-        OnlineFeatures(preset=p, fps=data.fps, hop_length=int(data.meta["hop_length"]),
-                       **{k: v for k, v in settings.items() if k != "block_s"})
+        OnlineFeatures(preset=p, fps=fps, hop_length=hop, **{k: v for k, v in settings.items() if k != "block_s"})
     if Path(out).resolve() == data.root.resolve():
         raise ParameterError(f"the online copy must go to another folder than its source {data.root}")
-    fps, hop = data.fps, int(data.meta["hop_length"])
     replaced = {f"features_{p}.npz" for p in presets}
     with atomic_dir(out) as tmp:
         jobs = []

@@ -135,17 +135,23 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
         return JSONResponse({"detail": detail.splitlines()[0] if detail else ""}, status_code=exc.status_code,
                             headers=getattr(exc, "headers", None))
 
+    def refusal(connection) -> tuple[int, str] | None:
+        """Why a request or WebSocket is refused: (HTTP status, reason) without the server's token, or from a
+        Host other than the loopback on a server without one (a web page of another site: DNS rebinding)."""
+        if config.token is not None:
+            given = connection.headers.get("authorization", "").removeprefix("Bearer ").strip() \
+                or connection.query_params.get("token", "")
+            if not hmac.compare_digest(given.encode(), config.token.encode()):
+                return 401, "this server needs its token (?token=... or Authorization: Bearer)"
+        elif not _host_ok(connection.headers.get("host", "")):
+            return 421, "unexpected Host header; open the server as 127.0.0.1 or localhost"
+        return None
+
     @app.middleware("http")
     async def _guard(request: Request, call_next):
-        if config.token is not None:
-            given = request.headers.get("authorization", "").removeprefix("Bearer ").strip() \
-                or request.query_params.get("token", "")
-            if not hmac.compare_digest(given.encode(), config.token.encode()):
-                return JSONResponse({"detail": "this server needs its token (?token=... or Authorization: Bearer)"},
-                                    status_code=401)
-        elif not _host_ok(request.headers.get("host", "")):  # a web page of another site (DNS rebinding)
-            return JSONResponse({"detail": "unexpected Host header; open the server as 127.0.0.1 or localhost"},
-                                status_code=421)
+        refused = refusal(request)
+        if refused is not None:
+            return JSONResponse({"detail": refused[1]}, status_code=refused[0])
         return await call_next(request)
 
     app.add_middleware(_CapBody, limit=config.max_upload_bytes + _MULTIPART_SLACK,
@@ -179,14 +185,9 @@ def create_app(config: ServeConfig, *, manager: JobManager | None = None):
 
     @app.websocket("/api/live")
     async def live(ws: WebSocket):
-        if config.token is not None:
-            given = ws.headers.get("authorization", "").removeprefix("Bearer ").strip() \
-                or ws.query_params.get("token", "")
-            if not hmac.compare_digest(given.encode(), config.token.encode()):
-                await ws.close(code=1008, reason="this server needs its token (?token=...)")
-                return
-        elif not _host_ok(ws.headers.get("host", "")):
-            await ws.close(code=1008, reason="unexpected Host header; open the server as 127.0.0.1 or localhost")
+        refused = refusal(ws)  # the checks of every HTTP route (the middleware does not see WebSockets)
+        if refused is not None:
+            await ws.close(code=1008, reason=refused[1])
             return
         await live_socket(ws, rooms=rooms, models=table["dance_models"], default=table["default_model"],
                           threads=config.threads)
