@@ -237,7 +237,11 @@ def test_revolution_stepper_equals_one_offline_pass(revolution, rng):
     off = normalize_bone_lengths(decode_positions(pipe.stats.denormalize_dance(y), pipe.skeleton).astype(np.float64),
                                  pipe.skeleton)
     assert on.shape == (T, pipe.skeleton.num_joints, 3)
-    np.testing.assert_allclose(on, off, atol=1e-2)  # cm, float rounding of two encoder chunkings
+    # cm: the two encoder chunkings round the latents differently (~1e-6), and the autoregressive decoder carries
+    # that forward: measured 0.07 cm (torch's decoder) and 0.09 cm (NumPy's) by frame 240 on another random song,
+    # 1e-4 cm over the first 60 frames; a state lost between blocks moves joints by centimetres
+    np.testing.assert_allclose(on[:60], off[:60], atol=1e-3)
+    np.testing.assert_allclose(on, off, atol=0.5)
 
 
 def _tiny_revolution(lookahead):

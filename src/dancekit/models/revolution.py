@@ -15,7 +15,9 @@ Architecture (paper §3.2)
       ``ŷ_i = [h_i; z_i] W^S + b`` (Eq. 3). The LSTM input is the previous pose ``ŷ_{i-1}`` (Eq. 4),
       concatenated with ``z_i`` when ``condition_on_music`` (the default; with ``False`` the music enters
       only through the output layer, exactly as Eq. 3–4 are written). ``y_0`` is a learned
-      begin-of-pose (``bop="learned"``) or zeros (``bop="zero"``).
+      begin-of-pose (``bop="learned"``) or zeros (``bop="zero"``). Inference steps the decoder in NumPy
+      (:class:`NumpyDecoder`, the same maths; a frame is some 20 small operations, each about a microsecond in
+      NumPy where a torch call costs several); training steps it in torch.
     * Dynamic auto-condition (§3.3): in training the decoder input alternates ``p`` generated frames and
       ``q`` ground-truth frames, ``Y_in = {y_0, ŷ_1..ŷ_p, y_{p+1}..y_{p+q}, ŷ_{p+q+1}, ...}``
       (:func:`auto_condition_mask`); ``p = 0`` is teacher forcing. Ground-truth runs go through
@@ -44,6 +46,7 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -922,13 +925,23 @@ class RevolutionModel(nn.Module):
     def _autoregress(self, z: torch.Tensor, prev: torch.Tensor, state):
         """Generate ``L = z.shape[1]`` frames from the input pose ``prev (B, 1, P)``, one step at a time.
 
-        Uses ``torch.lstm_cell`` on the weights of ``self.decoder`` (the same maths as ``nn.LSTM``,
-        about 1.5× faster per step on CPU). Returns ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``.
-        A copy made by :func:`dancekit.models.precision.to_precision` decodes with its ``fast_decoder``.
+        Inference on the CPU in float32 (no gradient needed) runs :class:`NumpyDecoder` (the same maths in
+        NumPy, about 4× faster per frame: a NumPy call costs about a microsecond, a torch call several); with
+        gradients (training's generated runs), or on another device or dtype, :meth:`_autoregress_torch`
+        (``torch.lstm_cell`` on the weights of ``self.decoder``, the maths of ``nn.LSTM``). Returns
+        ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``. A copy made by :func:`dancekit.models.precision.to_precision`
+        decodes with its ``fast_decoder``.
         """
         fast = getattr(self, "fast_decoder", None)  # reduced-precision, fused decoder (models/precision.py)
         if fast is not None:
             return fast(z, prev, state)
+        if NumpyDecoder.usable(self, z):
+            return NumpyDecoder.of(self)(z, prev, state)
+        return self._autoregress_torch(z, prev, state)
+
+    def _autoregress_torch(self, z: torch.Tensor, prev: torch.Tensor, state):
+        """:meth:`_autoregress` in torch (what training steps through, with gradients; the reference that
+        :class:`NumpyDecoder` is tested against)."""
         c = self.config
         weights = [
             tuple(getattr(self.decoder, f"{kind}_l{layer}") for kind in ("weight_ih", "weight_hh", "bias_ih", "bias_hh"))
@@ -1207,7 +1220,9 @@ class _RowDecoder:
     """One decoder step for rows of one or more :class:`RevolutionModel` of one architecture (rows of one model
     consecutive), each row computed as :meth:`RevolutionModel._autoregress` computes a batch of one.
 
-    ``torch.lstm_cell`` and ``nn.Linear`` on a batch of B rows use one (B × K) matrix product, which rounds
+    On the CPU in float32 without gradients the rows run :meth:`NumpyDecoder.run` (a decoder per row's model, each
+    row's products its own); otherwise this torch loop: ``torch.lstm_cell`` and ``nn.Linear`` on a batch of B rows use
+    one (B × K) matrix product, which rounds
     differently from B products of one row (and the autoregressive decoder carries a last-bit difference into
     another dance within ~20 s). Here each row's products are one-row products, the same call, layout and bias
     handling as ``nn.Linear`` on one row (``addmm``), so the same bits: ``torch.baddbmm`` over the rows with the
@@ -1220,6 +1235,7 @@ class _RowDecoder:
     def __init__(self, models: list[RevolutionModel]):
         c = models[0].config
         self.config = c
+        self.models = models
         #: per model: (first row, end row, {("ih" | "hh", layer) or "head": (weight (rows, K, N) and bias
         #: (rows, 1, N) expanded for baddbmm, or None, None for a small product; weight (N, K), bias (N,))})
         self.groups: list[tuple[int, int, dict]] = []
@@ -1273,7 +1289,10 @@ class _RowDecoder:
 
     def __call__(self, z: torch.Tensor, prev: torch.Tensor, state):
         """``L = z.shape[1]`` frames from the input pose ``prev (B, 1, P)`` and ``state`` (each (layers, B, H)):
-        ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``, as :meth:`RevolutionModel._autoregress`."""
+        ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``, as :meth:`RevolutionModel._autoregress` (its
+        :class:`NumpyDecoder` when every row's model may use it)."""
+        if all(NumpyDecoder.usable(m, z) for m in self.models):
+            return NumpyDecoder.run([NumpyDecoder.of(m) for m in self.models], z, prev, state)
         c = self.config
         hs = [h[:, None] for h in state[0].unbind(0)]  # each (B, 1, H)
         cs = [x[:, None] for x in state[1].unbind(0)]
@@ -1295,6 +1314,126 @@ class _RowDecoder:
             return z.new_zeros(z.shape[0], 0, c.pose_dim), prev, state
         out = torch.cat(outputs, dim=1)  # (B, L, P)
         return out, out[:, -1:], (torch.stack([h[:, 0] for h in hs]), torch.stack([x[:, 0] for x in cs]))
+
+
+class NumpyDecoder:
+    """:meth:`RevolutionModel._autoregress` in NumPy: inference on the CPU in float32 (weights copied once,
+    :meth:`of`).
+
+    Each frame is the products of one row at a time, as ``torch.lstm_cell`` and ``nn.Linear`` of a batch of one
+    compute them: per layer ``x W_ih + h W_hh + (b_ih + b_hh)`` with ``x`` the layer's whole input (layer 0:
+    ``[ŷ_{t-1}; z_t]``), and the head's ``[h_t; z_t] W^S + b``: vector-matrix products whose numbers depend neither
+    on the rows beside it nor on how the frames are split into pieces, so a seed decoded among others (:meth:`run`,
+    one decoder per row) is bit for bit the seed alone, and a decoding stepped a block at a time (``dancekit live``)
+    is bit for bit the decoding in one go. Gates in the order i, f, o, g (the rows of ``nn.LSTM``'s i, f, g, o
+    moved); σ(x) = (1 + tanh(x / 2)) / 2 with the halving folded into the i, f, o weight rows and biases (a power of
+    two: exact), so one ``tanh`` over the four gates; ``c' = f c + i g``, ``h' = o tanh(c')``, elementwise. The same
+    maths as ``nn.LSTM`` and ``nn.Linear``, rounded differently (float32 products summed in another order).
+    """
+
+    def __init__(self, model: RevolutionModel):
+        c = model.config
+        H = c.decoder_hidden
+        self.config = c
+        order = np.r_[0 : 2 * H, 3 * H : 4 * H, 2 * H : 3 * H]  # nn.LSTM's (i, f, g, o) rows → (i, f, o, g)
+        half = np.ones(4 * H, np.float32)
+        half[: 3 * H] = 0.5  # i, f, o: σ(x) = (1 + tanh(x / 2)) / 2
+
+        def rows(name: str) -> np.ndarray:  # an LSTM weight or bias, rows reordered and halved; zeros if absent
+            w = getattr(model.decoder, name, None)
+            if w is None:
+                return np.zeros(4 * H, np.float32)
+            w = w.detach().cpu().numpy().astype(np.float32)[order]
+            return w * (half[:, None] if w.ndim == 2 else half)
+
+        #: per layer: (W_ih (K, 4H), W_hh (H, 4H), b_ih + b_hh (4H,)), K the layer's input size
+        self.layers = [(np.ascontiguousarray(rows(f"weight_ih_l{layer}").T),
+                        np.ascontiguousarray(rows(f"weight_hh_l{layer}").T),
+                        rows(f"bias_ih_l{layer}") + rows(f"bias_hh_l{layer}")) for layer in range(c.decoder_layers)]
+        self.head_w = np.ascontiguousarray(model.head.weight.detach().cpu().numpy().astype(np.float32).T)  # (H+d, P)
+        self.head_b = (np.zeros(c.pose_dim, np.float32) if model.head.bias is None
+                       else model.head.bias.detach().cpu().numpy().astype(np.float32))
+
+    @staticmethod
+    def usable(model: RevolutionModel, z: torch.Tensor) -> bool:
+        """Whether :meth:`RevolutionModel._autoregress` runs this decoder: CPU float32 latents and weights, and no
+        gradient to keep (grad mode off, or nothing that requires one)."""
+        w = model.head.weight
+        if z.device.type != "cpu" or w.device.type != "cpu" or z.dtype != torch.float32 or w.dtype != torch.float32:
+            return False
+        return not torch.is_grad_enabled() or not (z.requires_grad or any(
+            p.requires_grad for p in (*model.decoder.parameters(), *model.head.parameters())))
+
+    @staticmethod
+    def of(model: RevolutionModel) -> NumpyDecoder:
+        """The model's decoder, built once and rebuilt when a decoder or head weight has changed since (an
+        optimiser step between two validations)."""
+        key = tuple((p.data_ptr(), p._version) for p in (*model.decoder.parameters(), *model.head.parameters()))
+        cached = model.__dict__.get("_numpy_decoder")
+        if cached is None or cached[0] != key:
+            cached = (key, NumpyDecoder(model))
+            model.__dict__["_numpy_decoder"] = cached
+        return cached[1]
+
+    def __call__(self, z: torch.Tensor, prev: torch.Tensor, state):
+        """``z (B, L, d)`` latents, ``prev (B, 1, P)``, ``state`` (h, c) each ``(layers, B, H)`` →
+        ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``, as :meth:`RevolutionModel._autoregress`."""
+        return NumpyDecoder.run([self] * z.shape[0], z, prev, state)
+
+    @staticmethod
+    def run(decoders: list[NumpyDecoder], z: torch.Tensor, prev: torch.Tensor, state):
+        """Row ``k`` of ``z (B, L, d)``, ``prev (B, 1, P)`` and ``state`` (h, c) each ``(layers, B, H)`` decoded
+        by ``decoders[k]`` (one architecture) → ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``, each row bit for bit
+        that row decoded alone."""
+        c = decoders[0].config
+        B, L = z.shape[:2]
+        H, P = c.decoder_hidden, c.pose_dim
+        if L == 0:
+            return z.new_zeros(B, 0, P), prev, state
+        zs = z.detach().cpu().numpy()
+        hs = state[0].detach().cpu().numpy().astype(np.float32)  # (layers, B, H), copies
+        cs = state[1].detach().cpu().numpy().astype(np.float32)
+        out = np.empty((B, L, P), np.float32)
+        x0 = np.empty((B, P + zs.shape[2] if c.condition_on_music else P), np.float32)  # [ŷ_{t-1}; z_t]
+        x0[:, :P] = prev[:, 0].detach().cpu().numpy()
+        xh = np.empty((B, H + zs.shape[2]), np.float32)  # [h_t; z_t], the head's input
+        gates = np.empty((B, 4 * H), np.float32)
+        tmp = np.empty((B, 4 * H), np.float32)
+        sig, g = gates[:, : 3 * H], gates[:, 3 * H :]
+        i, f, o = gates[:, :H], gates[:, H : 2 * H], gates[:, 2 * H : 3 * H]
+        part = tmp[:, :H]
+        biases = [np.stack([d.layers[layer][2] for d in decoders]) for layer in range(c.decoder_layers)]  # (B, 4H)
+        head_b = np.stack([d.head_b for d in decoders])  # (B, P)
+        for t in range(L):
+            if c.condition_on_music:
+                x0[:, P:] = zs[:, t]
+            xh[:, H:] = zs[:, t]
+            x = x0
+            for layer, bias in enumerate(biases):
+                h, cell = hs[layer], cs[layer]
+                for k, d in enumerate(decoders):
+                    w_ih, w_hh, _ = d.layers[layer]
+                    np.matmul(x[k], w_ih, out=gates[k])
+                    np.matmul(h[k], w_hh, out=tmp[k])
+                gates += tmp
+                gates += bias
+                np.tanh(gates, out=gates)
+                sig *= 0.5
+                sig += 0.5
+                cell *= f
+                np.multiply(i, g, out=part)
+                cell += part
+                np.tanh(cell, out=part)
+                np.multiply(o, part, out=h)
+                x = h
+            xh[:, :H] = x
+            y = x0[:, :P]
+            for k, d in enumerate(decoders):
+                np.matmul(xh[k], d.head_w, out=y[k])
+            y += head_b
+            out[:, t] = y
+        result = torch.from_numpy(out)
+        return result, result[:, -1:], (torch.from_numpy(hs), torch.from_numpy(cs))
 
 
 def _generators(generator, batch: int) -> list[torch.Generator | None]:
