@@ -1103,7 +1103,10 @@ def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], gen
     progress : a progress bar over the pieces (of the first lane)
     workers : the rows are split into this many lanes of about equal cost (decoder weights per row), decoded side
         by side in threads (each row's arithmetic is unchanged: the torch calls of one row run in one thread); 1:
-        one after the other in this thread
+        one after the other in this thread. Rows that :class:`NumpyDecoder` decodes share one lane whatever
+        ``workers``: a NumPy frame loop holds the interpreter between its short calls, and two such loops in
+        threads spend more time waiting for it than they gain (8 seeds of a minute: 5.3 s in two lanes, about half
+        that in one)
     prefixes : per row, normalised poses (1, N, P) (N the same for every row) that are the dance's first N frames
         and that the decoder is fed as its previous poses (teacher forcing): the dance continues them; None: none
     """
@@ -1142,7 +1145,9 @@ def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], gen
                 for j, k in enumerate(ks):
                     out[k] = y[j : j + 1]
 
-    lanes = _lanes(models, workers)
+    numpy_rows = all(getattr(m, "fast_decoder", None) is None and NumpyDecoder.usable(m, z)
+                     for m, z in zip(models, latents, strict=True))
+    lanes = _lanes(models, 1 if numpy_rows else workers)  # NumPy frame loops in threads wait on each other
     if len(lanes) == 1:
         lane(lanes[0], True)
     else:
