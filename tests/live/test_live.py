@@ -713,3 +713,31 @@ def test_beat_nudge_moves_the_kinematic_beats_towards_the_music_beats():
     # no beat predicted: rate 1 once the clock has settled half the allowed lag (3 frames) behind the model
     plain = BeatNudge(fps=fps).process(pos[:200], None)
     np.testing.assert_allclose(plain[100:], pos[97:197], atol=1e-3)
+
+
+def test_a_session_stopped_before_any_audio_ends_with_no_frames():
+    """A client that starts and stops without sending audio (``dancekit serve``'s socket, an empty stdin): the
+    session's end makes no frame and does not fail."""
+    s = LiveSession("revolution")
+    assert s.finish() == []
+    assert s.stats.latency == []
+
+
+def test_the_stream_resampler_gives_the_whole_resampling_whatever_the_pieces():
+    """Pieces of 1, 441 and 4000 samples at 44.1 kHz resampled to 12.8 kHz, the flush included, are one stream's
+    resampling of the whole (soxr keeps its state), of the length the rates give; without the flush the last
+    milliseconds are missing."""
+    from dancekit.live.session import StreamResampler
+
+    x = np.sin(np.arange(44100) * 2 * np.pi * 440 / 44100).astype(np.float32)
+    whole = StreamResampler(44100, 12800)
+    ref = np.concatenate([whole(x), whole.flush()])
+    assert abs(len(ref) - 12800) <= 1
+    for piece in (1, 441, 4000):
+        r = StreamResampler(44100, 12800)
+        parts = [r(x[a : a + piece]) for a in range(0, len(x), piece)]
+        body = np.concatenate(parts)
+        assert len(body) < len(ref)  # soxr holds the last few samples until the flush
+        assert np.array_equal(np.concatenate([body, r.flush()]), ref)
+    same = StreamResampler(12800, 12800)
+    assert np.array_equal(same(x[:100]), x[:100]) and len(same.flush()) == 0

@@ -35,7 +35,8 @@ from dancekit.live.config import LiveConfig
 from dancekit.live.stages import BeatNudge, OnlineStages
 from dancekit.live.steppers import make_stepper
 
-__all__ = ["Block", "Frame", "LiveSession", "file_source", "microphone_source", "pcm_source"]
+__all__ = ["Block", "Frame", "LiveSession", "StreamResampler", "file_source", "microphone_source", "pcm_source",
+           "take_waiting"]
 
 
 @dataclass
@@ -202,7 +203,9 @@ class LiveSession:
         return self._emit(rows, ready=blocks[-1].arrival, now=now)
 
     def finish(self, *, now: Callable[[], float] = time.monotonic) -> list[Frame]:
-        """The frames still waiting for their lookahead (the stream ended)."""
+        """The frames still waiting for their lookahead (the stream ended); none when no audio came at all."""
+        if not self._samples:
+            return []
         return self._emit(self.features.finish(), ready=now(), now=now, final=True)
 
     def _emit(self, rows: np.ndarray, *, ready: float, now, final: bool = False) -> list[Frame]:
@@ -267,16 +270,7 @@ class LiveSession:
                 item = q.get()
                 if item is None:
                     break
-                blocks = [item]
-                while True:  # every block already waiting: one analysis
-                    try:
-                        nxt = q.get_nowait()
-                    except queue.Empty:
-                        break
-                    if nxt is None:
-                        ended = True
-                        break
-                    blocks.append(nxt)
+                blocks, ended = take_waiting(item, q.get_nowait, queue.Empty)
                 t0, c0 = time.monotonic(), time.thread_time()
                 self.feed(blocks)
                 self.stats.compute.append(time.monotonic() - t0)
@@ -295,6 +289,45 @@ class LiveSession:
         if self.stats.merged_blocks:
             self.notes.append(f"{self.stats.merged_blocks} blocks fed together with the one before (behind the clock)")
         return self.stats
+
+
+def take_waiting(first: Block, get_nowait: Callable[[], Block | None],
+                 empty: type[Exception]) -> tuple[list[Block], bool]:
+    """``first`` and every block already waiting in a queue (``get_nowait()`` until it raises ``empty``), fed to
+    :meth:`LiveSession.feed` together (one analysis: a session behind the clock catches up); ``ended`` is True
+    when the queue's end mark (None) was among them. Used over a thread's queue (:meth:`LiveSession.run`) and an
+    asyncio queue (``dancekit serve``'s live socket) alike."""
+    blocks, ended = [first], False
+    while True:
+        try:
+            nxt = get_nowait()
+        except empty:
+            break
+        if nxt is None:
+            ended = True
+            break
+        blocks.append(nxt)
+    return blocks, ended
+
+
+class StreamResampler:
+    """Mono float32 audio at ``rate`` Hz → float32 at ``sr`` Hz, piece by piece as it comes (soxr's stream keeps its
+    state between pieces, so the pieces give the resampling of the whole); :meth:`flush` returns what soxr still
+    holds when the stream ends (a few milliseconds). ``rate == sr``: the pieces as they are."""
+
+    def __init__(self, rate: int, sr: int):
+        import soxr
+
+        self.stream = None if rate == sr else soxr.ResampleStream(rate, sr, 1, dtype="float32")
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, np.float32)
+        return x if self.stream is None else self.stream.resample_chunk(x)
+
+    def flush(self) -> np.ndarray:
+        if self.stream is None:
+            return np.zeros(0, np.float32)
+        return self.stream.resample_chunk(np.zeros(0, np.float32), last=True)
 
 
 def offline_rate_bound(pipe) -> float:
@@ -339,12 +372,10 @@ def file_source(path: str | os.PathLike | list, *, sr: int, block_s: float = 0.0
 def pcm_source(stream, *, rate: int, sr: int, block_s: float = 0.08, channels: int = 1) -> Iterator[Block]:
     """Raw signed 16-bit little-endian PCM (``channels`` interleaved, ``rate`` Hz) read from a binary
     ``stream`` (stdin) as blocks at ``sr`` Hz (mixed to mono, resampled block by block: soxr keeps its state)."""
-    import soxr
-
     if rate <= 0 or channels <= 0:
         raise ParameterError(f"PCM input needs a positive rate and channel count, got {rate} Hz, {channels}")
     n = max(1, int(round(block_s * rate)))
-    resampler = soxr.ResampleStream(rate, sr, 1, dtype="float32") if rate != sr else None
+    resample = StreamResampler(rate, sr)
     while True:
         data = stream.read(2 * channels * n)
         arrival = time.monotonic()
@@ -352,13 +383,12 @@ def pcm_source(stream, *, rate: int, sr: int, block_s: float = 0.08, channels: i
             break
         usable = len(data) - len(data) % (2 * channels)
         x = np.frombuffer(data[:usable], "<i2").astype(np.float32).reshape(-1, channels).mean(axis=1) / 32768.0
-        y = resampler.resample_chunk(x) if resampler is not None else x
+        y = resample(x)
         if len(y):
             yield Block(np.ascontiguousarray(y, np.float32), arrival)
-    if resampler is not None:
-        tail = resampler.resample_chunk(np.zeros(0, np.float32), last=True)
-        if len(tail):
-            yield Block(np.ascontiguousarray(tail, np.float32), time.monotonic())
+    tail = resample.flush()
+    if len(tail):
+        yield Block(np.ascontiguousarray(tail, np.float32), time.monotonic())
 
 
 def microphone_source(*, sr: int, block_s: float = 0.08, device: str | int | None = None) -> Iterator[Block]:

@@ -12,9 +12,11 @@ stream's messages (docs/LIVE.md). The protocol:
   ``end`` when the session stops; a bad request or a busy server is one ``{"type": "error", "detail": "..."}``
   message (one line), then the socket is closed (code 1008, or 1013 when the server is busy: try again later).
 
-The audio is resampled on the server to the model's feature rate (soxr, streamed) and fed in blocks of the
+The audio is resampled on the server to the model's feature rate (soxr, streamed:
+:class:`~dancekit.live.session.StreamResampler`) and fed in blocks of the
 session's ``LiveConfig.block_s`` whatever the length of the client's messages (a live dance depends on the block
-length: the same audio sent in other pieces dances the same). At most
+length: the same audio sent in other pieces dances the same). When the client stops, the resampler's last
+milliseconds and the frames still waiting for their lookahead are danced and sent before ``end``. At most
 ``ServeConfig.max_live`` sessions run at once; each runs on the server's own process, one thread for its model.
 """
 
@@ -109,19 +111,6 @@ class Rebuffer:
         return block
 
 
-class _Resampler:
-    """Mono float32 at ``rate`` → float32 at ``sr``, streamed (soxr)."""
-
-    def __init__(self, rate: int, sr: int):
-        import soxr
-
-        self.same = rate == sr
-        self.stream = None if self.same else soxr.ResampleStream(rate, sr, 1, dtype="float32", quality="soxr_hq")
-
-    def __call__(self, x: np.ndarray) -> np.ndarray:
-        return x if self.same else self.stream.resample_chunk(x)
-
-
 async def live_socket(ws, *, rooms: LiveRooms, models: dict, default: str | None, threads: int = 1) -> None:
     """Serve one client of ``/api/live`` (a Starlette ``WebSocket``, accepted here) until it stops or leaves."""
     from starlette.websockets import WebSocketDisconnect
@@ -175,13 +164,14 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
 
     from dancekit.errors import DancekitError
     from dancekit.live.server import hello_message
+    from dancekit.live.session import StreamResampler, take_waiting
 
     try:
         session = await run_in_threadpool(_open, model, seed, threads)
     except DancekitError as exc:
         await refuse(str(exc))
         return
-    resample = _Resampler(rate, session.sr)
+    resample = StreamResampler(rate, session.sr)
     await ws.send_text(json.dumps(hello_message(session.skeleton, fps=session.fps, model=model)))
     blocks: asyncio.Queue = asyncio.Queue()
     offset = time.time() - time.monotonic()
@@ -213,7 +203,9 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
                     await blocks.put(block)
         except WebSocketDisconnect:
             pass
-        finally:
+        finally:  # what soxr still holds, then the last shorter block
+            for block in rebuffer.push(resample.flush(), time.monotonic()):
+                await blocks.put(block)
             rest = rebuffer.rest(time.monotonic())
             if rest is not None:
                 await blocks.put(rest)
@@ -226,16 +218,11 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
             item = await blocks.get()
             if item is None:
                 break
-            waiting = [item]
-            while not blocks.empty():  # every block already waiting: one analysis (the session's own rule)
-                nxt = blocks.get_nowait()
-                if nxt is None:
-                    ended = True
-                    break
-                waiting.append(nxt)
-            frames = await run_in_threadpool(session.feed, waiting)
-            for f in frames:
+            waiting, ended = take_waiting(item, blocks.get_nowait, asyncio.QueueEmpty)
+            for f in await run_in_threadpool(session.feed, waiting):
                 await ws.send_text(json.dumps(f.to_message(wall_offset=offset)))
+        for f in await run_in_threadpool(session.finish):  # the frames still waiting for their lookahead
+            await ws.send_text(json.dumps(f.to_message(wall_offset=offset)))
         await ws.send_text(json.dumps({"type": "end"}))
         await ws.close()
     except (WebSocketDisconnect, RuntimeError):  # the client left
