@@ -1105,8 +1105,8 @@ def decode_seeds(models: list[RevolutionModel], latents: list[torch.Tensor], gen
         by side in threads (each row's arithmetic is unchanged: the torch calls of one row run in one thread); 1:
         one after the other in this thread. Rows that :class:`NumpyDecoder` decodes share one lane whatever
         ``workers``: a NumPy frame loop holds the interpreter between its short calls, and two such loops in
-        threads spend more time waiting for it than they gain (8 seeds of a minute: 5.3 s in two lanes, about half
-        that in one)
+        threads spend more time waiting for it than they gain (8 seeds of a minute danced in 7.8 s with two lanes,
+        5.0 s with one)
     prefixes : per row, normalised poses (1, N, P) (N the same for every row) that are the dance's first N frames
         and that the decoder is fed as its previous poses (teacher forcing): the dance continues them; None: none
     """
