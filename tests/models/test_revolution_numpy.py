@@ -97,3 +97,28 @@ def test_decoding_a_block_at_a_time_is_bit_for_bit_one_pass():
                 ys.append(out)
                 a += n
             assert torch.equal(torch.cat(ys, 1), whole) and torch.equal(st[0], h) and torch.equal(st[1], c), cuts
+
+
+def test_the_decoder_runs_its_products_on_one_blas_thread(monkeypatch):
+    """A frame's products are too small to share between BLAS threads (a second thread waiting for a busy core
+    tripled the time a frame under load): the loop runs with one BLAS thread, and the caller's setting is back
+    after it."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads() -> set[int]:
+        return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+    seen, real = [], NumpyDecoder._run
+
+    def spy(decoders, z, prev, state):
+        seen.append(blas_threads())
+        return real(decoders, z, prev, state)
+
+    monkeypatch.setattr(NumpyDecoder, "_run", staticmethod(spy))
+    model = model_of()
+    z, prev = torch.randn(1, 5, 16), torch.randn(1, 1, P)
+    with threadpool_limits(2, user_api="blas"), torch.no_grad():
+        assert blas_threads() == {2}
+        NumpyDecoder.of(model)(z, prev, model.initial_state(1))
+        assert blas_threads() == {2}
+    assert seen == [{1}]

@@ -1390,11 +1390,16 @@ class NumpyDecoder:
         """Row ``k`` of ``z (B, L, d)``, ``prev (B, 1, P)`` and ``state`` (h, c) each ``(layers, B, H)`` decoded
         by ``decoders[k]`` (one architecture) → ``(ŷ (B, L, P), last ŷ (B, 1, P), state)``, each row bit for bit
         that row decoded alone."""
+        if z.shape[1] == 0:
+            return z.new_zeros(z.shape[0], 0, decoders[0].config.pose_dim), prev, state
+        with _one_blas_thread():
+            return NumpyDecoder._run(decoders, z, prev, state)
+
+    @staticmethod
+    def _run(decoders: list[NumpyDecoder], z: torch.Tensor, prev: torch.Tensor, state):
         c = decoders[0].config
         B, L = z.shape[:2]
         H, P = c.decoder_hidden, c.pose_dim
-        if L == 0:
-            return z.new_zeros(B, 0, P), prev, state
         zs = z.detach().cpu().numpy()
         hs = state[0].detach().cpu().numpy().astype(np.float32)  # (layers, B, H), copies
         cs = state[1].detach().cpu().numpy().astype(np.float32)
@@ -1439,6 +1444,22 @@ class NumpyDecoder:
             out[:, t] = y
         result = torch.from_numpy(out)
         return result, result[:, -1:], (torch.from_numpy(hs), torch.from_numpy(cs))
+
+
+_BLAS = None
+
+
+def _one_blas_thread():
+    """A context in which the BLAS libraries (NumPy's among them) run one thread: a frame's vector-matrix
+    products are too small to share, and a second BLAS thread waiting for a busy core made the decoder three
+    times slower under load (2.3-2.6 against 0.8-0.9 ms a frame beside a test run; the same numbers either way).
+    The controller is built once (listing the loaded libraries takes a millisecond; limiting then 0.03 ms)."""
+    global _BLAS
+    if _BLAS is None:
+        from threadpoolctl import ThreadpoolController
+
+        _BLAS = ThreadpoolController()
+    return _BLAS.limit(limits=1, user_api="blas")
 
 
 def _generators(generator, batch: int) -> list[torch.Generator | None]:
