@@ -211,6 +211,17 @@ def test_embedded_encoder_forward_range_equals_forward():
         torch.testing.assert_close(enc.forward_range(window, 100, 101), enc(window)[:, 100:101], rtol=0, atol=1e-5)
         torch.testing.assert_close(enc.forward_range(enc.embed(window), 100, 101, embedded=True),
                                    enc(window)[:, 100:101], rtol=0, atol=1e-5)
+        # the first layer's projections of the embedded rows computed beforehand, row by row as a stream keeps
+        # them: the same latents
+        emb = enc.embed(window)
+        qkv0 = torch.cat([enc.layers[0].projections(emb[:, k : k + 1]) for k in range(emb.shape[1])], dim=1)
+        for s, e in [(100, 101), (0, 1), (60, 70), (102, 103)]:
+            torch.testing.assert_close(enc.forward_range(emb, s, e, embedded=True, qkv0=qkv0), enc(window)[:, s:e],
+                                       rtol=0, atol=1e-5)
+        with pytest.raises(ParameterError, match="qkv0"):
+            enc.forward_range(emb, 100, 101, embedded=True, qkv0=qkv0[:, 1:])
+        with pytest.raises(ParameterError, match="qkv0"):
+            enc.forward_range(window, 100, 101, qkv0=qkv0)
 
 
 def test_quantised_encoder_forward_range_stays_within_its_quantisation():

@@ -111,6 +111,10 @@ class RevolutionStepper(_Stepper):
         #: the local encoder's embedding of the music history (1, frames, d), embedded as the rows come
         self.embedded = model.encoder.config.encoder == "local"
         self.emb = torch.zeros(1, 0, model.config.d_model)
+        #: with relative positions, the first layer's queries, keys and values of those rows (1, frames, 3d): a
+        #: frame's own, computed once as it comes instead of again for every block that looks at it
+        self.qkv0 = torch.zeros(1, 0, 3 * model.config.d_model) \
+            if self.embedded and model.encoder.config.pos_encoding == "relative" else None
         #: an encoder whose lookahead is this stepper's: each latent computed once, as its music comes
         #: (:class:`~dancekit.models.revolution.StreamingEncoder`), kept from frame ``z_start`` on
         self.stream = None
@@ -133,6 +137,8 @@ class RevolutionStepper(_Stepper):
             new = torch.from_numpy(np.ascontiguousarray(self.music[n:]))[None]  # (1, k, D)
             e = self.model.encoder.embed(new)
             self.emb = torch.cat([self.emb, e], dim=1)
+            if self.qkv0 is not None:
+                self.qkv0 = torch.cat([self.qkv0, self.model.encoder.layers[0].projections(e)], dim=1)
             if self.stream is not None:
                 self.z = torch.cat([self.z, self.stream.push(e)], dim=1)
 
@@ -140,6 +146,8 @@ class RevolutionStepper(_Stepper):
         start = self.music_start
         super()._trim(keep_from)
         self.emb = self.emb[:, self.music_start - start :]
+        if self.qkv0 is not None:
+            self.qkv0 = self.qkv0[:, self.music_start - start :]
 
     def _dance(self, upto: int) -> np.ndarray:
         from dancekit.motion.representations import decode_positions
@@ -153,11 +161,14 @@ class RevolutionStepper(_Stepper):
         else:
             a = max(self.music_start, t0 - self.context)
             b = min(self.n_music, upto + self.lookahead)
+            qkv0 = None
             if self.embedded:
                 x = self.emb[:, a - self.music_start : b - self.music_start]  # (1, b - a, d)
+                if self.qkv0 is not None:
+                    qkv0 = self.qkv0[:, a - self.music_start : b - self.music_start]
             else:
                 x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
-            z = self.model.encoder.forward_range(x, t0 - a, upto - a, embedded=self.embedded)
+            z = self.model.encoder.forward_range(x, t0 - a, upto - a, embedded=self.embedded, qkv0=qkv0)
         self.z, self.z_start = self.z[:, max(0, upto - self.z_start) :], max(self.z_start, min(upto, z_end))
         z = self.model._condition(z, None)  # (1, upto - t0, d)
         ys = []

@@ -462,16 +462,20 @@ class SelfAttention(nn.Module):
                                  training=self.training)
         return self.proj(y.transpose(1, 2).reshape(B, n, d))  # (B, n, d)
 
-    def forward_range(self, x: torch.Tensor, start: int, stop: int) -> torch.Tensor:
+    def forward_range(self, x: torch.Tensor, start: int, stop: int, *, qkv: torch.Tensor | None = None) -> torch.Tensor:
         """The outputs ``(B, stop - start, d)`` of frames ``[start, stop)`` of :meth:`forward` on ``x (B, n, d)``
         (local attention only): the queries of those frames alone, the keys and values of the frames within
-        ``half_window`` of them."""
+        ``half_window`` of them. ``qkv``: ``self.qkv(x)`` ``(B, n, 3d)`` already computed (a live stream keeps each
+        frame's projections: :meth:`MusicEncoder.forward_range`'s ``qkv0``)."""
         if not self.local:
             raise ParameterError("forward_range needs the local (banded) attention")
         B, n, d = x.shape
         h, H = self.half, self.n_heads
         a, b = max(0, start - h), min(n, stop + self.ahead)  # the keys looked at
-        if type(self.qkv) is nn.Linear:  # the queries of [start, stop) alone
+        if qkv is not None:
+            q = qkv[:, start:stop, :d].reshape(B, stop - start, H, d // H).transpose(1, 2)
+            kv = qkv[:, a:b, d:]
+        elif type(self.qkv) is nn.Linear:  # the queries of [start, stop) alone
             W, c = self.qkv.weight, self.qkv.bias
             q = F.linear(x[:, start:stop], W[:d], c[:d]).view(B, stop - start, H, d // H).transpose(1, 2)
             kv = F.linear(x[:, a:b], W[d:], c[d:])  # (B, m, 2d)
@@ -503,11 +507,19 @@ class TransformerLayer(nn.Module):
         x = x + self.drop(self.attn(self.ln1(x)))  # (B, n, d)
         return x + self.drop(self.ff(self.ln2(x)))
 
-    def forward_range(self, x: torch.Tensor, start: int, stop: int) -> torch.Tensor:
+    def forward_range(self, x: torch.Tensor, start: int, stop: int, *, qkv: torch.Tensor | None = None) -> torch.Tensor:
         """Frames ``[start, stop)`` of :meth:`forward` on ``x (B, n, d)`` → ``(B, stop - start, d)`` (local
-        attention; ``x`` need only hold the frames within ``half_window`` of them, the sequence's ends aside)."""
-        y = x[:, start:stop] + self.drop(self.attn.forward_range(self.ln1(x), start, stop))
+        attention; ``x`` need only hold the frames within ``half_window`` of them, the sequence's ends aside).
+        ``qkv``: :meth:`projections` of ``x`` ``(B, n, 3d)``, already computed."""
+        attended = self.attn.forward_range(x if qkv is not None else self.ln1(x), start, stop, qkv=qkv)
+        y = x[:, start:stop] + self.drop(attended)
         return y + self.drop(self.ff(self.ln2(y)))
+
+
+    def projections(self, x: torch.Tensor) -> torch.Tensor:
+        """The attention's queries, keys and values ``(B, n, 3d)`` of the frames ``x (B, n, d)`` (each frame's
+        own: a stream computes them once per frame)."""
+        return self.attn.qkv(self.ln1(x))
 
 
 class GatedConvLayer(nn.Module):
@@ -574,18 +586,23 @@ class MusicEncoder(nn.Module):
             x = layer(x)
         return self.norm(x)  # (B, n, d)
 
-    def forward_range(self, music: torch.Tensor, start: int, stop: int, *, embedded: bool = False) -> torch.Tensor:
+    def forward_range(self, music: torch.Tensor, start: int, stop: int, *, embedded: bool = False,
+                      qkv0: torch.Tensor | None = None) -> torch.Tensor:
         """``forward(music)[:, start:stop]`` — music features ``(B, n, D)`` → latents ``(B, stop - start, d)`` —
         computed on what those frames see alone: for the local encoder the last layer's queries at
         ``[start, stop)``, each layer below over ``half_window`` frames more on each side (clipped to
         ``[0, n)``: the sequence's ends are its ends, as in :meth:`forward`), the embedding over
         ``n_layers · half_window`` more; the other encoders run :meth:`forward` and keep those frames.
-        ``embedded``: ``music`` is already ``embed(music)`` ``(B, n, d)`` (the local encoder only)."""
+        ``embedded``: ``music`` is already ``embed(music)`` ``(B, n, d)`` (the local encoder only). ``qkv0``: with
+        ``embedded`` and relative positions, the first layer's :meth:`TransformerLayer.projections` of those rows
+        ``(B, n, 3d)``, already computed (a live stream keeps each frame's: they do not change as the music comes)."""
         n = music.shape[1]
         start, stop = max(0, int(start)), min(n, int(stop))
         c = self.config
         if embedded and c.encoder != "local":
             raise ParameterError(f"embedded frames are for the local encoder, not {c.encoder!r}")
+        if qkv0 is not None and (not embedded or c.pos_encoding != "relative" or qkv0.shape[:2] != music.shape[:2]):
+            raise ParameterError("qkv0 needs embedded frames, relative positions and one row per frame of music")
         if c.encoder != "local" or stop <= start:
             return self.forward(music)[:, start:stop]
         h, ah, L = c.half_window, c.ahead, len(self.layers)
@@ -597,7 +614,8 @@ class MusicEncoder(nn.Module):
         for i, layer in enumerate(self.layers):
             r = L - 1 - i  # the frames this layer's outputs are needed at: [start - r·h, stop + r·ahead)
             a, b = max(0, start - r * h), min(n, stop + r * ah)
-            x = layer.forward_range(x, a - lo, b - lo)  # (B, b - a, d)
+            qkv = qkv0[:, lo:hi] if i == 0 and qkv0 is not None else None
+            x = layer.forward_range(x, a - lo, b - lo, qkv=qkv)  # (B, b - a, d)
             lo = a
         return self.norm(x)  # (B, stop - start, d)
 
