@@ -73,6 +73,25 @@ def test_the_microphone_sent_as_pcm_comes_back_as_pose_frames(tmp_path, pcm48k):
     assert np.mean(travel[50:] > 0.5) > 0.8  # it dances: the joints move from frame to frame
 
 
+def test_samples_that_are_not_finite_are_silence_and_the_dance_goes_on(tmp_path, pcm48k):
+    """A browser's buffer can hold NaN or infinity: those samples count as silence, every pose stays finite, and
+    the song is danced to its last frame."""
+    block = 48000 // 25
+    y = pcm48k.copy()
+    y[20 * block + 7], y[40 * block + 3], y[41 * block] = np.nan, np.inf, -np.inf
+    with client(tmp_path) as c, c.websocket_connect(WS) as ws:
+        ws.send_text(json.dumps({"type": "start", "sample_rate": 48000}))
+        assert json.loads(ws.receive_text())["type"] == "hello"
+        for a in range(0, len(y), block):
+            ws.send_bytes(y[a : a + block].tobytes())
+        ws.send_text(json.dumps({"type": "stop"}))
+        poses = []
+        while (m := json.loads(ws.receive_text()))["type"] != "end":
+            poses.append(m)
+    assert [m["frame"] for m in poses] == list(range(len(poses))) and 150 <= len(poses) <= 151
+    assert np.isfinite(np.array([m["joints"] for m in poses])).all()
+
+
 @pytest.mark.parametrize("start, match", [
     ("hello", "must be JSON"),
     (b"\x00\x00\x80?", "must be JSON"),  # audio before the start message
