@@ -1,16 +1,22 @@
 #!/usr/bin/env bash
-# One GPU round (issue 41): five trainings side by side on one GPU, each sized to BUDGET_S seconds of steps.
+# One GPU round (issue 41): the trainings of a round file side by side on one GPU, each sized to BUDGET_S seconds
+# of steps:
+#   bash scripts/gpu_round.sh scripts/gpu_rounds/round2.txt
+# A round file has one run a line, `NAME FAMILY STEPS KEEP BATCH [--set KEY=VALUE ...]` (KEEP: checkpoints kept,
+# BATCH: windows a step; `#` starts a comment); `$FMAP` in a line is the music attribute classifier that
+# initialises F_map.
 # Here, first:
 #   python scripts/gpu_data.py slim data/tang2018 data/gpu/tang2018
 #   cp -r src/dancekit/assets/models/revolution/music_attributes data/gpu/
 #   python -m pip download --no-deps --only-binary=:all: --python-version 3.12 ... -d .whl \
 #       soundfile==0.14.0 cffi==2.1.1 pycparser==3.12      # the one package the train path imports that the
 #                                                           # GPU image lacks (checked with imports blocked)
-# then the device call runs `bash scripts/gpu_round.sh` with carry ["data/gpu", ".whl"]; the tracked revolution
+# then the device call runs `bash scripts/gpu_round.sh ROUNDFILE` with carry ["data/gpu", ".whl"]; the tracked revolution
 # model (46 MB) is moved out of the working tree for the call (the tree's limit is 64 MiB) and put back after.
 # ROUND_S (500): seconds after the start by which every run stops and packs what it has (the device command's
 # limit must be above it). OUT holds each run's tar parts (OUT/NAME/FAMILY.tar.NN) and log.txt; unpack with
 #   cat NAME/FAMILY.tar.* | tar -x -C runs/gpu/NAME       # runs/gpu/NAME/run/{best,model,checkpoints,log.jsonl}
+ROUNDFILE=$(realpath "${1:?usage: bash scripts/gpu_round.sh ROUNDFILE}")
 cd "$(dirname "$0")/.."
 export PYTHONUNBUFFERED=1
 mkdir -p "$OUT"
@@ -31,11 +37,11 @@ run() {  # run NAME FAMILY STEPS [--set ...]
 }
 FMAP="--set fmap_checkpoint=data/gpu/music_attributes"
 PIDS=()
-KEEP=4 run dual_a dual 30000 --set latent_dim=16 & PIDS+=($!)
-KEEP=4 run dual_b dual 30000 --set latent_dim=16 --set kl_free_bits=0.5 --set dropout=0.2 & PIDS+=($!)
-KEEP=4 run dual_c dual 30000 --set latent_dim=16 --set rollout_frames=40 --set rollout_weight=1 & PIDS+=($!)
-KEEP=8 run m2d_a music2dance 60000 $FMAP & PIDS+=($!)
-KEEP=5 run m2d_b music2dance 60000 $FMAP --set channels=64 --set skip_channels=128 & PIDS+=($!)
+while read -r name family steps keep batch rest; do
+  case "$name" in ''|'#'*) continue ;; esac
+  # shellcheck disable=SC2086  # the settings split into words on purpose
+  KEEP=$keep BATCH=$batch run "$name" "$family" "$steps" $(eval echo "$rest") </dev/null & PIDS+=($!)
+done < "$ROUNDFILE"
 wait "${PIDS[@]}"  # the runs only: a bare `wait` would also wait for the tee above, which never ends
 echo "round: $(( $(date +%s) - T0 )) s"
 ls -la "$OUT"/*

@@ -300,6 +300,31 @@ def test_objective_noise_and_cluster_weights_apply_in_training_only():
     assert float(noisy.detach()) != float(val1.detach())
 
 
+def test_objective_music_dropout_zeroes_whole_windows_in_training_only():
+    from dancekit.training.m2d import music2dance_step
+
+    model = _tiny()
+    seen = []
+    forward = model.forward
+
+    def spy(music, prev, genre=None):
+        seen.append(music.clone())
+        return forward(music, prev, genre)
+
+    model.forward = spy
+    batch = _batch(model, B=64, T=6)
+    batch["genre"] = torch.zeros(64, dtype=torch.long)
+    batch["weight"] = torch.ones(64, dtype=torch.float64)
+    batch["music"] = batch["music"] + 3.0  # no window is all zeros
+    for training, share in [(True, 0.5), (True, 0.0), (False, 1.0)]:
+        music2dance_step(model, batch, _ctx(training, music_dropout=share))
+    dropped = (seen[0] == 0).all(dim=(1, 2))
+    kept = (seen[0] == batch["music"]).all(dim=(1, 2))
+    assert bool((dropped | kept).all()) and 16 < int(dropped.sum()) < 48  # whole windows, about half
+    torch.testing.assert_close(seen[1], batch["music"])  # none asked
+    torch.testing.assert_close(seen[2], batch["music"])  # validation never drops
+
+
 def test_cluster_weights_balance_the_clusters(rng):
     from dancekit.training.m2d import cluster_weights
 

@@ -12,7 +12,10 @@ from dataclasses import dataclass, fields
 from dancekit.errors import ParameterError
 from dancekit.features.online import TEMPOGRAM_FUTURES
 
-__all__ = ["SMOOTHING", "LiveConfig"]
+__all__ = ["LIVE_FAMILIES", "SMOOTHING", "LiveConfig"]
+
+#: the model families that can dance live (:func:`dancekit.live.steppers.make_stepper` has a stepper for each)
+LIVE_FAMILIES = ("revolution", "music2dance")
 
 #: how Music2Dance's sampled features may be smoothed live (``LiveConfig.sample_smoothing``)
 SMOOTHING = ("delay", "causal")

@@ -36,6 +36,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from dancekit.errors import ParameterError
+from dancekit.live.config import LIVE_FAMILIES
 from dancekit.serve.jobs import JobConflict, JobManager, QueueFull, ServeConfig, UnknownJob
 from dancekit.serve.live import LiveRooms, live_socket
 from dancekit.serve.uploads import AUDIO_KINDS, DANCE_KINDS, copy_capped, safe_stem, sniff
@@ -65,7 +66,7 @@ def _options_table() -> dict[str, Any]:
         genres = ["auto", "none", *card["genre_models"]]
         dance[name] = {"genres": genres, "reads_genre_from_music": card["reads_genre_from_music"],
                        "description": card.get("description", ""),
-                       "live": card["family"] in ("revolution", "music2dance")}
+                       "live": card["family"] in LIVE_FAMILIES}
         if card["family"] == "dual":
             compose.append(name)
     return {"dance_models": dance, "default_model": DEFAULT_MODEL if DEFAULT_MODEL in dance else next(iter(dance), None),

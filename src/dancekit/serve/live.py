@@ -78,7 +78,9 @@ def start_message(text: str, *, models: dict, default: str | None) -> tuple[str,
     if model not in models:
         raise ParameterError(f"unknown model {model!r}; this server has {', '.join(models) or 'none'}")
     if not models[model].get("live"):
-        raise ParameterError(f"the model {model!r} cannot dance live (live: revolution and music2dance models)")
+        from dancekit.live.config import LIVE_FAMILIES
+
+        raise ParameterError(f"the model {model!r} cannot dance live (live: {' and '.join(LIVE_FAMILIES)} models)")
     seed = m.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**31:
         raise ParameterError(f"seed must be an integer in [0, 2^31), got {seed!r}")

@@ -18,6 +18,7 @@ Motion clustering (§1.2.2)
 Objective
     Gaussian noise on the input motion (``input_noise``) and the targets (``target_noise``) in training,
     genre dropout (``TrainConfig.genre_dropout``: a share of the windows trained without a dance type),
+    music dropout (``TrainConfig.music_dropout``: a share of the windows trained with the mean music),
     and the two phases: phase 1 feeds the ground truth, phase 2 (``phase=2``, e.g. ``dancekit train
     music2dance --init RUN1/model --set phase=2``) first predicts every frame from the ground truth
     (the means of the mixture, no gradient) and then feeds those predictions back as the input.
@@ -198,6 +199,11 @@ def music2dance_step(model: nn.Module, batch: Mapping[str, torch.Tensor],
         if genre is not None and ctx.config.genre_dropout > 0:
             drop = torch.rand(genre.shape, generator=g, device=g.device) < ctx.config.genre_dropout
             genre[drop.to(genre.device)] = -1
+        if ctx.config.music_dropout > 0:
+            # whole windows with the mean music (zeros after normalisation): the dance type is then the only
+            # style cue, so the model cannot learn to ignore it (genre steering, docs/research/gpu-round.md)
+            keep = torch.rand(music.shape[0], generator=g, device=g.device) >= ctx.config.music_dropout
+            music = music * keep.to(music.device, music.dtype)[:, None, None]
         if c.input_noise > 0:
             noise = torch.randn(dance[..., :D].shape, generator=g, device=g.device).to(dance)
             inputs = torch.cat([dance[..., :D] + c.input_noise * noise, dance[..., D:]], -1)
