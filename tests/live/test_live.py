@@ -743,31 +743,48 @@ def test_the_stream_resampler_gives_the_whole_resampling_whatever_the_pieces():
     assert np.array_equal(same(x[:100]), x[:100]) and len(same.flush()) == 0
 
 
-def test_the_revolution_stepper_projects_each_frame_once(revolution, rng, monkeypatch):
+@pytest.mark.parametrize("path", ["numpy", "torch"])
+def test_the_revolution_stepper_projects_each_frame_once(revolution, rng, monkeypatch, path):
     """The first encoder layer's queries, keys and values of a frame do not change as more music comes: the stepper
     computes them once per frame as the rows arrive and every block's latents use them (not a projection of the
-    frames it looks at again)."""
+    frames it looks at again); in NumPy (the encoder's frames of a float32 model on the CPU) and in torch."""
     from dancekit.live.steppers import RevolutionStepper
-    from dancekit.models.revolution import SelfAttention
+    from dancekit.models.revolution import NumpyLocalEncoder, SelfAttention
 
-    layer = revolution.model.encoder.layers[0]
     projected, given = [], []
-    real_proj, real_range = type(layer).projections, SelfAttention.forward_range
+    if path == "numpy":
+        real_proj, real_range = NumpyLocalEncoder.projections, NumpyLocalEncoder.forward_range
 
-    def projections(self, x):
-        projected.append(x.shape[1])
-        return real_proj(self, x)
+        def projections(self, x):
+            projected.append(x.shape[0])
+            return real_proj(self, x)
 
-    def forward_range(self, x, start, stop, *, qkv=None):
-        if self is layer.attn:
-            given.append(qkv is not None)
-        return real_range(self, x, start, stop, qkv=qkv)
+        def forward_range(self, x, start, stop, *, qkv0=None):
+            given.append(qkv0 is not None)
+            return real_range(self, x, start, stop, qkv0=qkv0)
 
-    monkeypatch.setattr(type(layer), "projections", projections)
-    monkeypatch.setattr(SelfAttention, "forward_range", forward_range)
+        monkeypatch.setattr(NumpyLocalEncoder, "projections", projections)
+        monkeypatch.setattr(NumpyLocalEncoder, "forward_range", forward_range)
+    else:
+        monkeypatch.setattr(NumpyLocalEncoder, "usable", staticmethod(lambda encoder: False))
+        layer = revolution.model.encoder.layers[0]
+        real_proj, real_range = type(layer).projections, SelfAttention.forward_range
+
+        def projections(self, x):
+            projected.append(x.shape[1])
+            return real_proj(self, x)
+
+        def forward_range(self, x, start, stop, *, qkv=None):
+            if self is layer.attn:
+                given.append(qkv is not None)
+            return real_range(self, x, start, stop, qkv=qkv)
+
+        monkeypatch.setattr(type(layer), "projections", projections)
+        monkeypatch.setattr(SelfAttention, "forward_range", forward_range)
     T = 120
     raw = rng.standard_normal((T, 438)).astype(np.float32) * revolution.stats.music_std + revolution.stats.music_mean
     st = RevolutionStepper(revolution, lookahead=4, context=50, seed=0)
+    assert (st.np_encoder is not None) == (path == "numpy")
     for a in range(0, T, 3):
         st.push(raw[a : a + 3])
     assert sum(projected) == T  # each frame once

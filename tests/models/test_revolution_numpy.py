@@ -122,3 +122,38 @@ def test_the_decoder_runs_its_products_on_one_blas_thread(monkeypatch):
         NumpyDecoder.of(model)(z, prev, model.initial_state(1))
         assert blas_threads() == {2}
     assert seen == [{1}]
+
+
+# ---- the local encoder's frames in NumPy (a live block's encoder work) -----------------------------------------
+
+@pytest.mark.parametrize("layers,window,lookahead", [(1, 8, None), (2, 8, None), (2, 10, 2), (3, 6, 0)])
+def test_numpy_encoder_range_equals_the_whole_sequence_encoder(layers, window, lookahead):
+    import numpy as np
+
+    from dancekit.models.revolution import NumpyLocalEncoder
+
+    model = model_of(n_layers=layers, window=window, lookahead=lookahead, n_heads=4)
+    enc = model.encoder
+    with torch.no_grad():  # a relative bias that is not zero, so its gather is checked too
+        for layer in enc.layers:
+            layer.attn.rel_bias.copy_(torch.randn(layer.attn.rel_bias.shape, generator=torch.Generator().manual_seed(2)))
+    assert NumpyLocalEncoder.usable(enc)
+    music = torch.randn(1, 40, D, generator=torch.Generator().manual_seed(3))
+    with torch.no_grad():
+        want = enc(music)[0].numpy()  # (40, d): every frame, the whole sequence at once
+    ne = NumpyLocalEncoder.of(enc)
+    x = ne.embed_rows(music[0].numpy())
+    qkv0 = ne.projections(x)
+    for start, stop in [(0, 1), (0, 40), (17, 18), (20, 26), (39, 40), (35, 50)]:
+        for given in (None, qkv0):
+            got = ne.forward_range(x, start, stop, qkv0=given)
+            np.testing.assert_allclose(got, want[start:stop], atol=2e-5, rtol=0)
+    assert np.abs(want).max() > 1.0
+
+
+def test_numpy_encoder_refuses_what_it_does_not_compute():
+    from dancekit.models.revolution import NumpyLocalEncoder
+
+    assert not NumpyLocalEncoder.usable(model_of(pos_encoding="sinusoidal").encoder)
+    assert not NumpyLocalEncoder.usable(model_of(encoder="conv").encoder)
+    assert not NumpyLocalEncoder.usable(model_of().double().encoder)

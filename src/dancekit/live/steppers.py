@@ -122,6 +122,16 @@ class RevolutionStepper(_Stepper):
             from dancekit.models.revolution import StreamingEncoder
 
             self.stream = StreamingEncoder(model.encoder)
+        #: the encoder's frames in NumPy (a live block's few dozen small products cost less there than torch's
+        #: calls): then ``emb`` and ``qkv0`` are NumPy arrays of the same shapes
+        self.np_encoder = None
+        if self.qkv0 is not None and self.stream is None:
+            from dancekit.models.revolution import NumpyLocalEncoder
+
+            if NumpyLocalEncoder.usable(model.encoder):
+                self.np_encoder = NumpyLocalEncoder.of(model.encoder)
+                self.emb = np.zeros((1, 0, model.config.d_model), np.float32)
+                self.qkv0 = np.zeros((1, 0, 3 * model.config.d_model), np.float32)
         self.z = torch.zeros(1, 0, model.config.d_model)
         self.z_start = 0
         #: True: the decoded positions as they are (the live stages set the bone lengths); False: rest bone
@@ -133,7 +143,11 @@ class RevolutionStepper(_Stepper):
     def _append(self, rows: np.ndarray) -> None:
         n = len(self.music)
         super()._append(rows)
-        if self.embedded and len(self.music) > n:
+        if self.np_encoder is not None and len(self.music) > n:
+            e = self.np_encoder.embed_rows(self.music[n:])[None]  # (1, k, d)
+            self.emb = np.concatenate([self.emb, e], axis=1)
+            self.qkv0 = np.concatenate([self.qkv0, self.np_encoder.projections(e[0])[None]], axis=1)
+        elif self.embedded and len(self.music) > n:
             new = torch.from_numpy(np.ascontiguousarray(self.music[n:]))[None]  # (1, k, D)
             e = self.model.encoder.embed(new)
             self.emb = torch.cat([self.emb, e], dim=1)
@@ -168,7 +182,13 @@ class RevolutionStepper(_Stepper):
                     qkv0 = self.qkv0[:, a - self.music_start : b - self.music_start]
             else:
                 x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
-            z = self.model.encoder.forward_range(x, t0 - a, upto - a, embedded=self.embedded, qkv0=qkv0)
+            if self.np_encoder is not None:
+                from dancekit.models.revolution import _one_blas_thread
+
+                with _one_blas_thread():
+                    z = torch.from_numpy(self.np_encoder.forward_range(x[0], t0 - a, upto - a, qkv0=qkv0[0]))[None]
+            else:
+                z = self.model.encoder.forward_range(x, t0 - a, upto - a, embedded=self.embedded, qkv0=qkv0)
         self.z, self.z_start = self.z[:, max(0, upto - self.z_start) :], max(self.z_start, min(upto, z_end))
         z = self.model._condition(z, None)  # (1, upto - t0, d)
         ys = []

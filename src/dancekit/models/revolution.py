@@ -1464,6 +1464,142 @@ class NumpyDecoder:
         return result, result[:, -1:], (torch.from_numpy(hs), torch.from_numpy(cs))
 
 
+
+class NumpyLocalEncoder:
+    """:meth:`MusicEncoder.forward_range` of one stream (a batch of one) in NumPy, for the local encoder with
+    relative positions: inference on the CPU in float32 (weights copied once, :meth:`of`). A live block's encoder
+    work is a few dozen small products (the first layer's outputs over ``half_window`` frames on each side of the
+    new ones, the last layer's at the new frames), where a torch call's overhead outweighs its arithmetic.
+
+    The same maths as the torch modules (``nn.Linear``, ``nn.LayerNorm``, exact ``nn.GELU``, the banded attention
+    with its relative bias and its ``[-half_window, ahead]`` mask), rounded differently (float32 sums in another
+    order): within 1e-5 of the torch encoder (``tests/models/test_revolution_numpy.py``).
+    """
+
+    def __init__(self, encoder: MusicEncoder):
+        c = encoder.config
+
+        def a(t: torch.Tensor) -> np.ndarray:
+            return t.detach().cpu().numpy().astype(np.float32)
+
+        def lin(m: nn.Linear) -> tuple[np.ndarray, np.ndarray]:  # (W^T (in, out), b (out,))
+            return np.ascontiguousarray(a(m.weight).T), a(m.bias)
+
+        def ln(m: nn.LayerNorm) -> tuple[np.ndarray, np.ndarray, float]:
+            return a(m.weight), a(m.bias), float(m.eps)
+
+        self.config = c
+        self.h, self.ahead, self.n_heads = c.half_window, c.ahead, c.n_heads
+        self.embed = lin(encoder.embed)
+        #: per layer: ln1, qkv, proj, relative bias (H, 2h + 1), ln2, ff1, ff2
+        self.layers = [(ln(layer.ln1), lin(layer.attn.qkv), lin(layer.attn.proj), a(layer.attn.rel_bias),
+                        ln(layer.ln2), lin(layer.ff[0]), lin(layer.ff[2])) for layer in encoder.layers]
+        self.norm = ln(encoder.norm)
+        self._bands: dict[tuple[int, int, int, int], np.ndarray] = {}
+
+    @staticmethod
+    def usable(encoder: MusicEncoder) -> bool:
+        """Whether this encoder applies: the local encoder with relative positions, plain float32 ``nn.Linear``
+        and ``nn.LayerNorm`` modules on the CPU (not a quantised copy), exact GELU."""
+        c = encoder.config
+        if c.encoder != "local" or c.pos_encoding != "relative":
+            return False
+        mods = [encoder.embed, encoder.norm]
+        for layer in encoder.layers:
+            mods += [layer.ln1, layer.attn.qkv, layer.attn.proj, layer.ln2, layer.ff[0], layer.ff[2]]
+            if not isinstance(layer.ff[1], nn.GELU) or layer.ff[1].approximate != "none":
+                return False
+        return all(type(m) in (nn.Linear, nn.LayerNorm) and m.weight.device.type == "cpu"
+                   and m.weight.dtype == torch.float32 for m in mods)
+
+    @staticmethod
+    def of(encoder: MusicEncoder) -> NumpyLocalEncoder:
+        """The encoder's NumPy copy, built once and rebuilt when a weight has changed since."""
+        key = tuple((p.data_ptr(), p._version) for p in encoder.parameters())
+        cached = encoder.__dict__.get("_numpy_encoder")
+        if cached is None or cached[0] != key:
+            cached = (key, NumpyLocalEncoder(encoder))
+            encoder.__dict__["_numpy_encoder"] = cached
+        return cached[1]
+
+    @staticmethod
+    def _linear(x: np.ndarray, wb: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        return x @ wb[0] + wb[1]
+
+    @staticmethod
+    def _layer_norm(x: np.ndarray, p: tuple[np.ndarray, np.ndarray, float]) -> np.ndarray:
+        inv = np.float32(1.0 / x.shape[-1])
+        xc = x - np.add.reduce(x, axis=-1, keepdims=True) * inv
+        var = np.add.reduce(xc * xc, axis=-1, keepdims=True) * inv
+        return xc / np.sqrt(var + np.float32(p[2])) * p[0] + p[1]
+
+    def _band(self, i: int, q0: int, nq: int, nk: int) -> np.ndarray:
+        """Layer ``i``'s relative bias ``(H, nq, nk)`` of queries ``q0 .. q0 + nq`` (in the keys' rows) against
+        keys ``0 .. nk``, ``-inf`` outside ``[-half_window, ahead]``; kept per shape (a stream repeats a few)."""
+        key = (i, q0, nq, nk)
+        band = self._bands.get(key)
+        if band is None:
+            h = self.h
+            offsets = np.arange(nk)[None, :] - np.arange(q0, q0 + nq)[:, None]  # (nq, nk): key - query
+            band = self.layers[i][3][:, np.clip(offsets, -h, h) + h]  # (H, nq, nk)
+            band[:, (offsets < -h) | (offsets > self.ahead)] = -np.inf
+            if len(self._bands) > 64:
+                self._bands.clear()
+            self._bands[key] = band
+        return band
+
+    def embed_rows(self, music: np.ndarray) -> np.ndarray:
+        """``embed(music)``: feature rows ``(k, D)`` → ``(k, d)``."""
+        return self._linear(np.asarray(music, np.float32), self.embed)
+
+    def projections(self, x: np.ndarray) -> np.ndarray:
+        """The first layer's queries, keys and values ``(k, 3d)`` of embedded rows ``x (k, d)``
+        (:meth:`TransformerLayer.projections`)."""
+        p = self.layers[0]
+        return self._linear(self._layer_norm(x, p[0]), p[1])
+
+    def forward_range(self, x: np.ndarray, start: int, stop: int, *, qkv0: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`MusicEncoder.forward_range` of embedded rows ``x (n, d)`` with ``embedded=True``: the latents
+        ``(stop - start, d)`` of frames ``[start, stop)``. ``qkv0``: :meth:`projections` of ``x`` ``(n, 3d)``."""
+        from scipy.special import erf
+
+        n, d = x.shape
+        start, stop = max(0, int(start)), min(n, int(stop))
+        h, ah, L, H = self.h, self.ahead, len(self.layers), self.n_heads
+        dh = d // H
+        if stop <= start:
+            return np.zeros((0, d), np.float32)
+        lo = max(0, start - L * h)
+        x = np.asarray(x[lo : min(n, stop + L * ah)], np.float32)
+        for i, (ln1, qkv_w, proj, _, ln2, ff1, ff2) in enumerate(self.layers):
+            r = L - 1 - i
+            s0, s1 = max(0, start - r * h) - lo, min(n, stop + r * ah) - lo  # this layer's outputs, in x's rows
+            k0, k1 = max(0, s0 - h), min(len(x), s1 + ah)  # the keys they look at
+            if i == 0 and qkv0 is not None:
+                q = qkv0[lo + s0 : lo + s1, :d]
+                kv = qkv0[lo + k0 : lo + k1, d:]
+            else:
+                xn = self._layer_norm(x[k0:k1], ln1)
+                q = xn[s0 - k0 : s1 - k0] @ qkv_w[0][:, :d] + qkv_w[1][:d]
+                kv = xn @ qkv_w[0][:, d:] + qkv_w[1][d:]
+            nq, nk = s1 - s0, k1 - k0
+            qh = (q * np.float32(1.0 / math.sqrt(dh))).reshape(nq, H, dh).transpose(1, 0, 2)  # (H, nq, dh)
+            kh = kv[:, :d].reshape(nk, H, dh).transpose(1, 2, 0)  # (H, dh, nk)
+            vh = kv[:, d:].reshape(nk, H, dh).transpose(1, 0, 2)  # (H, nk, dh)
+            scores = qh @ kh  # (H, nq, nk)
+            scores += self._band(i, s0 - k0, nq, nk)
+            scores -= scores.max(-1, keepdims=True)
+            np.exp(scores, out=scores)
+            scores /= scores.sum(-1, keepdims=True)
+            y = (scores @ vh).transpose(1, 0, 2).reshape(nq, d)  # (nq, d)
+            y = x[s0:s1] + self._linear(y, proj)
+            f = self._linear(self._layer_norm(y, ln2), ff1)
+            f = f * np.float32(0.5) * (np.float32(1.0) + erf(f * np.float32(1.0 / math.sqrt(2.0))))
+            x = y + self._linear(f, ff2)
+            lo += s0
+        return np.asarray(self._layer_norm(x, self.norm), np.float32)
+
+
 _BLAS = None
 
 
