@@ -31,6 +31,12 @@ GOLDEN = GOLDEN_DIR / "default_model.npz"
 VARIETY_GOLDEN = GOLDEN_DIR / "default_model_variety.npz"
 M2D_GOLDEN = GOLDEN_DIR / "music2dance.npz"
 TOL_CM = 1e-3
+#: the embedded music2dance model's raw pins (cm): its sampled autoregression carries float rounding further. Measured
+#: (2026-11-29, the model of GPU round 2): the AVX2 kernels forced on this AVX-512 machine (the variables of
+#: tests/golden/make_golden.py's docstring) move its 8-s dances by up to 0.016-0.023 cm, and so does whether the
+#: song's features were just computed or read from the cache in the same process; one weight tensor scaled by
+#: 1 + 1e-3 moves them by 7 cm, by 1 + 1e-2 by 34 cm.
+M2D_TOL_CM = 0.1
 PHRASE = 75  # frames: the embedded setting's phrase_s 3.0 at 25 fps
 
 
@@ -50,13 +56,13 @@ def song(tmp_path_factory) -> Path:
     return MG.write_song(tmp_path_factory.mktemp("golden"))
 
 
-def _assert_pinned(dances: dict[str, np.ndarray], golden: Path, what: str) -> None:
+def _assert_pinned(dances: dict[str, np.ndarray], golden: Path, what: str, *, tol_cm: float = TOL_CM) -> None:
     ref = np.load(golden)
     assert sorted(ref.files) == sorted(dances)
     for key, positions in dances.items():
         assert positions.shape == ref[key].shape, key
         err = float(np.abs(positions - ref[key]).max())
-        assert err <= TOL_CM, f"{what} {key}: the dance moved by up to {err:.3g} cm"
+        assert err <= tol_cm, f"{what} {key}: the dance moved by up to {err:.3g} cm"
 
 
 def test_default_model_dance_with_seed_variety_is_pinned(song):
@@ -83,7 +89,7 @@ def test_default_model_dance_is_pinned(song):
 def test_embedded_music2dance_dance_is_pinned(song):
     """The embedded music2dance model (issue 13) on the same song: sampled dances, pinned like the default's."""
     dances = MG.model_dances(song, model="music2dance", cases=MG.M2D_CASES)
-    _assert_pinned(dances, M2D_GOLDEN, "music2dance")
+    _assert_pinned(dances, M2D_GOLDEN, "music2dance", tol_cm=M2D_TOL_CM)
     assert np.abs(dances["waltz_seed0"] - dances["auto_seed2"]).mean() > 1.0
 
 
@@ -96,6 +102,9 @@ FINISHED_MODELS = ("revolution", "music2dance", "dual")
 #: MKL_ENABLE_INSTRUCTIONS=AVX2 ONEDNN_MAX_CPU_ISA=AVX2``) move by at most 1.3e-4 cm (npz positions), 6.1e-5 cm
 #: (BVH root) and 6e-7 m (glb translations); the planted bugs of issue 40 move them by centimetres.
 FILE_TOL_CM = 1e-3
+#: music2dance's finished files (cm; see :data:`M2D_TOL_CM`): with the AVX2 kernels its npz positions move by
+#: 0.0074 cm, the BVH root by 0.0032 cm, the glb translations by 3.2e-5 m
+FINISHED_TOL_CM = {"music2dance": 0.05}
 #: unitless: rotation-matrix entries (npz; the BVH's Euler angles turned into matrices, well conditioned where
 #: the angles are not) and unit-quaternion components (glb, up to one sign per track). Measured with AVX2 as
 #: above: 1.1e-5 (the BVH of the positions-only default, whose rotations come from IK on its positions), 5.1e-6
@@ -210,7 +219,7 @@ def test_finished_dance_and_its_files_are_pinned(model, finished_song, tmp_path)
     assert set(MG.FINISHED) == set(FINISHED_MODELS)
     got = MG.finished_record(finished_song, model, MG.FINISHED[model], tmp_path)
     ref = np.load(GOLDEN_DIR / f"finished_{model}.npz", allow_pickle=False)
-    bad = compare_finished(got, ref)
+    bad = compare_finished(got, ref, tol_cm=FINISHED_TOL_CM.get(model, FILE_TOL_CM))
     assert not bad, f"{model}'s finished dance changed: " + "; ".join(bad[:8])
     # the stages ran: the finished dance is not the model's own output
     assert any(n.startswith("beat-synced") for n in got["notes"]), list(got["notes"])
