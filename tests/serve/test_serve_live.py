@@ -116,13 +116,23 @@ def test_a_bad_start_is_one_line_and_the_socket_closes(tmp_path, start, match):
         assert closed.value.code == 1008
 
 
-def test_audio_that_is_not_whole_float32_samples_is_refused(tmp_path):
+def test_audio_that_is_not_whole_float32_samples_is_refused(tmp_path, monkeypatch):
+    """The refusal ends the session: the audio queued before it is not danced, the session not finished."""
+    from dancekit.live.session import LiveSession
+
+    calls = []
+    real_feed, real_finish = LiveSession.feed, LiveSession.finish
+    monkeypatch.setattr(LiveSession, "feed", lambda self, blocks, **kw: calls.append("feed") or real_feed(self, blocks, **kw))
+    monkeypatch.setattr(LiveSession, "finish", lambda self, **kw: calls.append("finish") or real_finish(self, **kw))
     with client(tmp_path) as c, c.websocket_connect(WS) as ws:
         ws.send_text(json.dumps({"type": "start", "sample_rate": 16000}))
         assert json.loads(ws.receive_text())["type"] == "hello"
         ws.send_bytes(b"\x00" * 6)
         m = json.loads(ws.receive_text())
         assert m["type"] == "error" and "whole float32 samples" in m["detail"]
+        with pytest.raises(WebSocketDisconnect):
+            ws.receive_text()
+    assert "finish" not in calls
 
 
 def test_a_second_session_beyond_the_limit_is_told_to_come_back_later(tmp_path):

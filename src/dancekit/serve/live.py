@@ -179,6 +179,7 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
     offset = time.time() - time.monotonic()
     most = int(MAX_BLOCK_S * rate) * 4
     rebuffer = Rebuffer(max(1, int(round(session.config.block_s * session.sr))))
+    refused = asyncio.Event()  # a bad audio message: the socket is closed, nothing more is danced
 
     async def receive() -> None:
         try:
@@ -197,6 +198,7 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
                     continue
                 arrival = time.monotonic()
                 if len(data) % 4 or len(data) > most:
+                    refused.set()
                     await refuse(f"an audio message must be whole float32 samples, at most {MAX_BLOCK_S:g} s; "
                                  f"got {len(data)} bytes")
                     break
@@ -206,12 +208,13 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
                     await blocks.put(block)
         except WebSocketDisconnect:
             pass
-        finally:  # what soxr still holds, then the last shorter block
-            for block in rebuffer.push(resample.flush(), time.monotonic()):
-                await blocks.put(block)
-            rest = rebuffer.rest(time.monotonic())
-            if rest is not None:
-                await blocks.put(rest)
+        finally:  # what soxr still holds, then the last shorter block (none after a refusal)
+            if not refused.is_set():
+                for block in rebuffer.push(resample.flush(), time.monotonic()):
+                    await blocks.put(block)
+                rest = rebuffer.rest(time.monotonic())
+                if rest is not None:
+                    await blocks.put(rest)
             await blocks.put(None)
 
     reader = asyncio.create_task(receive())
@@ -219,11 +222,13 @@ async def _run(ws, *, model: str, rate: int, seed: int, threads: int, refuse) ->
         ended = False
         while not ended:
             item = await blocks.get()
-            if item is None:
+            if item is None or refused.is_set():
                 break
             waiting, ended = take_waiting(item, blocks.get_nowait, asyncio.QueueEmpty)
             for f in await run_in_threadpool(session.feed, waiting):
                 await ws.send_text(json.dumps(f.to_message(wall_offset=offset)))
+        if refused.is_set():
+            return
         for f in await run_in_threadpool(session.finish):  # the frames still waiting for their lookahead
             await ws.send_text(json.dumps(f.to_message(wall_offset=offset)))
         await ws.send_text(json.dumps({"type": "end"}))
