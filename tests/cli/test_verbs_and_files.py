@@ -127,6 +127,8 @@ def test_empty_output_and_unbounded_fps_are_one_line_each(tmp_path, capsys, monk
         assert main(argv) == 2
         _one_error_line(capsys.readouterr().err, argv[0], "--fps 1000", "240")
     assert main(["convert", "d.npz", "-o", "x.npz", "--fps", "240", "-q"]) == 0  # the bound itself is allowed
+    assert main(["dance", str(song), "-o", "x", "--seeds", "0-1", "--workers", "0"]) == 2
+    _one_error_line(capsys.readouterr().err, "dance", "--workers", "at least 1")
 
 
 def test_convert_writes_the_path_it_is_given(tmp_path, capsys):

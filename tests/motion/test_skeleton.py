@@ -307,3 +307,18 @@ def test_keep_bone_lengths_known_answer():
     q = np.array([[[1.0, 1, 1], [3, 1, 1], [3, 1, 1.5]]])  # moved: a along +x, b along +z from a
     out = keep_bone_lengths(q, x, sk)
     np.testing.assert_allclose(out, [[[1, 1, 1], [4, 1, 1], [4, 1, 5]]], atol=1e-12)
+
+
+def test_a_skeleton_survives_pickle():
+    """A dance made in another process comes back pickled: its skeleton (read-only roles) rebuilt equal."""
+    import pickle
+
+    from dancekit.motion import get_skeleton
+
+    for name in ("tang2018", "smpl", "body25"):
+        sk = get_skeleton(name)
+        back = pickle.loads(pickle.dumps(sk))
+        assert back.same_as(sk) and back.name == sk.name and dict(back.roles) == dict(sk.roles)
+        assert back.left_right == sk.left_right and back.feet == sk.feet and back.branch_joints == sk.branch_joints
+        with pytest.raises(TypeError):
+            back.roles["x"] = "y"  # still read-only

@@ -166,6 +166,34 @@ def test_a_batch_of_seeds_equals_one_call_per_seed_and_says_what_was_drawn(paren
             np.testing.assert_allclose(res.motion.to_positions(), forced.motion.to_positions(), atol=1e-3)
 
 
+def test_seeds_shared_by_processes_are_the_same_dances_bit_for_bit(parent, song, monkeypatch, tmp_path):
+    """``workers=3``: the seeds split over three processes (forked on Linux) give every dance, its genre draw and
+    its notes exactly as one process does, in seed order."""
+    import os
+    import sys
+
+    pipe = pipeline(parent, monkeypatch, GenreDraw(temperature=1.0, alone=0.2))
+    one = pipe.dances(song, seeds=SEEDS, end=2.0, workers=1)
+    pids = tmp_path / "pids"
+    real = type(pipe).generate_batch
+
+    def generate_batch(self, *a, **k):
+        with open(pids, "a") as fh:
+            fh.write(f"{os.getpid()}\n")
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(type(pipe), "generate_batch", generate_batch)
+    three = pipe.dances(song, seeds=SEEDS, end=2.0, workers=3)
+    assert [r.seed for r in three] == SEEDS
+    for a, b in zip(one, three):
+        assert (a.genre, a.genre_drawn_p, a.danced_by, a.notes) == (b.genre, b.genre_drawn_p, b.danced_by, b.notes)
+        np.testing.assert_array_equal(a.motion.to_positions(), b.motion.to_positions())
+    if sys.platform.startswith("linux"):
+        assert len(set(pids.read_text().split())) == 3  # three processes generated
+    with pytest.raises(ParameterError, match="workers"):
+        pipe.dances(song, seeds=SEEDS, end=2.0, workers=0)
+
+
 def test_a_vanishing_temperature_is_todays_dance_bit_for_bit(parent, song, monkeypatch):
     today = pipeline(parent, monkeypatch, GenreDraw()).dances(song, seeds=SEEDS, end=2.0)
     cold = pipeline(parent, monkeypatch, GenreDraw(temperature=1e-6)).dances(song, seeds=SEEDS, end=2.0)

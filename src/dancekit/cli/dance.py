@@ -102,6 +102,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="CPU threads of the model (default 1: the embedded models are small and generate frame by "
                         "frame, so a second thread costs more in synchronisation than it saves; more for "
                         "paper-size checkpoints)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes that share --seeds' dances (default: one per CPU core, at most one per seed; each "
+                        "dance is the same whatever the number)")
     p.set_defaults(func=run)
 
 
@@ -122,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
     args.fps = output_fps(args.fps)
     if args.threads < 1:
         raise ParameterError(f"--threads must be at least 1, got {args.threads}")
+    if args.workers is not None and args.workers < 1:
+        raise ParameterError(f"--workers must be at least 1, got {args.workers}")
     edit = _edit_config(args)  # before the dance is made: a missing file or a contradiction fails fast
     clip = AudioClip(audio, args.start, args.end)
     options = RenderOptions(width=args.width, height=args.height, figure=args.figure)
@@ -167,8 +172,11 @@ def _dance(args, audio, clip, options, out, formats, prefetch, t0, edit=None) ->
     own = fix is None and all(v is None for v in extra.values())  # the pipeline runs the stages itself
     seeds = [args.seed] if args.seeds is None else args.seeds
     prefetch.wait()
+    from dancekit.pipelines.parallel import usable_cores
+
+    workers = args.workers if args.workers is not None else min(len(seeds), usable_cores())
     results = pipe.dances(str(audio), seeds=seeds, start=args.start, end=args.end, genre=args.genre,
-                          progress=not args.quiet, edit=edit if own else None,
+                          progress=not args.quiet, edit=edit if own else None, workers=workers,
                           **(stages_on if own else {"beat_sync": False, "cleanup": False}))
     if not own:  # the foot model sees the model's own dance; the stages come after it
         import dataclasses

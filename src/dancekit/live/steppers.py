@@ -183,10 +183,7 @@ class RevolutionStepper(_Stepper):
             else:
                 x = torch.from_numpy(np.ascontiguousarray(self._window(a, b)))[None]  # (1, b - a, D)
             if self.np_encoder is not None:
-                from dancekit.models.revolution import _one_blas_thread
-
-                with _one_blas_thread():
-                    z = torch.from_numpy(self.np_encoder.forward_range(x[0], t0 - a, upto - a, qkv0=qkv0[0]))[None]
+                z = torch.from_numpy(self.np_encoder.forward_range(x[0], t0 - a, upto - a, qkv0=qkv0[0]))[None]
             else:
                 z = self.model.encoder.forward_range(x, t0 - a, upto - a, embedded=self.embedded, qkv0=qkv0)
         self.z, self.z_start = self.z[:, max(0, upto - self.z_start) :], max(self.z_start, min(upto, z_end))

@@ -1560,7 +1560,12 @@ class NumpyLocalEncoder:
 
     def forward_range(self, x: np.ndarray, start: int, stop: int, *, qkv0: np.ndarray | None = None) -> np.ndarray:
         """:meth:`MusicEncoder.forward_range` of embedded rows ``x (n, d)`` with ``embedded=True``: the latents
-        ``(stop - start, d)`` of frames ``[start, stop)``. ``qkv0``: :meth:`projections` of ``x`` ``(n, 3d)``."""
+        ``(stop - start, d)`` of frames ``[start, stop)``. ``qkv0``: :meth:`projections` of ``x`` ``(n, 3d)``. The
+        products run on one BLAS thread (they are small; see :class:`NumpyDecoder`)."""
+        with _one_blas_thread():
+            return self._forward_range(x, start, stop, qkv0=qkv0)
+
+    def _forward_range(self, x: np.ndarray, start: int, stop: int, *, qkv0: np.ndarray | None = None) -> np.ndarray:
         from scipy.special import erf
 
         n, d = x.shape

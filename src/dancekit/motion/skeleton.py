@@ -212,6 +212,13 @@ class Skeleton:
         set_(self, "_index", {n: j for j, n in enumerate(names)})
         set_(self, "_order", tuple(order))
 
+    def __reduce__(self):
+        """Pickled by its constructor's arguments (its roles a read-only view, which pickle cannot copy)."""
+        return (_skeleton_from, ({"name": self.name, "joint_names": self.joint_names, "parents": self.parents,
+                                  "offsets": np.array(self.offsets), "up_axis": self.up_axis, "units": self.units,
+                                  "roles": dict(self.roles), "left_right": self.left_right, "feet": self.feet,
+                                  "end_effectors": self.end_effectors, "branch_joints": self.branch_joints},))
+
     # ------------------------------------------------------------------ lookup
     def index(self, name_or_role: str) -> int:
         """Index of a joint given its name or its canonical role.
@@ -411,6 +418,11 @@ class Skeleton:
     def __repr__(self) -> str:
         return (f"Skeleton(name={self.name!r}, joints={self.num_joints}, root={self.joint_names[self.root]!r}, "
                 f"units={self.units!r}, up_axis={self.up_axis!r})")
+
+
+def _skeleton_from(kwargs: dict) -> Skeleton:
+    """:class:`Skeleton` from its constructor's arguments (how a pickled skeleton is rebuilt)."""
+    return Skeleton(**kwargs)
 
 
 def keep_bone_lengths(q: np.ndarray, x: np.ndarray, skeleton: Skeleton) -> np.ndarray:

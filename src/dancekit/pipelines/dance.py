@@ -244,7 +244,7 @@ class DancePipeline:
                end: float | None = None, genre: str | list[str | None] | None = None, progress: bool = False,
                beat_sync: bool = True, cleanup: bool = True,
                stage_trace: Callable[[int, str, DanceResult], None] | None = None, edit: EditConfig | None = None,
-               **options) -> list[DanceResult]:
+               workers: int = 1, **options) -> list[DanceResult]:
         """One dance per seed for the song (excerpt ``[start, end)`` s); ``dances(song, seeds=[0, 1, 2])[k]`` is bit
         for bit ``pipe(song, seed=[0, 1, 2][k])``.
 
@@ -271,6 +271,9 @@ class DancePipeline:
             the rest after every stage); None: none. A family whose :meth:`generate_batch` takes a ``prefix``
             (Dance Revolution) is also given the prefix's positions: the model continues the prefix (its decoder
             fed the prefix's poses), then the edit stage keeps the prefix exactly and fades the seam
+        workers : processes that share the seeds (:func:`~dancekit.pipelines.parallel.fork_map`: forked after the
+            song is read, each decoding and finishing a contiguous part of the seeds; Linux only, else one). Each
+            dance is the same bit for bit; ``stage_trace`` runs everything in this process
         options : the family's own options, the keyword arguments of its :meth:`generate_batch`
 
         Raises
@@ -305,25 +308,40 @@ class DancePipeline:
             from dancekit.pipelines.stages import read_edit_motion
 
             options = {**options, "prefix": read_edit_motion(edit.prefix, self.skeleton, self.fps, "prefix")}
-        motions: list[Motion | None] = [None] * len(seeds)
-        for key in dict.fromkeys(keys):
-            rows = [k for k, x in enumerate(keys) if x == key]
-            done = self.generate_batch(audio_path, seeds=[seeds[k] for k in rows], choices=[choices[k] for k in rows],
-                                       start=start, end=end, progress=progress, **options)
-            if len(done) != len(rows):
-                raise RuntimeError(f"{type(self).__name__}.generate_batch gave {len(done)} dances for {len(rows)} seeds")
-            for k, motion in zip(rows, done):
-                motions[k] = motion
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
         song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
-        results = []
-        for k, (seed, choice, motion) in enumerate(zip(seeds, choices, motions)):
-            result = DanceResult(motion=motion if music else self.calm(motion, **options), model=self.folder,
-                                 seed=seed, genre_requested=choice.requested, genre=choice.genre,
-                                 genre_probs=dict(choice.probs), danced_by=self.danced_by(choice.genre),
-                                 beat_strength=float(strength) if measured else None, looks_like_music=music,
-                                 genre_drawn_p=choice.drawn_p)
-            results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
-        return results
+
+        def part(ks: list[int]) -> list[DanceResult]:  # the dances of seeds[k] for k in ks
+            motions: dict[int, Motion] = {}
+            for key in dict.fromkeys(keys[k] for k in ks):
+                rows = [k for k in ks if keys[k] == key]
+                done = self.generate_batch(audio_path, seeds=[seeds[k] for k in rows],
+                                           choices=[choices[k] for k in rows], start=start, end=end,
+                                           progress=progress and ks[0] == 0, **options)
+                if len(done) != len(rows):
+                    raise RuntimeError(f"{type(self).__name__}.generate_batch gave {len(done)} dances for {len(rows)} "
+                                       "seeds")
+                motions.update(zip(rows, done))
+            results = []
+            for k in ks:
+                seed, choice, motion = seeds[k], choices[k], motions[k]
+                result = DanceResult(motion=motion if music else self.calm(motion, **options), model=self.folder,
+                                     seed=seed, genre_requested=choice.requested, genre=choice.genre,
+                                     genre_probs=dict(choice.probs), danced_by=self.danced_by(choice.genre),
+                                     beat_strength=float(strength) if measured else None, looks_like_music=music,
+                                     genre_drawn_p=choice.drawn_p)
+                results.append(finish(result, song, config, trace=seed_trace(stage_trace, k)))
+            return results
+
+        n = min(workers, len(seeds)) if stage_trace is None else 1
+        if n > 1:
+            from dancekit.pipelines.parallel import fork_map
+
+            bounds = np.linspace(0, len(seeds), n + 1).round().astype(int)
+            parts = [list(range(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+            return [r for rs in fork_map(part, parts) for r in rs]
+        return part(list(range(len(seeds))))
 
     def _check_genre(self, genre: str) -> None:
         if genre in ("auto", "none") or genre in self.genres:
