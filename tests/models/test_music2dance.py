@@ -260,18 +260,24 @@ def _batch(model, B=2, T=24, seed=5):
             "genre": torch.tensor([0, 2])[:B], "weight": torch.tensor([0.5, 2.0], dtype=torch.float64)[:B]}
 
 
+def _record_forward(model, what):
+    """Spy on ``model.forward``: each call appends ``what(music, prev).clone()`` to the returned list; also returns
+    the original forward."""
+    seen, forward = [], model.forward
+
+    def spy(music, prev, genre=None):
+        seen.append(what(music, prev).clone())
+        return forward(music, prev, genre)
+
+    model.forward = spy
+    return seen, forward
+
+
 def test_objective_phase_two_feeds_the_first_pass_predictions_back():
     from dancekit.training.m2d import music2dance_step
 
     model = _tiny(phase=2, input_noise=0.0, target_noise=0.0)
-    calls = []
-    forward = model.forward
-
-    def spy(music, prev, genre=None):
-        calls.append(prev.clone())
-        return forward(music, prev, genre)
-
-    model.forward = spy
+    calls, forward = _record_forward(model, lambda music, prev: prev)
     batch = _batch(model)
     loss, _ = music2dance_step(model, batch, _ctx(False))
     assert len(calls) == 2
@@ -304,14 +310,7 @@ def test_objective_music_dropout_zeroes_whole_windows_in_training_only():
     from dancekit.training.m2d import music2dance_step
 
     model = _tiny()
-    seen = []
-    forward = model.forward
-
-    def spy(music, prev, genre=None):
-        seen.append(music.clone())
-        return forward(music, prev, genre)
-
-    model.forward = spy
+    seen, _ = _record_forward(model, lambda music, prev: music)
     batch = _batch(model, B=64, T=6)
     batch["genre"] = torch.zeros(64, dtype=torch.long)
     batch["weight"] = torch.ones(64, dtype=torch.float64)
