@@ -337,11 +337,9 @@ class RevolutionPipeline(DancePipeline):
 def decode_workers(rows: int) -> int:
     """How many seeds' decoders run side by side by default: one per CPU core this process may use, divided by
     torch's threads per operation, at most ``rows`` and :data:`MAX_DECODE_WORKERS`."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    return max(1, min(rows, MAX_DECODE_WORKERS, cores // max(1, torch.get_num_threads())))
+    from dancekit.pipelines.parallel import usable_cores
+
+    return max(1, min(rows, MAX_DECODE_WORKERS, usable_cores() // max(1, torch.get_num_threads())))
 
 
 #: The most decoder threads :func:`decode_workers` gives: the frame loop is a Python loop, and more threads than
