@@ -293,6 +293,8 @@ class DancePipeline:
         for g in dict.fromkeys(requested):
             self._check_genre(g)
         self._check_options(options)
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
         strength = song_feature_set(audio_path, fps=self.fps, preset=self.preset, hop_length=self.hop_length,
                                     start=start, end=end).beat_strength
         measured = strength is not None and bool(np.isfinite(strength))
@@ -308,8 +310,6 @@ class DancePipeline:
             from dancekit.pipelines.stages import read_edit_motion
 
             options = {**options, "prefix": read_edit_motion(edit.prefix, self.skeleton, self.fps, "prefix")}
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise ParameterError(f"workers must be an integer >= 1, got {workers!r}")
         song = Song(audio_path, start, end)  # its beats tracked once, for the first dance that needs them
 
         def part(ks: list[int]) -> list[DanceResult]:  # the dances of seeds[k] for k in ks
