@@ -66,6 +66,10 @@ class LiveConfig:
         beyond it dropped, the rest renormalised); None: the kernel's radius (the offline smoothing exactly,
         0.24 s for the embedded model). 0.08 s keeps music2dance's latency within 0.3 s; chosen on the validation
         songs (docs/research/live.md)
+    jitter_cap : the checkpoint's jitter cap online (its ``stages.jitter_cap`` and ``genre_stats.jitter``): the
+        smoothing's cut-off lowered until the dance's recent jitter is under the cap, the genres it follows read
+        from the music heard so far by the checkpoint's ``genre_reader`` (a reader of the session's feature
+        preset; a genre asked for by name: its own). A model without them is not capped.
     """
 
     block_s: float = 0.04
@@ -85,6 +89,7 @@ class LiveConfig:
     seed: int = 0
     sample_smoothing: str = "delay"
     smoothing_hold_s: float | None = 0.08
+    jitter_cap: bool = False
 
     #: lookahead (s) at which the online features equal the offline extractor's (the constant-Q support)
     EXACT_LOOKAHEAD_S = 1.0
@@ -115,6 +120,8 @@ class LiveConfig:
                 continue
             if not ok(number(name)):
                 raise ParameterError(f"LiveConfig.{name} must be in {ranges[name]}, got {getattr(self, name)!r}")
+        if not isinstance(self.jitter_cap, bool):
+            raise ParameterError(f"LiveConfig.jitter_cap must be true or false, got {self.jitter_cap!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ParameterError(f"LiveConfig.seed must be an integer, got {self.seed!r}")
         if self.tempogram_future not in TEMPOGRAM_FUTURES:

@@ -32,8 +32,10 @@ import numpy as np
 from dancekit.errors import AudioError, ParameterError
 from dancekit.features.online import OnlineFeatures
 from dancekit.live.config import LiveConfig
+from dancekit.live.genre import OnlineGenreReader
 from dancekit.live.stages import BeatNudge, OnlineStages
 from dancekit.live.steppers import make_stepper
+from dancekit.pipelines.stages import genre_jitter_cap
 
 __all__ = ["Block", "Frame", "LiveSession", "StreamResampler", "file_source", "microphone_source", "pcm_source",
            "take_waiting"]
@@ -154,7 +156,13 @@ class LiveSession:
         if hasattr(self.stepper, "raw"):
             self.stepper.raw = True  # the online stages set the bone lengths
         self.skeleton = self.pipe.skeleton
-        self.stages = OnlineStages(self.skeleton, fps=self.fps, config=c)
+        self.genre_reader, self._cap, self._genre = None, None, genre
+        cap = _live_jitter_cap(self.pipe, c, genre)
+        if cap is not None:
+            self._cap, self.genre_reader = cap
+        self.stages = OnlineStages(self.skeleton, fps=self.fps, config=c, cap=self._cap is not None)
+        if self._cap is not None and self.genre_reader is None:  # a genre asked for by name: its own cap now
+            self.stages.max_jitter = genre_jitter_cap(*self._cap, probs={}, genre=genre)
         #: the beat nudge's rate bound: the config's, or the offline warp's of the model
         self.rate_bound = c.rate_bound if c.rate_bound is not None else offline_rate_bound(self.pipe)
         self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound) if self.rate_bound > 0 else None
@@ -200,13 +208,21 @@ class LiveSession:
             self._samples += len(y)
             parts.append(y)
         rows = self.features.feed(np.concatenate(parts) if len(parts) > 1 else parts[0])
+        self._read_genre(rows)
         return self._emit(rows, ready=blocks[-1].arrival, now=now)
+
+    def _read_genre(self, rows: np.ndarray) -> None:
+        """The genre reader fed the new rows; a new reading sets the stages' jitter cap."""
+        if self.genre_reader is not None and self.genre_reader.push(rows):
+            self.stages.max_jitter = genre_jitter_cap(*self._cap, probs=self.genre_reader.probs, genre=self._genre)
 
     def finish(self, *, now: Callable[[], float] = time.monotonic) -> list[Frame]:
         """The frames still waiting for their lookahead (the stream ended); none when no audio came at all."""
         if not self._samples:
             return []
-        return self._emit(self.features.finish(), ready=now(), now=now, final=True)
+        rows = self.features.finish()
+        self._read_genre(rows)
+        return self._emit(rows, ready=now(), now=now, final=True)
 
     def _emit(self, rows: np.ndarray, *, ready: float, now, final: bool = False) -> list[Frame]:
         poses = self.stepper.push(rows) if not final else np.concatenate([self.stepper.push(rows),
@@ -289,6 +305,25 @@ class LiveSession:
         if self.stats.merged_blocks:
             self.notes.append(f"{self.stats.merged_blocks} blocks fed together with the one before (behind the clock)")
         return self.stats
+
+
+def _live_jitter_cap(pipe, config: LiveConfig, genre: str | None):
+    """``((jitter_cap settings, genre statistics), OnlineGenreReader or None)`` of a session with
+    ``config.jitter_cap`` whose checkpoint has a jitter cap (its ``stages.jitter_cap``); the reader when the cap
+    follows the genres read from the music (the checkpoint's ``genre_reader``, of the session's preset, fps and
+    hop) and no genre is asked for by name; None: no cap."""
+    settings = getattr(pipe, "settings", None)
+    stages = getattr(settings, "stages", None)
+    if not config.jitter_cap or stages is None or stages.jitter_cap is None:
+        return None
+    cap = (stages.jitter_cap, stages.genre_stats)
+    if genre not in (None, "none", "auto"):
+        return cap, None
+    reader = getattr(pipe, "genre_reader", None)
+    if reader is None or not getattr(pipe, "genres", ()) or reader.preset != pipe.preset \
+            or reader.fps != float(pipe.fps) or reader.hop_length != int(pipe.hop_length):
+        return None
+    return cap, OnlineGenreReader(reader, genres=tuple(pipe.genres))
 
 
 def take_waiting(first: Block, get_nowait: Callable[[], Block | None],

@@ -23,6 +23,14 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
    joint itself, taken off — the whole figure's slow float and bob go, while a rise over less than 0.2 s
    stays (a rise shows up to 0.2 s late in the offset: the lowest joint then stands over the floor by what it
    rose in the last 0.2 s).
+
+With a jitter cap (offline: the ``jitter_cap`` stage, a low-pass whose cut-off is the highest that holds the
+dance's jitter under a cap, m/s), the smoothing's cut-off is not fixed: a bank of one-poles at the offline
+cap's cut-offs (:data:`~dancekit.motion.jitter.CAP_CUTOFFS_HZ`) runs beside it, each one's jitter (the
+metric's: body-relative speed minus that of the 5-frame average, :func:`dancekit.motion.jitter.jitter_speed`)
+followed by a running mean of time constant :data:`CAP_JITTER_S`; the cut-off glides (time constant
+:data:`CAP_GLIDE_S`, in log-frequency) towards the highest one whose running jitter is under the cap
+(:attr:`OnlineStages.max_jitter`, set as the genre is read; None: ``smooth_hz``).
 """
 
 from __future__ import annotations
@@ -34,13 +42,63 @@ import numpy as np
 from dancekit.live.config import LiveConfig
 from dancekit.motion.analysis import horizontal_axes, up_sign
 from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner, turn_and_move
+from dancekit.motion.jitter import CAP_CUTOFFS_HZ
 
-__all__ = ["BeatNudge", "OnlineStages", "RestBones"]
+__all__ = ["BeatNudge", "JitterBank", "OnlineStages", "RestBones"]
 
 #: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
 FLOOR_PERCENTILE = 5.0
 #: time constant (s) of the running mean pose that calming pulls towards
 MEAN_POSE_S = 2.0
+#: time constant (s) of the running jitter each cut-off of the jitter cap's bank is judged by
+CAP_JITTER_S = 2.0
+#: time constant (s) of the smoothing cut-off's glide towards the one the jitter cap chooses (in log-frequency)
+CAP_GLIDE_S = 0.5
+
+
+class JitterBank:
+    """One-pole low-passes of the poses at several cut-offs, each with its running jitter (m/s).
+
+    Parameters
+    ----------
+    cutoffs : the cut-offs (Hz, highest first)
+    fps : frames per second
+    root : the root joint (the jitter is body-relative)
+    unit_scale : metres per skeleton unit
+    """
+
+    def __init__(self, cutoffs: tuple[float, ...], *, fps: float, root: int, unit_scale: float):
+        self.cutoffs = np.asarray(cutoffs, np.float64)
+        self.fps, self.root, self.scale = float(fps), int(root), float(unit_scale)
+        self.a = 1.0 - np.exp(-2 * np.pi * self.cutoffs / self.fps)  # (K,)
+        self.b = 1.0 - np.exp(-1.0 / (CAP_JITTER_S * self.fps))
+        self.y: np.ndarray | None = None  # (K, J, 3) the filters' outputs
+        self.hist: deque[np.ndarray] = deque(maxlen=7)  # the last 7 frames' body-relative outputs (K, J, 3)
+        #: the running jitter (m/s) of each cut-off's output; None before the first 7 frames
+        self.jitter: np.ndarray | None = None
+
+    def step(self, q: np.ndarray) -> None:
+        """One frame's poses ``(J, 3)`` in."""
+        if self.y is None:
+            self.y = np.repeat(q[None], len(self.a), axis=0)
+        else:
+            self.y += self.a[:, None, None] * (q[None] - self.y)
+        self.hist.append(self.y - self.y[:, self.root: self.root + 1])
+        if len(self.hist) < 7:
+            return
+        h = self.hist  # frames t-6 … t; the jitter of frame t-3 (central differences, the 5-frame average)
+        raw = np.linalg.norm(h[4] - h[2], axis=-1).mean(-1) / 2
+        avg = np.linalg.norm((h[6] - h[1]) / 5 + (h[5] - h[0]) / 5, axis=-1).mean(-1) / 2  # avg(t-2) - avg(t-4)
+        now = (raw - avg) * self.fps * self.scale  # (K,) m/s
+        self.jitter = now if self.jitter is None else self.jitter + self.b * (now - self.jitter)
+
+    def highest_under(self, cap: float) -> float:
+        """The highest cut-off whose running jitter is at most ``cap`` (m/s); the lowest when none is (or before
+        the jitter is known: the highest)."""
+        if self.jitter is None:
+            return float(self.cutoffs[0])
+        ok = np.flatnonzero(self.jitter <= cap)
+        return float(self.cutoffs[ok[0]] if len(ok) else self.cutoffs[-1])
 
 
 class RestBones:
@@ -89,9 +147,10 @@ class OnlineStages:
     skeleton : the dance's skeleton (root, up axis, rest bone lengths)
     fps : frames per second
     config : the :class:`LiveConfig` (``calm``, ``calm_glide_s``, ``smooth_hz``, ``floor_window_s``)
+    cap : run the jitter cap's bank (the cap itself is :attr:`max_jitter`, set as the genre is read)
     """
 
-    def __init__(self, skeleton, *, fps: float, config: LiveConfig | None = None):
+    def __init__(self, skeleton, *, fps: float, config: LiveConfig | None = None, cap: bool = False):
         self.skeleton, self.fps = skeleton, float(fps)
         self.config = config or LiveConfig()
         c = self.config
@@ -117,6 +176,15 @@ class OnlineStages:
         self.feet = [skeleton.index(f) for f in names] or list(range(skeleton.num_joints))
         self.frames = 0
         self.rest_bones = RestBones(skeleton)
+        top = c.smooth_hz if np.isfinite(c.smooth_hz) else self.fps / 2
+        #: the jitter cap (m/s) the smoothing holds the dance under; None: none (the cut-off is ``smooth_hz``)
+        self.max_jitter: float | None = None
+        self.bank = JitterBank((top, *(f for f in CAP_CUTOFFS_HZ if f < top)), fps=self.fps, root=self.root,
+                               unit_scale=float(skeleton.unit_scale)) if cap else None
+        self.top = top
+        #: the smoothing's cut-off now (Hz)
+        self.cutoff = top
+        self.a_glide_cut = 1.0 - np.exp(-1.0 / (CAP_GLIDE_S * self.fps))
 
     def process(self, poses: np.ndarray, music: np.ndarray) -> np.ndarray:
         """Poses ``(k, J, 3)`` and, per frame, whether music is playing (``(k,)`` bool or a 0-1 weight) → the
@@ -150,7 +218,13 @@ class OnlineStages:
                                   root=self.root_out[None, self.horiz])[0]
             if self.smoothed is None:
                 self.smoothed = q.copy()
-            a = self.a_smooth if self.gain >= 1.0 else 1.0 - (1.0 - self.a_smooth) ** (self.gain**2)
+            a_smooth = self.a_smooth
+            if self.bank is not None:
+                self.bank.step(q)
+                goal = self.top if self.max_jitter is None else self.bank.highest_under(self.max_jitter)
+                self.cutoff = float(np.exp(np.log(self.cutoff) + self.a_glide_cut * (np.log(goal) - np.log(self.cutoff))))
+                a_smooth = 1.0 - np.exp(-2 * np.pi * self.cutoff / self.fps) if self.cutoff < self.top else self.a_smooth
+            a = a_smooth if self.gain >= 1.0 else 1.0 - (1.0 - a_smooth) ** (self.gain**2)
             self.smoothed += a * (q - self.smoothed)  # calmer: a lower cut-off too (gain² × smooth_hz)
             out[k] = self.smoothed
         out = self.rest_bones(out) if len(out) else out

@@ -58,7 +58,7 @@ from dancekit.pipelines.config import (  # noqa: F401 (the defaults, re-exported
 )
 
 __all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "STAGES", "STAGE_NAMES", "Song",
-           "StageContext", "beat_sync", "clean_up", "finish", "foot_lock", "genre_jitter_table", "jitter_cap_for",
+           "StageContext", "beat_sync", "clean_up", "finish", "foot_lock", "genre_jitter_cap", "genre_jitter_table", "jitter_cap_for",
            "lift_energy", "plausible_jitter_cap", "reground", "seed_trace", "settle", "smooth", "smoothing_target",
            "song_beats_for", "edit_dance", "stage_edit"]
 
@@ -520,21 +520,31 @@ def plausible_jitter_cap(probs: dict[str, float], *, genre_jitter: dict[str, flo
 
 def jitter_cap_for(result: DanceResult, config: JitterCapConfig | None,
                    genre_stats: GenreStats | None = None) -> float | None:
-    """The jitter cap (m/s) of one dance, or None (no cap): ``config.max_jitter`` when set; else
-    :func:`plausible_jitter_cap` over the genre posterior read from the music (``result.genre_probs``) with the
-    real jitters of ``genre_stats.jitter`` — not for the most likely genre's dance unless ``config.all`` —, or,
-    for a genre asked for by name (no posterior) with ``config.named``, over that genre alone. None without a
-    ``config``, for a dance whose input does not look like music, or without a posterior or a named genre."""
+    """The jitter cap (m/s) of one dance, or None (no cap): :func:`genre_jitter_cap` of the dance's genre
+    posterior read from the music (``result.genre_probs``) and the genre it danced (``result.genre``). None for
+    a dance whose input does not look like music."""
     if config is None or not result.looks_like_music:
+        return None
+    return genre_jitter_cap(config, genre_stats, probs=result.genre_probs or {}, genre=result.genre)
+
+
+def genre_jitter_cap(config: JitterCapConfig | None, genre_stats: GenreStats | None, *, probs: dict[str, float],
+                     genre: str | None) -> float | None:
+    """The jitter cap (m/s) of a dance of ``genre`` (None: the model alone) on music whose genre posterior is
+    ``probs`` (genre → p; empty: not read), or None (no cap): ``config.max_jitter`` when set; else
+    :func:`plausible_jitter_cap` over ``probs`` with the real jitters of ``genre_stats.jitter`` — not for the
+    most likely genre's dance unless ``config.all`` —, or, for a genre asked for by name (no posterior) with
+    ``config.named``, over that genre alone. None without a ``config``, or without a posterior or a named genre.
+    The offline stage (:func:`jitter_cap_for`) and the live one (:mod:`dancekit.live`) share it."""
+    if config is None:
         return None
     if config.max_jitter is not None:
         return config.max_jitter
-    probs = result.genre_probs or {}
     if not probs:
-        if not config.named or result.genre is None:
+        if not config.named or genre is None:
             return None
-        probs = {result.genre: 1.0}
-    elif result.genre is not None and result.genre == max(probs, key=probs.get) and not config.all:
+        probs = {genre: 1.0}
+    elif genre is not None and genre == max(probs, key=probs.get) and not config.all:
         return None
     table = {} if genre_stats is None else genre_stats.table("jitter")
     return plausible_jitter_cap(probs, genre_jitter=table, scale=config.scale, min_ratio=config.min_ratio)

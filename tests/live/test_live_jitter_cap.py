@@ -1,0 +1,153 @@
+"""The jitter cap live (issue 43): the genre read from the music heard so far, the bank of low-passes and
+their running jitter, the smoothing held under the cap, and the session's wiring."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from dancekit.errors import ParameterError
+from dancekit.live import LiveConfig
+from dancekit.live.genre import OnlineGenreReader
+from dancekit.live.stages import JitterBank, OnlineStages
+from dancekit.motion.jitter import jitter_speed
+
+
+@pytest.fixture(scope="module")
+def m2d():
+    from dancekit.pipelines import load_pipeline
+
+    return load_pipeline("music2dance")
+
+
+@pytest.mark.parametrize("n", [130, 750, 1000, 1125, 1700])
+def test_genre_reader_equals_the_whole_prefix_read_offline(m2d, n):
+    """Rows fed in uneven blocks: each reading is ``predict_song`` of the prefix heard (renormalised over the
+    dance model's genres): one window while the prefix is under the classifier's window (750 frames), then its
+    complete windows with the one flush with the end; 1125 - 750 is a multiple of the hop (no extra window)."""
+    reader = m2d.genre_reader
+    rng = np.random.default_rng(n)
+    raw = reader.music_mean + reader.music_std * rng.normal(size=(n, len(reader.music_mean))).astype(np.float32)
+    online = OnlineGenreReader(reader, genres=tuple(m2d.genres), after_s=4.0, every_s=1.0)
+    a = 0
+    for k in rng.integers(1, 9, size=n):
+        online.push(raw[a : a + k])
+        a += k
+        if a >= n:
+            break
+    heard = online.heard
+    assert heard > 0 and online.probs
+    want = reader.model.predict_song((raw[:heard] - reader.music_mean) / reader.music_std)
+    want = {g: float(want[reader.genres.index(g)]) for g in m2d.genres}
+    total = sum(want.values())
+    for g in m2d.genres:
+        assert online.probs[g] == pytest.approx(want[g] / total, abs=1e-5)
+
+
+def test_genre_reader_waits_for_its_first_seconds(m2d):
+    reader = OnlineGenreReader(m2d.genre_reader, genres=tuple(m2d.genres), after_s=4.0)
+    rows = np.tile(m2d.genre_reader.music_mean, (99, 1))
+    assert not reader.push(rows) and reader.probs == {}
+    assert reader.push(rows[:1]) and set(reader.probs) == set(m2d.genres)
+    with pytest.raises(ParameterError, match="every_s"):
+        OnlineGenreReader(m2d.genre_reader, genres=tuple(m2d.genres), every_s=0)
+
+
+def _jittery(T=1500, J=6, fps=25.0, noise=0.6, seed=0):
+    """A smooth dance (cm: joints on 1-Hz and 0.4-Hz circles about a walking root) with white tremor."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(T) / fps
+    p = np.zeros((T, J, 3))
+    p[:, :, 0] = 40 * t[:, None] / t[-1]
+    for j in range(1, J):
+        p[:, j, 0] += 20 * np.cos(2 * np.pi * (0.4 + 0.6 * (j % 2)) * t + j)
+        p[:, j, 1] += 100 + 10 * j
+        p[:, j, 2] += 20 * np.sin(2 * np.pi * 0.4 * t + j)
+    return p + noise * rng.normal(size=p.shape)
+
+
+def test_jitter_bank_follows_the_metric_of_each_low_pass():
+    """Each cut-off's running jitter, made a running arithmetic mean (its weight 1/k at the k-th frame), is
+    the metric's jitter (:func:`jitter_speed`, one pass over the whole stream) of that one-pole's output (scipy's
+    ``lfilter``): equal but for the metric's 3 edge frames at each end (1 % here)."""
+    from dancekit.pipelines import load_pipeline
+
+    fps = 25.0
+    sk = load_pipeline("revolution").skeleton
+    p = _jittery(J=sk.num_joints)
+    cutoffs = (6.0, 3.0, 1.0)
+    bank = JitterBank(cutoffs, fps=fps, root=sk.root, unit_scale=float(sk.unit_scale))
+    for k, q in enumerate(p):
+        bank.b = 1.0 / max(1, k - 5)  # the k - 5 th value of the jitter (the first at k = 6)
+        bank.step(q)
+    for c, got in zip(cutoffs, bank.jitter):
+        a = 1.0 - np.exp(-2 * np.pi * c / fps)
+        zi = scipy.signal.lfilter_zi([a], [1.0, a - 1.0])[:, None, None] * p[:1]
+        y, _ = scipy.signal.lfilter([a], [1.0, a - 1.0], p, axis=0, zi=zi)
+        assert got == pytest.approx(jitter_speed(y, skeleton=sk, fps=fps), rel=0.02)
+    assert bank.jitter[0] > bank.jitter[1] > bank.jitter[2]
+    assert bank.highest_under(float(bank.jitter[1]) * 1.001) == 3.0
+    assert bank.highest_under(0.0) == 1.0
+
+
+def _trembling(sk, T=1500, fps=25.0, tremor=0.04, seed=0):
+    """The rest pose turning about the vertical through its root (a 0.5-Hz sway of 0.5 rad plus a white tremor
+    of ``tremor`` rad) as the root walks: every bone at its rest length, the jitter body-relative."""
+    from dancekit.motion.analysis import horizontal_axes, rest_pose
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(T) / fps
+    rest = rest_pose(sk) - rest_pose(sk)[sk.root]
+    a, b = horizontal_axes(sk)
+    th = 0.5 * np.sin(2 * np.pi * 0.5 * t) + tremor * rng.normal(size=T)
+    p = np.repeat(rest[None], T, axis=0)
+    p[:, :, a] = np.cos(th)[:, None] * rest[:, a] - np.sin(th)[:, None] * rest[:, b] + 30 * t[:, None]
+    p[:, :, b] = np.sin(th)[:, None] * rest[:, a] + np.cos(th)[:, None] * rest[:, b]
+    return p
+
+
+def test_online_stages_hold_the_jitter_under_the_cap():
+    """A trembling dance through the online stages, capped at 0.6 × its uncapped jitter: the smoothing's
+    cut-off comes down and the output's jitter (after the first 4 s) is under 1.1 × the cap (the running mean
+    lets it swing about the cap); with the bank but no cap the output is the uncapped one, bit for bit."""
+    from dancekit.pipelines import load_pipeline
+
+    fps = 25.0
+    sk = load_pipeline("revolution").skeleton
+    p = _trembling(sk)
+    music = np.ones(len(p), bool)
+
+    def run(stages, cap=None):
+        stages.max_jitter = cap
+        return np.concatenate([stages.process(p[k : k + 5], music[k : k + 5]) for k in range(0, len(p), 5)])
+
+    plain = run(OnlineStages(sk, fps=fps, config=LiveConfig()))
+    nocap = run(OnlineStages(sk, fps=fps, config=LiveConfig(), cap=True))
+    np.testing.assert_array_equal(plain, nocap)
+    free = jitter_speed(plain[100:], skeleton=sk, fps=fps)
+    cap = 0.6 * free
+    stages = OnlineStages(sk, fps=fps, config=LiveConfig(), cap=True)
+    capped = run(stages, cap)
+    got = jitter_speed(capped[100:], skeleton=sk, fps=fps)
+    assert got < 1.1 * cap, (free, got, cap)  # uncapped: 1.67 × the cap
+    assert stages.cutoff < LiveConfig().smooth_hz
+
+
+def test_session_caps_music2dance_from_the_genre_read(m2d):
+    """jitter_cap on: music2dance reads the genre (its reader has the session's preset), a genre asked for by
+    name is capped at its own real jitter at once; revolution (its reader of another preset) and the switch off:
+    no cap, no bank."""
+    from dancekit.live.session import LiveSession
+
+    table = m2d.settings.stages.genre_stats.table("jitter")
+    on = LiveSession("music2dance", pipe=m2d, config=LiveConfig(jitter_cap=True))
+    assert on.genre_reader is not None and on.stages.bank is not None and on.stages.max_jitter is None
+    named = LiveSession("music2dance", pipe=m2d, config=LiveConfig(jitter_cap=True), genre="tango")
+    assert named.genre_reader is None and named.stages.max_jitter == pytest.approx(table["tango"])
+    off = LiveSession("music2dance", pipe=m2d, config=LiveConfig())
+    assert off.genre_reader is None and off.stages.bank is None
+    rev = LiveSession("revolution", config=LiveConfig(jitter_cap=True))
+    assert rev.genre_reader is None and rev.stages.bank is None
+    with pytest.raises(ParameterError, match="LiveConfig.jitter_cap"):
+        LiveConfig(jitter_cap=1)
