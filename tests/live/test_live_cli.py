@@ -67,3 +67,25 @@ def test_live_reads_pcm_on_stdin(tmp_path):
     from dancekit.motion.formats.npz import read_npz
 
     assert abs(read_npz(out).num_frames - 100) <= 2  # 4 s at 25 fps
+
+
+@pytest.mark.slow
+def test_live_jitter_cap_reaches_the_session(song, tmp_path, capsys, monkeypatch):
+    """``--jitter-cap`` turns the cap on: music2dance reads the genre of the 5-s song (its first reading at 4 s)
+    and caps its smoothing; revolution says in one line that it has no cap to apply."""
+    import dancekit.live.session as live_session
+
+    made = []
+    real = live_session.LiveSession
+
+    def spy(*args, **kwargs):
+        made.append(real(*args, **kwargs))
+        return made[-1]
+
+    monkeypatch.setattr(live_session, "LiveSession", spy)
+    assert main(["live", "--input", str(song), "--no-serve", "--model", "music2dance", "--jitter-cap"]) == 0
+    s = made[-1]
+    assert s.config.jitter_cap and s.genre_reader is not None and s.genre_reader.probs
+    assert s.stages.max_jitter in set(s.pipe.settings.stages.genre_stats.table("jitter").values())
+    assert main(["live", "--input", str(song), "--no-serve", "--jitter-cap"]) == 0
+    assert made[-1].stages.bank is None and "no jitter cap" in capsys.readouterr().err

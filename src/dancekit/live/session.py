@@ -163,13 +163,15 @@ class LiveSession:
         self.stages = OnlineStages(self.skeleton, fps=self.fps, config=c, cap=self._cap is not None)
         if self._cap is not None and self.genre_reader is None:  # a genre asked for by name: its own cap now
             self.stages.max_jitter = genre_jitter_cap(*self._cap, probs={}, genre=genre)
+        self.notes: list[str] = []
+        if c.jitter_cap and self._cap is None:
+            self.notes.append("no jitter cap: the model has none, or no genre reader of its live features")
         #: the beat nudge's rate bound: the config's, or the offline warp's of the model
         self.rate_bound = c.rate_bound if c.rate_bound is not None else offline_rate_bound(self.pipe)
         self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound) if self.rate_bound > 0 else None
         self.sinks = list(sinks or [])
         self.stats = SessionStats()
         self.keep_stats = keep_stats
-        self.notes: list[str] = []
         self.model_name = str(model)
         # per block: (first sample, arrival), to find the block that holds a frame's centre
         self._blocks: list[tuple[int, float, bool]] = []
