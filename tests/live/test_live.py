@@ -715,6 +715,36 @@ def test_beat_nudge_moves_the_kinematic_beats_towards_the_music_beats():
     np.testing.assert_allclose(plain[100:], pos[97:197], atol=1e-3)
 
 
+def test_beat_nudge_pulse_puts_the_speed_dips_on_the_beats():
+    """A dance at a constant speed (a joint on a circle, 0.6 m/s: no kinematic beat of its own) played with the
+    pulse (beats every 0.5 s, rate within ±15 %): its speed dips to 0.85× on each beat and rises to 1.15× between
+    two (measured from the rate law, the clock kept 3 frames behind the model), so every speed minimum after the
+    first 2 s is within one frame of a beat and there is one per beat."""
+    from dancekit.live.stages import BeatNudge
+
+    fps, T = 25.0, 500
+    t = np.arange(T) / fps
+    pos = np.zeros((T, 2, 3))
+    pos[:, 1, 0], pos[:, 1, 2] = 30 * np.cos(2 * t), 30 * np.sin(2 * t)  # cm: 60 cm/s along the circle
+    beats = np.arange(0.0, 25, 0.5)
+
+    def run(mode):
+        nudge = BeatNudge(fps=fps, rate_bound=0.15, max_lag_s=0.24, mode=mode)
+        out = np.stack([nudge.process(pos[i : i + 1], beats[beats > t[i]][0], 0.5)[0] for i in range(T)])
+        return out, nudge
+
+    out, nudge = run("pulse")
+    v = np.linalg.norm(np.diff(out, axis=0), axis=-1)[:, 1] * fps  # cm/s between frames i and i + 1
+    minima = np.array([i for i in range(1, len(v) - 1) if v[i] < v[i - 1] and v[i] <= v[i + 1]])
+    minima = (minima[minima > 2 * fps] + 0.5) / fps  # s: the middle of the slowest step
+    assert len(minima) == np.sum((beats > 2 + 0.5 / fps) & (beats < (T - 2) / fps))
+    assert np.abs(minima[:, None] - beats[None]).min(axis=1).max() <= 1 / fps + 1e-9
+    assert 0.8 * 60 < v[50:].min() < 0.9 * 60 and 1.1 * 60 < v[50:].max() < 1.2 * 60
+    assert all(0.85 - 1e-9 <= r <= 1.15 + 1e-9 for r in nudge.rates)
+    with pytest.raises(ParameterError, match="mode"):
+        BeatNudge(fps=fps, mode="push")
+
+
 def test_a_session_stopped_before_any_audio_ends_with_no_frames():
     """A client that starts and stops without sending audio (``dancekit serve``'s socket, an empty stdin): the
     session's end makes no frame and does not fail."""

@@ -66,6 +66,10 @@ class LiveConfig:
         beyond it dropped, the rest renormalised); None: the kernel's radius (the offline smoothing exactly,
         0.24 s for the embedded model). 0.08 s keeps music2dance's latency within 0.3 s; chosen on the validation
         songs (docs/research/live.md)
+    beat_nudge : how the beat alignment moves the dance's clock (:class:`dancekit.live.stages.BeatNudge`):
+        ``"target"``, the model's next kinematic beat nudged onto the tracker's next beat, or ``"pulse"``, the
+        rate slowest on each beat and fastest between two (the speed dips on the beats), both within
+        ``rate_bound``. Chosen on the validation songs (docs/research/live.md)
     jitter_cap : the checkpoint's jitter cap online (its ``stages.jitter_cap`` and ``genre_stats.jitter``): the
         smoothing's cut-off lowered until the dance's recent jitter is under the cap, the genres it follows read
         from the music heard so far by the checkpoint's ``genre_reader`` (a reader of the session's feature
@@ -89,6 +93,7 @@ class LiveConfig:
     seed: int = 0
     sample_smoothing: str = "delay"
     smoothing_hold_s: float | None = 0.08
+    beat_nudge: str = "target"
     jitter_cap: bool = False
 
     #: lookahead (s) at which the online features equal the offline extractor's (the constant-Q support)
@@ -127,6 +132,8 @@ class LiveConfig:
         if self.tempogram_future not in TEMPOGRAM_FUTURES:
             raise ParameterError(f"LiveConfig.tempogram_future must be one of {TEMPOGRAM_FUTURES}, "
                                  f"got {self.tempogram_future!r}")
+        if self.beat_nudge not in ("target", "pulse"):
+            raise ParameterError(f"LiveConfig.beat_nudge must be 'target' or 'pulse', got {self.beat_nudge!r}")
         if self.sample_smoothing not in SMOOTHING:
             raise ParameterError(f"LiveConfig.sample_smoothing must be 'delay' or 'causal', got {self.sample_smoothing!r}")
 

@@ -168,7 +168,8 @@ class LiveSession:
             self.notes.append("no jitter cap: the model has none, or no genre reader of its live features")
         #: the beat nudge's rate bound: the config's, or the offline warp's of the model
         self.rate_bound = c.rate_bound if c.rate_bound is not None else offline_rate_bound(self.pipe)
-        self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound) if self.rate_bound > 0 else None
+        self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound, mode=c.beat_nudge) \
+            if self.rate_bound > 0 else None
         self.sinks = list(sinks or [])
         self.stats = SessionStats()
         self.keep_stats = keep_stats
@@ -238,7 +239,9 @@ class LiveSession:
         music = np.array([self._blocks[w][2] for w in which], bool) if k else np.zeros(0, bool)
         music &= clear  # sound above the silence level with a pulse: dance; else calm
         if self.nudge is not None and k:
-            poses = self.nudge.process(poses, self.features.tracker.next_time if clear else None)
+            tracker = self.features.tracker
+            period = None if tracker.bpm is None else 60.0 / tracker.bpm
+            poses = self.nudge.process(poses, tracker.next_time if clear else None, period)
         poses = self.stages.process(poses, music)
         bpm = self.features.tracker.bpm
         beats = {int(round(b.time * self.fps)) for b in self.features.tracker.beats[-8:]}

@@ -39,15 +39,18 @@ from collections import deque
 
 import numpy as np
 
+from dancekit.errors import ParameterError
 from dancekit.live.config import LiveConfig
 from dancekit.motion.analysis import horizontal_axes, up_sign
 from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner, turn_and_move
 from dancekit.motion.jitter import CAP_CUTOFFS_HZ
 
-__all__ = ["BeatNudge", "JitterBank", "OnlineStages", "RestBones"]
+__all__ = ["NUDGES", "BeatNudge", "JitterBank", "OnlineStages", "RestBones"]
 
 #: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
 FLOOR_PERCENTILE = 5.0
+#: the beat nudge's ways of following the beat (:class:`BeatNudge`)
+NUDGES = ("target", "pulse")
 #: time constant (s) of the running mean pose that calming pulls towards
 MEAN_POSE_S = 2.0
 #: time constant (s) of the running jitter each cut-off of the jitter cap's bank is judged by
@@ -242,8 +245,13 @@ class OnlineStages:
 
 class BeatNudge:
     """Beat alignment online (offline: the beat-synchronous time warp): the dance is played on a clock of its own
-    whose rate is nudged, within ``1 ± rate_bound`` (the offline warp's ±15 %), so that the model's next
-    kinematic beat (a minimum of its joints' mean speed) lands on the tracker's predicted next music beat.
+    whose rate stays within ``1 ± rate_bound`` (the offline warp's bound), in one of two ways (``mode``):
+
+    * ``"target"``: the rate is nudged so that the model's next kinematic beat (a minimum of its joints' mean
+      speed) lands on the tracker's predicted next music beat;
+    * ``"pulse"``: the rate follows the beat, ``1 − rate_bound · cos(2π (t − b) / P)`` (b the predicted next
+      beat, P the tracker's period): slowest on each beat and fastest between two, so that the dance's speed
+      dips on the beats (its kinematic beats come to them) while its clock keeps the music's pace on average.
 
     The dance clock never runs ahead of the newest frame the model has made and never falls more than
     ``max_lag_s`` behind it (between beats it drifts back to half of that, so it has room both ways); a pose
@@ -255,9 +263,13 @@ class BeatNudge:
     fps : frames per second
     rate_bound : the rate stays within ``1 ± rate_bound``
     max_lag_s : how far the dance clock may fall behind the model (s)
+    mode : ``"target"`` or ``"pulse"`` (:data:`NUDGES`)
     """
 
-    def __init__(self, *, fps: float, rate_bound: float = 0.15, max_lag_s: float = 0.24):
+    def __init__(self, *, fps: float, rate_bound: float = 0.15, max_lag_s: float = 0.24, mode: str = "target"):
+        if mode not in NUDGES:
+            raise ParameterError(f"the beat nudge's mode must be one of {NUDGES}, got {mode!r}")
+        self.mode = mode
         self.fps, self.bound = float(fps), float(rate_bound)
         self.lag = max(1, int(round(max_lag_s * fps)))
         self.buf: deque[np.ndarray] = deque(maxlen=self.lag + 3)  # the newest model frames
@@ -267,9 +279,9 @@ class BeatNudge:
         self.kinematic: deque[int] = deque(maxlen=8)  # model frames of the recent speed minima
         self.rates: list[float] = []
 
-    def process(self, poses: np.ndarray, next_beat_s: float | None) -> np.ndarray:
+    def process(self, poses: np.ndarray, next_beat_s: float | None, period_s: float | None = None) -> np.ndarray:
         """Model poses ``(k, J, 3)`` in → the poses ``(k, J, 3)`` shown on the dance clock; ``next_beat_s``: the
-        tracker's predicted next beat (s of audio) or None."""
+        tracker's predicted next beat (s of audio) or None; ``period_s``: its beat period (s; ``"pulse"``)."""
         poses = np.asarray(poses, np.float64)
         out = np.empty_like(poses)
         for j, p in enumerate(poses):
@@ -285,7 +297,11 @@ class BeatNudge:
                 continue
             rate = 1.0 + 0.1 * ((t - self.lag / 2) - self.tau - 1.0)  # drift back to half the allowed lag
             pending = [k for k in self.kinematic if k > self.tau]
-            if next_beat_s is not None and pending:
+            if self.mode == "pulse":
+                if next_beat_s is not None and period_s:
+                    phase = (t - next_beat_s * self.fps) / (period_s * self.fps)
+                    rate *= 1.0 - self.bound * np.cos(2 * np.pi * phase)
+            elif next_beat_s is not None and pending:
                 due = next_beat_s * self.fps  # output frame of the next music beat
                 if due > t:
                     rate = (pending[0] - self.tau) / (due - t + 1.0)
