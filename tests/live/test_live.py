@@ -36,7 +36,8 @@ def _online(y, *, preset, lookahead_s, block=512, tempogram_future="bar"):
 # ---------------------------------------------------------------------- config
 @pytest.mark.parametrize("field, value", [("block_s", 0.0), ("lookahead_s", -1.0), ("calm", 1.5),
                                           ("rate_bound", 0.6), ("smooth_hz", 0.0), ("seed", 1.5),
-                                          ("context_s", 1.0), ("max_lag_s", float("nan"))])
+                                          ("context_s", 1.0), ("max_lag_s", float("nan")),
+                                          ("beat_nudge", "push")])
 def test_config_rejects_bad_values(field, value):
     with pytest.raises(ParameterError, match=f"LiveConfig.{field}"):
         LiveConfig(**{field: value})
