@@ -12,10 +12,16 @@ from dataclasses import dataclass, fields
 from dancekit.errors import ParameterError
 from dancekit.features.online import TEMPOGRAM_FUTURES
 
-__all__ = ["LIVE_FAMILIES", "SMOOTHING", "LiveConfig"]
+__all__ = ["BEAT_NUDGE", "LIVE_FAMILIES", "SMOOTHING", "LiveConfig"]
 
 #: the model families that can dance live (:func:`dancekit.live.steppers.make_stepper` has a stepper for each)
 LIVE_FAMILIES = ("revolution", "music2dance")
+
+#: the beat nudge of each model family when ``LiveConfig.beat_nudge`` is None (another family: ``"target"``):
+#: music2dance's pulse (within its ±40 % warp bound) raised its validation BAS from 0.197 to 0.425 with its FIDs
+#: within 3.3 %; revolution's (±15 %) from 0.160 to 0.249 but put a song over the stillness bound twice
+#: (docs/research/live.md, rounds 14-15)
+BEAT_NUDGE = {"revolution": "target", "music2dance": "pulse"}
 
 #: how Music2Dance's sampled features may be smoothed live (``LiveConfig.sample_smoothing``)
 SMOOTHING = ("delay", "causal")
@@ -69,7 +75,8 @@ class LiveConfig:
     beat_nudge : how the beat alignment moves the dance's clock (:class:`dancekit.live.stages.BeatNudge`):
         ``"target"``, the model's next kinematic beat nudged onto the tracker's next beat, or ``"pulse"``, the
         rate slowest on each beat and fastest between two (the speed dips on the beats), both within
-        ``rate_bound``. Chosen on the validation songs (docs/research/live.md)
+        ``rate_bound``; None: the model family's (:data:`BEAT_NUDGE`). Chosen per family on the validation
+        songs (docs/research/live.md, rounds 14-15)
     jitter_cap : the checkpoint's jitter cap online (its ``stages.jitter_cap`` and ``genre_stats.jitter``): the
         smoothing's cut-off lowered until the dance's recent jitter is under the cap, the genres it follows read
         from the music heard so far by the checkpoint's ``genre_reader`` (a reader of the session's feature
@@ -93,7 +100,7 @@ class LiveConfig:
     seed: int = 0
     sample_smoothing: str = "delay"
     smoothing_hold_s: float | None = 0.08
-    beat_nudge: str = "target"
+    beat_nudge: str | None = None
     jitter_cap: bool = False
 
     #: lookahead (s) at which the online features equal the offline extractor's (the constant-Q support)
@@ -132,7 +139,7 @@ class LiveConfig:
         if self.tempogram_future not in TEMPOGRAM_FUTURES:
             raise ParameterError(f"LiveConfig.tempogram_future must be one of {TEMPOGRAM_FUTURES}, "
                                  f"got {self.tempogram_future!r}")
-        if self.beat_nudge not in ("target", "pulse"):
+        if self.beat_nudge not in (None, "target", "pulse"):
             raise ParameterError(f"LiveConfig.beat_nudge must be 'target' or 'pulse', got {self.beat_nudge!r}")
         if self.sample_smoothing not in SMOOTHING:
             raise ParameterError(f"LiveConfig.sample_smoothing must be 'delay' or 'causal', got {self.sample_smoothing!r}")

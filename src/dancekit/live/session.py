@@ -31,7 +31,7 @@ import numpy as np
 
 from dancekit.errors import AudioError, ParameterError
 from dancekit.features.online import OnlineFeatures
-from dancekit.live.config import LiveConfig
+from dancekit.live.config import BEAT_NUDGE, LiveConfig
 from dancekit.live.genre import OnlineGenreReader
 from dancekit.live.stages import BeatNudge, OnlineStages
 from dancekit.live.steppers import make_stepper
@@ -168,7 +168,9 @@ class LiveSession:
             self.notes.append("no jitter cap: the model has none, or no genre reader of its live features")
         #: the beat nudge's rate bound: the config's, or the offline warp's of the model
         self.rate_bound = c.rate_bound if c.rate_bound is not None else offline_rate_bound(self.pipe)
-        self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound, mode=c.beat_nudge) \
+        #: the beat nudge's way: the config's, or the model family's (``BEAT_NUDGE``)
+        self.beat_nudge = c.beat_nudge or BEAT_NUDGE.get(getattr(self.pipe, "family", None), "target")
+        self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound, mode=self.beat_nudge) \
             if self.rate_bound > 0 else None
         self.sinks = list(sinks or [])
         self.stats = SessionStats()

@@ -1,5 +1,6 @@
-"""The jitter cap live (issue 43): the genre read from the music heard so far, the bank of low-passes and
-their running jitter, the smoothing held under the cap, and the session's wiring."""
+"""The jitter cap and the beat nudge live (issue 43): the genre read from the music heard so far, the bank of
+low-passes and their running jitter, the smoothing held under the cap, the session's wiring, and each family's
+beat nudge."""
 
 from __future__ import annotations
 
@@ -151,3 +152,14 @@ def test_session_caps_music2dance_from_the_genre_read(m2d):
     assert rev.genre_reader is None and rev.stages.bank is None
     with pytest.raises(ParameterError, match="LiveConfig.jitter_cap"):
         LiveConfig(jitter_cap=1)
+
+
+def test_each_family_dances_its_beat_nudge(m2d):
+    """beat_nudge None: music2dance pulses on the beat, revolution nudges its kinematic beats (each chosen on the
+    validation songs); a nudge asked for by name wins."""
+    from dancekit.live.session import LiveSession
+
+    assert LiveSession("music2dance", pipe=m2d).nudge.mode == "pulse"
+    assert LiveSession("revolution").nudge.mode == "target"
+    assert LiveSession("music2dance", pipe=m2d, config=LiveConfig(beat_nudge="target")).nudge.mode == "target"
+    assert LiveSession("revolution", config=LiveConfig(beat_nudge="pulse")).nudge.mode == "pulse"
