@@ -746,6 +746,34 @@ def test_beat_nudge_pulse_puts_the_speed_dips_on_the_beats():
         BeatNudge(fps=fps, mode="push")
 
 
+def test_beat_nudge_pulse_moving_spares_a_dancer_near_stillness():
+    """``"pulse_moving"``: a joint circling at 60 cm/s (body-relative, 6× the still second's 10 cm/s) gets the
+    whole pulse, the same poses as ``"pulse"`` once a second of speeds is known; at 8 cm/s (under the still
+    second) none: the rate is the clock's drift alone, as with no beat predicted."""
+    from dancekit.live.stages import BeatNudge
+
+    fps, T = 25.0, 300
+    t = np.arange(T) / fps
+    beats = np.arange(0.0, 15, 0.5)
+
+    def run(mode, speed, beat=True):
+        pos = np.zeros((T, 2, 3))
+        w = speed / 30.0  # rad/s on a 30-cm circle
+        pos[:, 1, 0], pos[:, 1, 2] = 30 * np.cos(w * t), 30 * np.sin(w * t)
+        nudge = BeatNudge(fps=fps, rate_bound=0.15, mode=mode, root=0, unit_scale=0.01)
+        out = [nudge.process(pos[i : i + 1], beats[beats > t[i]][0] if beat else None, 0.5)[0] for i in range(T)]
+        return np.stack(out), nudge
+
+    fast, _ = run("pulse_moving", 60.0)
+    whole, _ = run("pulse", 60.0)
+    np.testing.assert_allclose(fast[40:], whole[40:], atol=1e-6)
+    _, slow = run("pulse_moving", 8.0)
+    _, drift = run("pulse_moving", 8.0, beat=False)  # no beat: the clock's drift alone
+    np.testing.assert_allclose(slow.rates[30:], drift.rates[30:], atol=1e-9)
+    _, pulsed = run("pulse", 8.0)
+    assert np.ptp(pulsed.rates[30:]) > 0.25
+
+
 def test_a_session_stopped_before_any_audio_ends_with_no_frames():
     """A client that starts and stops without sending audio (``dancekit serve``'s socket, an empty stdin): the
     session's end makes no frame and does not fail."""

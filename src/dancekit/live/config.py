@@ -74,8 +74,9 @@ class LiveConfig:
         songs (docs/research/live.md)
     beat_nudge : how the beat alignment moves the dance's clock (:class:`dancekit.live.stages.BeatNudge`):
         ``"target"``, the model's next kinematic beat nudged onto the tracker's next beat, or ``"pulse"``, the
-        rate slowest on each beat and fastest between two (the speed dips on the beats), both within
-        ``rate_bound``; None: the model family's (:data:`BEAT_NUDGE`). Chosen per family on the validation
+        rate slowest on each beat and fastest between two (the speed dips on the beats), or ``"pulse_moving"``,
+        the pulse only while the dancer moves (shallower under 0.2 m/s, none at 0.1), all within ``rate_bound``;
+        None: the model family's (:data:`BEAT_NUDGE`). Chosen per family on the validation
         songs (docs/research/live.md, rounds 14-15)
     jitter_cap : the checkpoint's jitter cap online (its ``stages.jitter_cap`` and ``genre_stats.jitter``): the
         smoothing's cut-off lowered until the dance's recent jitter is under the cap, the genres it follows read
@@ -139,8 +140,9 @@ class LiveConfig:
         if self.tempogram_future not in TEMPOGRAM_FUTURES:
             raise ParameterError(f"LiveConfig.tempogram_future must be one of {TEMPOGRAM_FUTURES}, "
                                  f"got {self.tempogram_future!r}")
-        if self.beat_nudge not in (None, "target", "pulse"):
-            raise ParameterError(f"LiveConfig.beat_nudge must be 'target' or 'pulse', got {self.beat_nudge!r}")
+        if self.beat_nudge not in (None, "target", "pulse", "pulse_moving"):
+            raise ParameterError(f"LiveConfig.beat_nudge must be 'target', 'pulse' or 'pulse_moving', "
+                                 f"got {self.beat_nudge!r}")
         if self.sample_smoothing not in SMOOTHING:
             raise ParameterError(f"LiveConfig.sample_smoothing must be 'delay' or 'causal', got {self.sample_smoothing!r}")
 

@@ -170,7 +170,8 @@ class LiveSession:
         self.rate_bound = c.rate_bound if c.rate_bound is not None else offline_rate_bound(self.pipe)
         #: the beat nudge's way: the config's, or the model family's (``BEAT_NUDGE``)
         self.beat_nudge = c.beat_nudge or BEAT_NUDGE.get(getattr(self.pipe, "family", None), "target")
-        self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound, mode=self.beat_nudge) \
+        self.nudge = BeatNudge(fps=self.fps, rate_bound=self.rate_bound, mode=self.beat_nudge,
+                               root=self.pipe.skeleton.root, unit_scale=float(self.pipe.skeleton.unit_scale)) \
             if self.rate_bound > 0 else None
         self.sinks = list(sinks or [])
         self.stats = SessionStats()

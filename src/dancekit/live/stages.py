@@ -50,7 +50,10 @@ __all__ = ["NUDGES", "BeatNudge", "JitterBank", "OnlineStages", "RestBones"]
 #: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
 FLOOR_PERCENTILE = 5.0
 #: the beat nudge's ways of following the beat (:class:`BeatNudge`)
-NUDGES = ("target", "pulse")
+NUDGES = ("target", "pulse", "pulse_moving")
+#: issue 15's still second: a body-relative mean joint speed under this (m/s); ``"pulse_moving"`` is full depth
+#: from twice it on
+STILL_SPEED = 0.10
 #: time constant (s) of the running mean pose that calming pulls towards
 MEAN_POSE_S = 2.0
 #: time constant (s) of the running jitter each cut-off of the jitter cap's bank is judged by
@@ -251,7 +254,10 @@ class BeatNudge:
       speed) lands on the tracker's predicted next music beat;
     * ``"pulse"``: the rate follows the beat, ``1 − rate_bound · cos(2π (t − b) / P)`` (b the predicted next
       beat, P the tracker's period): slowest on each beat and fastest between two, so that the dance's speed
-      dips on the beats (its kinematic beats come to them) while its clock keeps the music's pace on average.
+      dips on the beats (its kinematic beats come to them) while its clock keeps the music's pace on average;
+    * ``"pulse_moving"``: the pulse, its depth ``rate_bound`` only while the dancer moves: scaled by
+      ``(s − 0.1) / 0.1`` (0 to 1), s the model's body-relative mean joint speed over the last second (m/s) and
+      0.1 m/s issue 15's still second (:data:`STILL_SPEED`), so that a dancer near stillness is not made stiller.
 
     The dance clock never runs ahead of the newest frame the model has made and never falls more than
     ``max_lag_s`` behind it (between beats it drifts back to half of that, so it has room both ways); a pose
@@ -263,13 +269,17 @@ class BeatNudge:
     fps : frames per second
     rate_bound : the rate stays within ``1 ± rate_bound``
     max_lag_s : how far the dance clock may fall behind the model (s)
-    mode : ``"target"`` or ``"pulse"`` (:data:`NUDGES`)
+    mode : ``"target"``, ``"pulse"`` or ``"pulse_moving"`` (:data:`NUDGES`)
+    root, unit_scale : the skeleton's root joint and metres per unit (``"pulse_moving"``'s body-relative speed)
     """
 
-    def __init__(self, *, fps: float, rate_bound: float = 0.15, max_lag_s: float = 0.24, mode: str = "target"):
+    def __init__(self, *, fps: float, rate_bound: float = 0.15, max_lag_s: float = 0.24, mode: str = "target",
+                 root: int = 0, unit_scale: float = 1.0):
         if mode not in NUDGES:
             raise ParameterError(f"the beat nudge's mode must be one of {NUDGES}, got {mode!r}")
         self.mode = mode
+        self.root, self.scale = int(root), float(unit_scale)
+        self.moving: deque[float] = deque(maxlen=max(1, int(round(fps))))  # body-relative speeds (m/s), last 1 s
         self.fps, self.bound = float(fps), float(rate_bound)
         self.lag = max(1, int(round(max_lag_s * fps)))
         self.buf: deque[np.ndarray] = deque(maxlen=self.lag + 3)  # the newest model frames
@@ -287,6 +297,9 @@ class BeatNudge:
         for j, p in enumerate(poses):
             if self.buf:
                 self.speeds.append(float(np.linalg.norm(p - self.buf[-1], axis=-1).mean()))
+                if self.mode == "pulse_moving":
+                    step = (p - p[self.root]) - (self.buf[-1] - self.buf[-1][self.root])
+                    self.moving.append(float(np.linalg.norm(step, axis=-1).mean()) * self.fps * self.scale)
                 if len(self.speeds) == 3 and self.speeds[1] < self.speeds[0] and self.speeds[1] <= self.speeds[2]:
                     self.kinematic.append(self.n - 1)  # frame n - 1 was the slowest of its neighbours
             self.buf.append(p)
@@ -297,10 +310,13 @@ class BeatNudge:
                 continue
             rate = 1.0 + 0.1 * ((t - self.lag / 2) - self.tau - 1.0)  # drift back to half the allowed lag
             pending = [k for k in self.kinematic if k > self.tau]
-            if self.mode == "pulse":
+            if self.mode != "target":
                 if next_beat_s is not None and period_s:
                     phase = (t - next_beat_s * self.fps) / (period_s * self.fps)
-                    rate *= 1.0 - self.bound * np.cos(2 * np.pi * phase)
+                    depth = self.bound
+                    if self.mode == "pulse_moving":
+                        depth *= min(1.0, max(0.0, float(np.mean(self.moving)) / STILL_SPEED - 1.0))
+                    rate *= 1.0 - depth * np.cos(2 * np.pi * phase)
             elif next_beat_s is not None and pending:
                 due = next_beat_s * self.fps  # output frame of the next music beat
                 if due > t:
