@@ -161,5 +161,7 @@ def test_the_live_page_dances_to_a_file_played_in_the_browser(server, tmp_path):
                                  " disabled: document.getElementById('start').disabled})")
         finally:
             browser.close()
-    assert 100 <= done["frames"] <= 151 and 4.0 <= done["t"] <= 6.1 and done["disabled"] is False
+    # 6 s is 151 frames; the page may send a few 40-ms blocks of silence before the song starts playing (it plays
+    # once the model is ready) or before its end is signalled, more on a loaded machine: up to 6.4 s
+    assert 100 <= done["frames"] <= 161 and 4.0 <= done["t"] <= 6.4 and done["disabled"] is False
     assert done["music"] > 50  # danced to the song, not calmed as in silence
