@@ -12,7 +12,7 @@ from dataclasses import dataclass, fields
 from dancekit.errors import ParameterError
 from dancekit.features.online import TEMPOGRAM_FUTURES
 
-__all__ = ["BEAT_NUDGE", "LIVE_FAMILIES", "SMOOTHING", "LiveConfig"]
+__all__ = ["BEAT_NUDGE", "LIVE_FAMILIES", "NUDGES", "SMOOTHING", "LiveConfig"]
 
 #: the model families that can dance live (:func:`dancekit.live.steppers.make_stepper` has a stepper for each)
 LIVE_FAMILIES = ("revolution", "music2dance")
@@ -22,6 +22,9 @@ LIVE_FAMILIES = ("revolution", "music2dance")
 #: within 3.3 %; revolution's (±15 %) from 0.160 to 0.249 but put a song over the stillness bound twice
 #: (docs/research/live.md, rounds 14-15)
 BEAT_NUDGE = {"revolution": "target", "music2dance": "pulse"}
+
+#: the beat nudge's ways of following the beat (``LiveConfig.beat_nudge``, :class:`dancekit.live.stages.BeatNudge`)
+NUDGES = ("target", "pulse", "pulse_moving")
 
 #: how Music2Dance's sampled features may be smoothed live (``LiveConfig.sample_smoothing``)
 SMOOTHING = ("delay", "causal")
@@ -140,9 +143,8 @@ class LiveConfig:
         if self.tempogram_future not in TEMPOGRAM_FUTURES:
             raise ParameterError(f"LiveConfig.tempogram_future must be one of {TEMPOGRAM_FUTURES}, "
                                  f"got {self.tempogram_future!r}")
-        if self.beat_nudge not in (None, "target", "pulse", "pulse_moving"):
-            raise ParameterError(f"LiveConfig.beat_nudge must be 'target', 'pulse' or 'pulse_moving', "
-                                 f"got {self.beat_nudge!r}")
+        if self.beat_nudge is not None and self.beat_nudge not in NUDGES:
+            raise ParameterError(f"LiveConfig.beat_nudge must be one of {NUDGES} or None, got {self.beat_nudge!r}")
         if self.sample_smoothing not in SMOOTHING:
             raise ParameterError(f"LiveConfig.sample_smoothing must be 'delay' or 'causal', got {self.sample_smoothing!r}")
 

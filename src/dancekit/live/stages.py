@@ -40,17 +40,15 @@ from collections import deque
 import numpy as np
 
 from dancekit.errors import ParameterError
-from dancekit.live.config import LiveConfig
+from dancekit.live.config import NUDGES, LiveConfig
 from dancekit.motion.analysis import horizontal_axes, up_sign
 from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner, turn_and_move
 from dancekit.motion.jitter import CAP_CUTOFFS_HZ
 
-__all__ = ["NUDGES", "BeatNudge", "JitterBank", "OnlineStages", "RestBones"]
+__all__ = ["BeatNudge", "JitterBank", "OnlineStages", "RestBones"]
 
 #: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
 FLOOR_PERCENTILE = 5.0
-#: the beat nudge's ways of following the beat (:class:`BeatNudge`)
-NUDGES = ("target", "pulse", "pulse_moving")
 #: issue 15's still second: a body-relative mean joint speed under this (m/s); ``"pulse_moving"`` is full depth
 #: from twice it on
 STILL_SPEED = 0.10
@@ -269,7 +267,7 @@ class BeatNudge:
     fps : frames per second
     rate_bound : the rate stays within ``1 ± rate_bound``
     max_lag_s : how far the dance clock may fall behind the model (s)
-    mode : ``"target"``, ``"pulse"`` or ``"pulse_moving"`` (:data:`NUDGES`)
+    mode : ``"target"``, ``"pulse"`` or ``"pulse_moving"`` (:data:`dancekit.live.config.NUDGES`)
     root, unit_scale : the skeleton's root joint and metres per unit (``"pulse_moving"``'s body-relative speed)
     """
 
@@ -309,7 +307,6 @@ class BeatNudge:
                 out[j] = p
                 continue
             rate = 1.0 + 0.1 * ((t - self.lag / 2) - self.tau - 1.0)  # drift back to half the allowed lag
-            pending = [k for k in self.kinematic if k > self.tau]
             if self.mode != "target":
                 if next_beat_s is not None and period_s:
                     phase = (t - next_beat_s * self.fps) / (period_s * self.fps)
@@ -317,9 +314,10 @@ class BeatNudge:
                     if self.mode == "pulse_moving":
                         depth *= min(1.0, max(0.0, float(np.mean(self.moving)) / STILL_SPEED - 1.0))
                     rate *= 1.0 - depth * np.cos(2 * np.pi * phase)
-            elif next_beat_s is not None and pending:
+            elif next_beat_s is not None:
+                pending = [k for k in self.kinematic if k > self.tau]
                 due = next_beat_s * self.fps  # output frame of the next music beat
-                if due > t:
+                if pending and due > t:
                     rate = (pending[0] - self.tau) / (due - t + 1.0)
             rate = min(1.0 + self.bound, max(1.0 - self.bound, rate))
             self.tau = min(float(t), max(float(t - self.lag), self.tau + rate))
