@@ -25,6 +25,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, required=True)
     ap.add_argument("--target", required=True)
     ap.add_argument("--pulse", required=True)
+    ap.add_argument("--model", default="revolution", help="the model that danced (the caption)")
     ap.add_argument("--start", type=float, default=30.0)
     ap.add_argument("--seconds", type=float, default=8.0)
     ap.add_argument("-o", "--output", required=True)
@@ -60,7 +61,7 @@ def main() -> None:
                           outline=(220, 40, 40), width=2)
         d.text((pad, top - 18), f"{label}: mean joint speed (m/s, 0 to {vmax:.2f}); blue: music beats; red: kinematic beats",
                fill=(0, 0, 0))
-    d.text((pad, H - 20), f"{a.song}, seed {a.seed}, live revolution, {t0:g}-{t1:g} s", fill=(0, 0, 0))
+    d.text((pad, H - 20), f"{a.song}, seed {a.seed}, live {a.model}, {t0:g}-{t1:g} s", fill=(0, 0, 0))
     img.save(a.output)
 
 

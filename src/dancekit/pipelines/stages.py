@@ -58,9 +58,9 @@ from dancekit.pipelines.config import (  # noqa: F401 (the defaults, re-exported
 )
 
 __all__ = ["NOISY_RATIO", "SMOOTH_FILTER", "SMOOTH_TARGET", "SMOOTH_TARGET_NOISY", "STAGES", "STAGE_NAMES", "Song",
-           "StageContext", "beat_sync", "clean_up", "finish", "foot_lock", "genre_jitter_cap", "genre_jitter_table", "jitter_cap_for",
-           "lift_energy", "plausible_jitter_cap", "reground", "seed_trace", "settle", "smooth", "smoothing_target",
-           "song_beats_for", "edit_dance", "stage_edit"]
+           "StageContext", "beat_sync", "clean_up", "finish", "foot_lock", "genre_jitter_cap", "genre_jitter_table",
+           "jitter_cap_for", "lift_energy", "plausible_jitter_cap", "reground", "seed_trace", "settle", "smooth",
+           "smoothing_target", "song_beats_for", "edit_dance", "stage_edit"]
 
 #: The cut-off (Hz) of the light low-pass after the foot lock (:func:`settle`); 0: none.
 SETTLE_HZ = 0.0
