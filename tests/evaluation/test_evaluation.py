@@ -352,6 +352,35 @@ def test_ablate_stages_ends_at_the_dances_evaluate_scores(tiny_checkpoint, data_
             assert row["mean_term"] + row["cov_term"] == pytest.approx(row["fid"])
 
 
+def test_ablate_stages_dances_the_genre_evaluate_asks_for(tiny_checkpoint, data_with_audio, tmp_path, monkeypatch):
+    """--ablate-stages with --genre: the ablation's dances are asked for the same genre as the scored ones (they
+    were danced as "auto" whatever --genre said)."""
+    import dancekit.pipelines as pipelines
+
+    asked = []
+    real_load = pipelines.load_pipeline
+
+    def load(*args, **kwargs):
+        pipe = real_load(*args, **kwargs)
+        real_dances = pipe.dances
+
+        def dances(*a, **kw):
+            asked.append(kw.get("genre", "<not given>"))
+            return real_dances(*a, **kw)
+        pipe.dances = dances
+        return pipe
+    monkeypatch.setattr(pipelines, "load_pipeline", load)
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--checkpoint", str(tiny_checkpoint), "--data", str(data_with_audio), "--split", "val",
+                 "--seeds", "0-1", "--genre", "none", "--ablate-stages", "-o", str(out), "--quiet", "--no-style",
+                 "--segment-seconds", "1"]) == 0
+    assert len(asked) >= 2 and set(asked) == {"none"}
+    report = json.loads((out / "report.json").read_text())
+    assert report["stage_ablation"]["genre"] == "none"
+    assert report["stage_ablation"]["fid_k"]["beat_sync"]["fid"] == pytest.approx(report["metrics"]["fid_k"],
+                                                                                   rel=1e-9)
+
+
 def test_fid_against_its_own_reference_is_zero_and_grows_when_scaled():
     """Known answers of the per-stage FID: dances equal to the reference score 0 (up to the sqrtm's rounding);
     the same dances three times as large (and fast) score far from it, through the features' mean too."""

@@ -46,16 +46,20 @@ def fid_against(reference: Sequence[np.ndarray], dances: Sequence[np.ndarray], *
     return {"fid": total, "mean_term": mean, "cov_term": total - mean}
 
 
-def stage_dances(pipe: Any, data: Any, split: str, *, seeds: int = 5, first_seed: int = 0) -> dict[str, list]:
+def stage_dances(pipe: Any, data: Any, split: str, *, seeds: int = 5, first_seed: int = 0,
+                 genre: str = "auto") -> dict[str, list]:
     """Per stage (``"raw"`` first, then :data:`~dancekit.pipelines.stages.STAGE_NAMES`), the positions
     ``(T, J, 3)`` of every dance of ``split`` after that stage, songs in split order, seeds
-    ``first_seed .. first_seed + seeds - 1`` of each song in turn.
+    ``first_seed .. first_seed + seeds - 1`` of each song in turn, each danced as ``genre`` asks
+    (:func:`dancekit.evaluation.generate.requested_genre`: ``"auto"``, ``"none"``, ``"true"`` or a genre name,
+    as ``dancekit evaluate --genre``).
 
     ``pipe`` is a dance pipeline with ``dances(audio, seeds=, start=, end=, beat_sync=, cleanup=)`` and
     ``stage_options()`` (its checkpoint's :class:`~dancekit.pipelines.config.StageConfig`; each dance's jitter
     cap follows from it and the dance's genre posterior, as in ``dances``); ``data`` a
     :class:`~dancekit.data.PreparedData`.
     """
+    from dancekit.evaluation.generate import requested_genre
     from dancekit.pipelines import stages as S
 
     if seeds < 1:
@@ -67,7 +71,7 @@ def stage_dances(pipe: Any, data: Any, split: str, *, seeds: int = 5, first_seed
         ref = data.audio(name)
         beats = S.song_beats_for(ref.path, start=ref.start, end=ref.end)
         raw = pipe.dances(ref.path, seeds=list(range(first_seed, first_seed + seeds)), start=ref.start,
-                          end=ref.end, beat_sync=False, cleanup=False)
+                          end=ref.end, genre=requested_genre(genre, data.genre(name)), beat_sync=False, cleanup=False)
         for r in raw:
             seen: dict[str, Any] = {}
 
@@ -97,18 +101,19 @@ def fid_by_stage(dances: Mapping[str, Sequence[np.ndarray]], reference: Sequence
 
 def stage_ablation(pipe: Any, data: Any, split: str, *, seeds: int = 5, first_seed: int = 0,
                    segment_seconds: float | None = 10.0, bug_compatible: bool = False,
-                   reference: str = "train") -> dict:
+                   reference: str = "train", genre: str = "auto") -> dict:
     """:func:`fid_by_stage` of the dances of ``split`` against real dances, with the count of dances; see the
     module docstring. ``reference``: ``"train"`` (the training dances, as ``dancekit evaluate --data``),
-    ``"all"`` (every dance of the dataset) or ``"ref"`` (the real dances of ``split``)."""
+    ``"all"`` (every dance of the dataset) or ``"ref"`` (the real dances of ``split``); ``genre``: see
+    :func:`stage_dances`."""
     if reference not in ("train", "all", "ref"):
         raise ParameterError(f"reference must be 'train', 'all' or 'ref', got {reference!r}")
-    dances = stage_dances(pipe, data, split, seeds=seeds, first_seed=first_seed)
+    dances = stage_dances(pipe, data, split, seeds=seeds, first_seed=first_seed, genre=genre)
     names = data.names() if reference == "all" else data.names(split if reference == "ref" else "train")
     ref = [np.asarray(data.motion(n).to_positions(), np.float64) for n in names]
     table = fid_by_stage(dances, ref, fps=data.fps, skeleton=data.skeleton, segment_seconds=segment_seconds,
                          bug_compatible=bug_compatible)
-    return {"split": split, "seeds": seeds, "first_seed": first_seed, "reference": reference,
+    return {"split": split, "seeds": seeds, "first_seed": first_seed, "reference": reference, "genre": genre,
             "dances": len(dances["raw"]), **table}
 
 

@@ -186,7 +186,7 @@ def evaluate_checkpoint(
         report["stage_ablation"] = stage_ablation(pipe, prepared, split, seeds=seeds, first_seed=first_seed,
                                                   segment_seconds=s.segment_seconds,
                                                   bug_compatible=s.bug_compatible,
-                                                  reference=s.fid_reference or "train")
+                                                  reference=s.fid_reference or "train", genre=genre)
     if beat_sync:
         report["beat_sync"] = _beat_sync_section(pred, unwarped, prepared, report)
     report["generation"] = {"checkpoint": str(checkpoint), "split": split, "seeds": seeds, "first_seed": first_seed,
