@@ -163,3 +163,102 @@ def test_each_family_dances_its_beat_nudge(m2d):
     assert LiveSession("revolution").nudge.mode == "target"
     assert LiveSession("music2dance", pipe=m2d, config=LiveConfig(beat_nudge="target")).nudge.mode == "target"
     assert LiveSession("revolution", config=LiveConfig(beat_nudge="pulse")).nudge.mode == "pulse"
+
+
+def _bent_stance(sk, T, fps):
+    """The rest pose with the hips 5 cm lower and the knees bent forward over feet that stay where they were
+    (each leg solved by two-bone IK toward the pose's front), lowest joint on the floor: a stance whose feet
+    have room to be held where they were planted."""
+    from dancekit.motion.analysis import horizontal_axes, leg_chains, rest_pose
+    from dancekit.motion.footlock import two_bone_ik
+
+    p = rest_pose(sk)
+    up = sk.up_index
+    p[:, up] -= p[:, up].min()
+    legs = leg_chains(sk)
+    feet = {j for _h, _k, ankle, below in legs for j in (ankle, *below)}
+    knees = {k for _h, k, _a, _b in legs}
+    body = [j for j in range(sk.num_joints) if j not in feet | knees]
+    p[body, up] -= 5.0
+    a, _b = horizontal_axes(sk)
+    for hip, knee, ankle, _below in legs:
+        pole = np.zeros((1, 3))
+        pole[0, a] = 1.0
+        p[knee] = two_bone_ik(p[hip][None], p[knee][None], p[ankle][None], p[ankle][None], pole=pole)[0][0]
+    return np.repeat(p[None], T, axis=0), legs
+
+
+def test_online_foot_lock_holds_a_sliding_foot_where_it_was_planted():
+    """A stance whose left foot slides on the floor (±8 cm, 0.5 Hz: under the contact speed) while the rest
+    stands: from the third frame (the contact's 0.12 s) the left ankle stays, horizontally, exactly where it was
+    shown then; thigh and shin keep their lengths; every joint outside the left leg's knee and foot is the
+    input's; a lifted foot is left alone; the state carries across blocks (blocks of 7 = one call)."""
+    from dancekit.live.stages import OnlineFootLock
+    from dancekit.motion.analysis import horizontal_axes
+    from dancekit.pipelines import load_pipeline
+
+    sk = load_pipeline("revolution").skeleton
+    fps, T = 25.0, 100
+    p, legs = _bent_stance(sk, T, fps)
+    a, b = horizontal_axes(sk)
+    hip, knee, ankle, below = legs[0]
+    foot = [ankle, *below]
+    t = np.arange(T) / fps
+    p[:, foot, a] += 8.0 * np.sin(2 * np.pi * 0.5 * t)[:, None]  # cm; at most 0.25 m/s
+    out = OnlineFootLock(sk, fps=fps).process(p)
+    np.testing.assert_allclose(out[2:, ankle][:, [a, b]], np.repeat(p[2:3, ankle][:, [a, b]], T - 2, axis=0),
+                               atol=1e-6)
+    assert np.abs(out[:, ankle, a] - p[:, ankle, a]).max() > 9.5  # held against the slide (8 + 8 sin(0.08 pi) cm)
+    for j0, j1 in ((hip, knee), (knee, ankle)):
+        np.testing.assert_allclose(np.linalg.norm(out[:, j1] - out[:, j0], axis=1),
+                                   np.linalg.norm(p[:, j1] - p[:, j0], axis=1), atol=1e-6)
+    others = [j for j in range(sk.num_joints) if j not in (knee, *foot)]
+    np.testing.assert_array_equal(out[:, others], p[:, others])
+    lock = OnlineFootLock(sk, fps=fps)
+    np.testing.assert_allclose(np.concatenate([lock.process(p[k : k + 7]) for k in range(0, T, 7)]), out, atol=1e-9)
+    from dancekit.motion.analysis import rest_pose
+
+    standing = np.repeat(rest_pose(sk)[None], T, axis=0)  # straight legs, still feet: held, nothing moved
+    standing[..., sk.up_index] -= standing[0, :, sk.up_index].min()
+    for h, k, an, _below in legs:  # each knee on its hip-ankle line: the leg exactly straight
+        standing[:, k] = standing[:, h] + 0.5 * (standing[:, an] - standing[:, h])
+    lock = OnlineFootLock(sk, fps=fps)
+    np.testing.assert_array_equal(lock.process(standing), standing)
+    assert lock.held_frames == [T - 2, T - 2]
+    lifted = p.copy()
+    lifted[:, foot, sk.up_index] += 10.0  # 10 cm over the floor: no contact
+    np.testing.assert_array_equal(OnlineFootLock(sk, fps=fps).process(lifted), lifted)
+
+
+def test_online_foot_lock_lets_a_drifting_foot_go_without_a_jump():
+    """A foot gliding one way at 0.3 m/s (slow and low: a contact) is held until the model's foot is 20 cm
+    from it, then handed back over 0.2 s and planted again: it is held again and again, never more than 20 cm
+    (plus a frame's glide) from the model's, and its steps are at most the glide's plus the fade's steepest step
+    (20 cm × 1.5 / 5 frames); between holds it reaches the model's foot."""
+    from dancekit.live.stages import OnlineFootLock
+    from dancekit.motion.analysis import horizontal_axes
+    from dancekit.pipelines import load_pipeline
+
+    sk = load_pipeline("revolution").skeleton
+    fps, T = 25.0, 100
+    p, legs = _bent_stance(sk, T, fps)
+    a, _b = horizontal_axes(sk)
+    _hip, _knee, ankle, below = legs[0]
+    p[:, [ankle, *below], a] += 30.0 * (np.arange(T) / fps)[:, None]  # cm: 0.3 m/s
+    lock = OnlineFootLock(sk, fps=fps)
+    out = lock.process(p)
+    gap = np.abs(out[:, ankle, a] - p[:, ankle, a])
+    assert gap.max() <= 20.0 + 30.0 / fps + 1e-9
+    steps = np.abs(np.diff(out[:, ankle, a]))
+    assert steps.max() <= 30.0 / fps + (20.0 + 30.0 / fps) * 1.5 / 8 + 1e-9
+    still = steps < 1e-9
+    assert still.sum() > 0.4 * T  # held for much of the time
+    holds = np.flatnonzero(np.diff(still.astype(int)) == 1)  # a still run starting: a new hold
+    assert len(holds) >= 2 and gap[holds + 1].max() < 20.0  # planted again, nearer the model's foot
+    assert 0 < lock.held_frames[0] < T and lock.held_frames[1] == T - 2  # the right foot (still) held throughout
+
+
+def test_live_config_foot_lock_is_a_flag():
+    assert LiveConfig(foot_lock=True).foot_lock
+    with pytest.raises(ParameterError, match="LiveConfig.foot_lock must be true or false"):
+        LiveConfig(foot_lock="yes")

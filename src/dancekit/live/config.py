@@ -85,6 +85,8 @@ class LiveConfig:
         smoothing's cut-off lowered until the dance's recent jitter is under the cap, the genres it follows read
         from the music heard so far by the checkpoint's ``genre_reader`` (a reader of the session's feature
         preset; a genre asked for by name: its own). A model without them is not capped.
+    foot_lock : hold every planted foot where it was planted, causally (:class:`dancekit.live.stages.OnlineFootLock`:
+        the offline lock's contact thresholds, no lookahead); the legs only change
     """
 
     block_s: float = 0.04
@@ -106,6 +108,7 @@ class LiveConfig:
     smoothing_hold_s: float | None = 0.08
     beat_nudge: str | None = None
     jitter_cap: bool = False
+    foot_lock: bool = False
 
     #: lookahead (s) at which the online features equal the offline extractor's (the constant-Q support)
     EXACT_LOOKAHEAD_S = 1.0
@@ -136,8 +139,9 @@ class LiveConfig:
                 continue
             if not ok(number(name)):
                 raise ParameterError(f"LiveConfig.{name} must be in {ranges[name]}, got {getattr(self, name)!r}")
-        if not isinstance(self.jitter_cap, bool):
-            raise ParameterError(f"LiveConfig.jitter_cap must be true or false, got {self.jitter_cap!r}")
+        for flag in ("jitter_cap", "foot_lock"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ParameterError(f"LiveConfig.{flag} must be true or false, got {getattr(self, flag)!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ParameterError(f"LiveConfig.seed must be an integer, got {self.seed!r}")
         if self.tempogram_future not in TEMPOGRAM_FUTURES:

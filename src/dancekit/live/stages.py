@@ -24,6 +24,13 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
    stays (a rise shows up to 0.2 s late in the offset: the lowest joint then stands over the floor by what it
    rose in the last 0.2 s).
 
+6. **foot lock** (``LiveConfig.foot_lock``; offline: the ``foot_lock`` stage, :func:`dancekit.motion.footlock.lock_feet`,
+   which looks ±1 s around each contact): :class:`OnlineFootLock`, causal — a foot that has been low and slow
+   for :data:`~dancekit.motion.footlock.MIN_CONTACT_S` is held where it is shown, the leg solved to it by
+   :func:`~dancekit.motion.footlock.two_bone_ik`, until it lifts, speeds up or drifts
+   :data:`~dancekit.motion.footlock.MAX_DRIFT_M` from the model's foot; then it is handed back over
+   :data:`LOCK_RELEASE_S`.
+
 With a jitter cap (offline: the ``jitter_cap`` stage, a low-pass whose cut-off is the highest that holds the
 dance's jitter under a cap, m/s), the smoothing's cut-off is not fixed: a bank of one-poles at the offline
 cap's cut-offs (:data:`~dancekit.motion.jitter.CAP_CUTOFFS_HZ`) runs beside it, each one's jitter (the
@@ -41,11 +48,21 @@ import numpy as np
 
 from dancekit.errors import ParameterError
 from dancekit.live.config import NUDGES, LiveConfig
-from dancekit.motion.analysis import horizontal_axes, up_sign
+from dancekit.motion.analysis import heights, horizontal_axes, leg_chains, up_sign
 from dancekit.motion.cleanup import GROUND_SMOOTH_S, GROUND_WINDOW_S, RootPathTurner, turn_and_move
+from dancekit.motion.footlock import (
+    BLEND_S,
+    CONTACT_HEIGHT_OFF_M,
+    CONTACT_HEIGHT_ON_M,
+    CONTACT_SPEED_OFF,
+    CONTACT_SPEED_ON,
+    MAX_DRIFT_M,
+    MIN_CONTACT_S,
+    two_bone_ik,
+)
 from dancekit.motion.jitter import CAP_CUTOFFS_HZ
 
-__all__ = ["BeatNudge", "JitterBank", "OnlineStages", "RestBones"]
+__all__ = ["BeatNudge", "JitterBank", "OnlineFootLock", "OnlineStages", "RestBones"]
 
 #: the floor is this percentile of the lowest foot's height over the window (the offline floor curve's)
 FLOOR_PERCENTILE = 5.0
@@ -58,6 +75,12 @@ MEAN_POSE_S = 2.0
 CAP_JITTER_S = 2.0
 #: time constant (s) of the smoothing cut-off's glide towards the one the jitter cap chooses (in log-frequency)
 CAP_GLIDE_S = 0.5
+#: the online foot lock hands a released foot back to the model over this long (s; a smoothstep of the offset):
+#: the offline lock's hand-over
+LOCK_RELEASE_S = BLEND_S
+#: a held foot whose leg, straight, falls short of it by more than this (m) is let go; less, and the leg reaches
+#: as far as it can toward it (a standing dancer's legs are nearly straight: the foot then slides that little)
+LOCK_REACH_SLACK_M = 0.02
 
 
 class JitterBank:
@@ -143,6 +166,103 @@ class RestBones:
         return out
 
 
+class OnlineFootLock:
+    """A causal foot lock: world positions ``(k, J, 3)`` (the skeleton's units, the floor at height 0) → the
+    same with every planted foot held, frame by frame, state carried from call to call.
+
+    A foot (ankle and the joints below it, :func:`~dancekit.motion.analysis.leg_chains`) is planted once it has
+    been lower than ``height_on`` metres and slower than ``speed_on`` m/s (its mean joint's horizontal speed
+    from the frame before) for ``min_contact_s``; the contact thresholds are the offline lock's
+    (:func:`~dancekit.motion.footlock.foot_contacts`). From then its ankle is held, horizontally, where the
+    shown ankle was (no jump: the hold starts where the foot is seen), the vertical the model's; the leg is
+    solved to it (:func:`~dancekit.motion.footlock.two_bone_ik`, the hip fixed, the bones' lengths kept, the
+    knee on its side) and the joints below the ankle follow it rigidly. The hold ends when the foot rises above
+    ``height_off`` or moves faster than ``speed_off``, when the model's ankle is ``max_drift_m`` away from the
+    held one, or when the straight leg falls short of it by more than :data:`LOCK_REACH_SLACK_M` (within that,
+    the ankle goes as far toward it as the leg reaches); the offset the hold had then fades over ``release_s`` (a
+    smoothstep), so the foot goes back to the model's without a jump. Joints outside the legs are untouched.
+    """
+
+    def __init__(self, skeleton, *, fps: float, height_on: float = CONTACT_HEIGHT_ON_M,
+                 height_off: float = CONTACT_HEIGHT_OFF_M, speed_on: float = CONTACT_SPEED_ON,
+                 speed_off: float = CONTACT_SPEED_OFF, min_contact_s: float = MIN_CONTACT_S,
+                 max_drift_m: float = MAX_DRIFT_M, release_s: float = LOCK_RELEASE_S):
+        self.skeleton, self.fps = skeleton, float(fps)
+        self.legs = leg_chains(skeleton)
+        self.horiz = list(horizontal_axes(skeleton))
+        self.scale = float(skeleton.unit_scale)  # metres per unit
+        self.h_on, self.h_off, self.s_on, self.s_off = height_on, height_off, speed_on, speed_off
+        self.min_frames = max(1, int(round(min_contact_s * self.fps)))
+        self.max_drift = max_drift_m / self.scale  # skeleton units
+        self.release = max(1, int(round(release_s * self.fps)))
+        self.reach_slack = LOCK_REACH_SLACK_M / self.scale  # skeleton units
+        n = len(self.legs)
+        self.prev_centre: list[np.ndarray | None] = [None] * n  # the model's foot centre, the frame before
+        self.count = [0] * n  # frames the foot has been low and slow
+        self.anchor: list[np.ndarray | None] = [None] * n  # the held ankle (horizontal axes), None: free
+        self.fade: list[tuple[np.ndarray, int] | None] = [None] * n  # a released hold's offset and its age
+        #: frames each leg was held so far
+        self.held_frames = [0] * n
+
+    def process(self, poses: np.ndarray) -> np.ndarray:
+        out = np.array(poses, np.float64)
+        for k in range(len(out)):
+            p = out[k]
+            for i, (hip, knee, ankle, below) in enumerate(self.legs):
+                foot = [ankle, *below]
+                h = float(heights(p[foot], self.skeleton).min()) * self.scale
+                centre = p[foot][:, self.horiz].mean(axis=0)
+                prev = self.prev_centre[i]
+                speed = 0.0 if prev is None else float(np.linalg.norm(centre - prev)) * self.fps * self.scale
+                self.prev_centre[i] = centre
+                model = p[ankle, self.horiz].copy()
+                if self.anchor[i] is None:
+                    self.count[i] = self.count[i] + 1 if (h <= self.h_on and speed <= self.s_on) else 0
+                    offset = self._fading(i)
+                    if self.count[i] >= self.min_frames:  # planted: held where it is shown
+                        self.anchor[i] = model + offset
+                        self.fade[i] = None
+                else:
+                    offset = self.anchor[i] - model
+                    if h > self.h_off or speed > self.s_off or np.linalg.norm(offset) > self.max_drift:
+                        self._let_go(i, offset)
+                        offset = self._fading(i)
+                if self.anchor[i] is not None:
+                    offset = self.anchor[i] - model
+                target = p[ankle].copy()
+                target[self.horiz] += offset
+                reach = np.linalg.norm(p[knee] - p[hip]) + np.linalg.norm(p[ankle] - p[knee])
+                if self.anchor[i] is not None and np.linalg.norm(target - p[hip]) > reach + self.reach_slack:
+                    self._let_go(i, offset)  # out of the leg's reach: the hold ends, its offset fades
+                    offset = self._fading(i)
+                    target = p[ankle].copy()
+                    target[self.horiz] += offset
+                if self.anchor[i] is not None:
+                    self.held_frames[i] += 1
+                if not np.any(offset):
+                    continue
+                new_knee, new_ankle = two_bone_ik(p[hip][None], p[knee][None], p[ankle][None], target[None])
+                move = new_ankle[0] - p[ankle]
+                p[knee], p[ankle] = new_knee[0], new_ankle[0]
+                p[below] += move
+        return out
+
+    def _let_go(self, i: int, offset: np.ndarray) -> None:
+        self.anchor[i] = None
+        self.count[i] = 0
+        self.fade[i] = (offset.copy(), 0)
+
+    def _fading(self, i: int) -> np.ndarray:
+        """The offset a released hold still adds this frame (zeros once faded), its age advanced."""
+        if self.fade[i] is None:
+            return np.zeros(len(self.horiz))
+        offset, age = self.fade[i]
+        age += 1
+        x = min(1.0, age / self.release)
+        self.fade[i] = None if x >= 1.0 else (offset, age)
+        return offset * (1.0 - x * x * (3 - 2 * x))
+
+
 class OnlineStages:
     """The online clean-up of one live dance (state carried from call to call).
 
@@ -189,6 +309,8 @@ class OnlineStages:
         #: the smoothing's cut-off now (Hz)
         self.cutoff = top
         self.a_glide_cut = 1.0 - np.exp(-1.0 / (CAP_GLIDE_S * self.fps))
+        #: the foot lock (``config.foot_lock``), last
+        self.lock = OnlineFootLock(skeleton, fps=self.fps) if c.foot_lock else None
 
     def process(self, poses: np.ndarray, music: np.ndarray) -> np.ndarray:
         """Poses ``(k, J, 3)`` and, per frame, whether music is playing (``(k,)`` bool or a 0-1 weight) → the
@@ -240,6 +362,8 @@ class OnlineStages:
             m = min(self.contact)
             self.ground = m if self.ground is None else self.ground + self.a_contact * (m - self.ground)
             out[k, :, self.up] -= self.sign * min(self.ground, low)
+        if self.lock is not None:
+            out = self.lock.process(out)
         self.frames += len(out)
         return out.astype(np.float32)
 
