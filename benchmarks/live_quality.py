@@ -107,7 +107,7 @@ def table(folders: list[str], output: str, data: str, seeds: str = "0-4") -> Non
            "rows": rows,
            "note": f"6 test songs of tang2018, a dance per seed {seeds} of each. Live: fed block by block (0.04 s, as a "
                    "real-time run that keeps up), the model alone (no genre model), the online stages (the beat "
-                   "nudge within the model's offline warp bound; calm, smoothing, floor; no online foot lock); "
+                   "nudge within the model's offline warp bound; calm, smoothing, floor, the online foot lock); "
                    "music2dance's samples smoothed by the offline Gaussian, each frame held back 0.08 s (LiveConfig."
                    "smoothing_hold_s). Offline: the pipeline with every stage. Per-song bounds (issue 15): "
                    "stillness ≤ 5 %, smoothed energy ≥ 0.6 x and jitter ≤ 1.2 x the song's real dance, each "

@@ -111,7 +111,8 @@ def _trembling(sk, T=1500, fps=25.0, tremor=0.04, seed=0):
 def test_online_stages_hold_the_jitter_under_the_cap():
     """A trembling dance through the online stages, capped at 0.6 × its uncapped jitter: the smoothing's
     cut-off comes down and the output's jitter (after the first 4 s) is under 1.1 × the cap (the running mean
-    lets it swing about the cap); with the bank but no cap the output is the uncapped one, bit for bit."""
+    lets it swing about the cap); with the bank but no cap the output is the uncapped one, bit for bit. The foot
+    lock is off: the walking figure's held feet would add their own jitter."""
     from dancekit.pipelines import load_pipeline
 
     fps = 25.0
@@ -123,12 +124,12 @@ def test_online_stages_hold_the_jitter_under_the_cap():
         stages.max_jitter = cap
         return np.concatenate([stages.process(p[k : k + 5], music[k : k + 5]) for k in range(0, len(p), 5)])
 
-    plain = run(OnlineStages(sk, fps=fps, config=LiveConfig()))
-    nocap = run(OnlineStages(sk, fps=fps, config=LiveConfig(), cap=True))
+    plain = run(OnlineStages(sk, fps=fps, config=LiveConfig(foot_lock=False)))
+    nocap = run(OnlineStages(sk, fps=fps, config=LiveConfig(foot_lock=False), cap=True))
     np.testing.assert_array_equal(plain, nocap)
     free = jitter_speed(plain[100:], skeleton=sk, fps=fps)
     cap = 0.6 * free
-    stages = OnlineStages(sk, fps=fps, config=LiveConfig(), cap=True)
+    stages = OnlineStages(sk, fps=fps, config=LiveConfig(foot_lock=False), cap=True)
     capped = run(stages, cap)
     got = jitter_speed(capped[100:], skeleton=sk, fps=fps)
     assert got < 1.1 * cap, (free, got, cap)  # uncapped: 1.67 × the cap
@@ -163,6 +164,15 @@ def test_each_family_dances_its_beat_nudge(m2d):
     assert LiveSession("revolution").nudge.mode == "target"
     assert LiveSession("music2dance", pipe=m2d, config=LiveConfig(beat_nudge="target")).nudge.mode == "target"
     assert LiveSession("revolution", config=LiveConfig(beat_nudge="pulse")).nudge.mode == "pulse"
+
+
+def test_both_families_hold_their_feet_unless_asked_not_to(m2d):
+    """foot_lock (True by default: chosen on the validation songs for both models) reaches the session's stages."""
+    from dancekit.live.session import LiveSession
+
+    for family, kw in (("revolution", {}), ("music2dance", {"pipe": m2d})):
+        assert LiveSession(family, **kw).stages.lock is not None
+        assert LiveSession(family, config=LiveConfig(foot_lock=False), **kw).stages.lock is None
 
 
 def _bent_stance(sk, T, fps):
@@ -259,6 +269,6 @@ def test_online_foot_lock_lets_a_drifting_foot_go_without_a_jump():
 
 
 def test_live_config_foot_lock_is_a_flag():
-    assert LiveConfig(foot_lock=True).foot_lock
+    assert LiveConfig().foot_lock and not LiveConfig(foot_lock=False).foot_lock
     with pytest.raises(ParameterError, match="LiveConfig.foot_lock must be true or false"):
         LiveConfig(foot_lock="yes")

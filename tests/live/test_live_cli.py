@@ -89,3 +89,20 @@ def test_live_jitter_cap_reaches_the_session(song, tmp_path, capsys, monkeypatch
     assert s.stages.max_jitter in set(s.pipe.settings.stages.genre_stats.table("jitter").values())
     assert main(["live", "--input", str(song), "--no-serve", "--jitter-cap"]) == 0
     assert made[-1].stages.bank is None and "no jitter cap" in capsys.readouterr().err
+
+
+def test_live_foot_lock_flag_reaches_the_session(song, monkeypatch):
+    """``--foot-lock on|off`` decides whether the session holds the feet; on without it."""
+    import dancekit.live.session as live_session
+
+    made = []
+    real = live_session.LiveSession
+
+    def spy(*args, **kwargs):
+        made.append(real(*args, **kwargs))
+        return made[-1]
+
+    monkeypatch.setattr(live_session, "LiveSession", spy)
+    for flag, held in ((["--foot-lock", "off"], False), (["--foot-lock", "on"], True), ([], True)):
+        assert main(["live", "--input", str(song), "--no-serve", "--duration", "1", *flag]) == 0
+        assert (made[-1].stages.lock is not None) is held

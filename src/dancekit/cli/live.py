@@ -34,6 +34,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--jitter-cap", action="store_true",
                    help="music2dance: hold the tremor under its checkpoint's jitter cap, the genre read from the music "
                         "as it comes (a calmer dancer; on the validation songs FID_k +22 %%, docs/LIVE.md)")
+    p.add_argument("--foot-lock", choices=("on", "off"), default="on",
+                   help="hold the planted feet (default on: less foot skating, chosen on the validation songs; "
+                        "docs/LIVE.md)")
     p.add_argument("--host", default="127.0.0.1", help="where the live page listens (default loopback)")
     p.add_argument("--port", type=int, default=8765, help="port of the live page and pose stream (0: any free)")
     p.add_argument("--no-serve", action="store_true", help="no page and no stream (record or log only)")
@@ -73,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
 
         raise AudioError(f"no such audio file: {args.input}")
     config = LiveConfig(seed=args.seed, jitter_cap=args.jitter_cap,
+                        foot_lock=args.foot_lock == "on",
                         **({} if args.lookahead is None else {"lookahead_s": args.lookahead}))
     torch.set_num_threads(1)  # one core for the model, the other for the features and the stream
     recorded: list[np.ndarray] = []
