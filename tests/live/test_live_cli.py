@@ -69,20 +69,26 @@ def test_live_reads_pcm_on_stdin(tmp_path):
     assert abs(read_npz(out).num_frames - 100) <= 2  # 4 s at 25 fps
 
 
-@pytest.mark.slow
-def test_live_jitter_cap_reaches_the_session(song, tmp_path, capsys, monkeypatch):
-    """``--jitter-cap`` turns the cap on: music2dance reads the genre of the 5-s song (its first reading at 4 s)
-    and caps its smoothing; revolution says in one line that it has no cap to apply."""
+@pytest.fixture
+def made(monkeypatch):
+    """The LiveSessions that ``dancekit live`` makes in a test, in order."""
     import dancekit.live.session as live_session
 
-    made = []
+    sessions = []
     real = live_session.LiveSession
 
     def spy(*args, **kwargs):
-        made.append(real(*args, **kwargs))
-        return made[-1]
+        sessions.append(real(*args, **kwargs))
+        return sessions[-1]
 
     monkeypatch.setattr(live_session, "LiveSession", spy)
+    return sessions
+
+
+@pytest.mark.slow
+def test_live_jitter_cap_reaches_the_session(song, tmp_path, capsys, made):
+    """``--jitter-cap`` turns the cap on: music2dance reads the genre of the 5-s song (its first reading at 4 s)
+    and caps its smoothing; revolution says in one line that it has no cap to apply."""
     assert main(["live", "--input", str(song), "--no-serve", "--model", "music2dance", "--jitter-cap"]) == 0
     s = made[-1]
     assert s.config.jitter_cap and s.genre_reader is not None and s.genre_reader.probs
@@ -91,18 +97,8 @@ def test_live_jitter_cap_reaches_the_session(song, tmp_path, capsys, monkeypatch
     assert made[-1].stages.bank is None and "no jitter cap" in capsys.readouterr().err
 
 
-def test_live_foot_lock_flag_reaches_the_session(song, monkeypatch):
+def test_live_foot_lock_flag_reaches_the_session(song, made):
     """``--foot-lock on|off`` decides whether the session holds the feet; on without it."""
-    import dancekit.live.session as live_session
-
-    made = []
-    real = live_session.LiveSession
-
-    def spy(*args, **kwargs):
-        made.append(real(*args, **kwargs))
-        return made[-1]
-
-    monkeypatch.setattr(live_session, "LiveSession", spy)
     for flag, held in ((["--foot-lock", "off"], False), (["--foot-lock", "on"], True), ([], True)):
         assert main(["live", "--input", str(song), "--no-serve", "--duration", "1", *flag]) == 0
         assert (made[-1].stages.lock is not None) is held
