@@ -53,14 +53,16 @@ def run(args) -> None:
         session = LiveSession(args.model, config=LiveConfig())
         minutes: list[dict] = []
         cur = {"lat": [], "look": [], "t0": None}
+        taking = threading.Lock()  # the sink appends and the monitor takes a minute's frames, never both at once
         frames_log = []
 
         def sink(frames):
-            for f in frames:
-                cur["lat"].append(f.latency)
-                cur["look"].append(f.ready - f.arrival)
-                if args.log_frames:
-                    frames_log.append((f.index, f.arrival, f.ready, f.sent))
+            with taking:
+                for f in frames:
+                    cur["lat"].append(f.latency)
+                    cur["look"].append(f.ready - f.arrival)
+            if args.log_frames:
+                frames_log.extend((f.index, f.arrival, f.ready, f.sent) for f in frames)
 
         session.sinks.append(sink)
         session.keep_stats = False
@@ -74,9 +76,9 @@ def run(args) -> None:
                 audio = float(np.sum(st.block_audio))
                 if audio - mark["audio"] >= audio_per_minute:
                     cpu, wall = float(np.sum(st.cpu)), float(np.sum(st.compute))
-                    lat = np.asarray(cur["lat"])
-                    look = np.asarray(cur["look"])
-                    cur["lat"], cur["look"] = [], []
+                    with taking:
+                        lat, look = np.asarray(cur["lat"]), np.asarray(cur["look"])
+                        cur["lat"], cur["look"] = [], []
                     minutes.append({
                         "minute": len(minutes) + 1, "frames": int(len(lat)),
                         "latency_median_s": float(np.median(lat)) if len(lat) else None,
