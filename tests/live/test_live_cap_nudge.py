@@ -200,8 +200,9 @@ def _bent_stance(sk, T, fps):
 
 def test_online_foot_lock_holds_a_sliding_foot_where_it_was_planted():
     """A stance whose left foot slides on the floor (±8 cm, 0.5 Hz: under the contact speed) while the rest
-    stands: from the third frame (the contact's 0.12 s) the left ankle stays, horizontally, exactly where it was
-    shown then; thigh and shin keep their lengths; every joint outside the left leg's knee and foot is the
+    stands: from the third frame (the contact's 0.12 s) the left ankle glides to a stop — the step d it was
+    taking shrinking by e⁻¹ a frame (0.04 s at 25 fps), so it comes to rest d e⁻¹ / (1 − e⁻¹) = d / (e − 1)
+    beyond where it was shown then — and stays there; thigh and shin keep their lengths; every joint outside the left leg's knee and foot is the
     input's; a lifted foot is left alone; the state carries across blocks (blocks of 7 = one call)."""
     from dancekit.live.stages import OnlineFootLock
     from dancekit.motion.analysis import horizontal_axes
@@ -216,8 +217,9 @@ def test_online_foot_lock_holds_a_sliding_foot_where_it_was_planted():
     t = np.arange(T) / fps
     p[:, foot, a] += 8.0 * np.sin(2 * np.pi * 0.5 * t)[:, None]  # cm; at most 0.25 m/s
     out = OnlineFootLock(sk, fps=fps).process(p)
-    np.testing.assert_allclose(out[2:, ankle][:, [a, b]], np.repeat(p[2:3, ankle][:, [a, b]], T - 2, axis=0),
-                               atol=1e-6)
+    rest = p[2, ankle][[a, b]] + (p[2, ankle] - p[1, ankle])[[a, b]] / (np.e - 1)
+    np.testing.assert_allclose(out[12:, ankle][:, [a, b]], np.repeat(rest[None], T - 12, axis=0), atol=1e-3)
+    np.testing.assert_allclose(out[:3, ankle], p[:3, ankle], atol=1e-9)  # shown as the model's until planted
     assert np.abs(out[:, ankle, a] - p[:, ankle, a]).max() > 9.5  # held against the slide (8 + 8 sin(0.08 pi) cm)
     for j0, j1 in ((hip, knee), (knee, ankle)):
         np.testing.assert_allclose(np.linalg.norm(out[:, j1] - out[:, j0], axis=1),
@@ -242,9 +244,11 @@ def test_online_foot_lock_holds_a_sliding_foot_where_it_was_planted():
 
 def test_online_foot_lock_lets_a_drifting_foot_go_without_a_jump():
     """A foot gliding one way at 0.3 m/s (slow and low: a contact) is held until the model's foot is 20 cm
-    from it, then handed back over 0.2 s and planted again: it is held again and again, never more than 20 cm
-    (plus a frame's glide) from the model's, and its steps are at most the glide's plus the fade's steepest step
-    (20 cm × 1.5 / 5 frames); between holds it reaches the model's foot."""
+    from it, then handed back over 0.32 s and planted again where it is shown (0.12 s later, mid-way): it is
+    held again and again, never more than 20 cm (plus the hand-back's frames of glide) from the model's; handed
+    back, it leaves at rest (its first step under the model's 1.2 cm) and its steps are at most the model's plus
+    the smoothstep's steepest slope (1.5 / 8 frames) times the gap, which the model's glide widens to at most
+    20 + 9 × 1.2 cm; the right foot, still, is held throughout."""
     from dancekit.live.stages import OnlineFootLock
     from dancekit.motion.analysis import horizontal_axes
     from dancekit.pipelines import load_pipeline
@@ -258,13 +262,16 @@ def test_online_foot_lock_lets_a_drifting_foot_go_without_a_jump():
     lock = OnlineFootLock(sk, fps=fps)
     out = lock.process(p)
     gap = np.abs(out[:, ankle, a] - p[:, ankle, a])
-    assert gap.max() <= 20.0 + 30.0 / fps + 1e-9
+    step = 30.0 / fps
+    assert gap.max() <= 20.0 + 9 * step + 1e-9
     steps = np.abs(np.diff(out[:, ankle, a]))
-    assert steps.max() <= 30.0 / fps + (20.0 + 30.0 / fps) * 1.5 / 8 + 1e-9
-    still = steps < 1e-9
+    assert steps.max() <= step + (20.0 + 9 * step) * 1.5 / 8 + 1e-9
+    still = steps < 0.05  # cm a frame: at rest, a planted foot's glide to a stop included
     assert still.sum() > 0.4 * T  # held for much of the time
     holds = np.flatnonzero(np.diff(still.astype(int)) == 1)  # a still run starting: a new hold
     assert len(holds) >= 2 and gap[holds + 1].max() < 20.0  # planted again, nearer the model's foot
+    ends = np.flatnonzero(np.diff(still.astype(int)) == -1) + 1  # the first step of each hand-back
+    assert len(ends) >= 2 and steps[ends].max() < step
     assert 0 < lock.held_frames[0] < T and lock.held_frames[1] == T - 2  # the right foot (still) held throughout
 
 

@@ -78,6 +78,8 @@ CAP_GLIDE_S = 0.5
 #: the online foot lock hands a released foot back to the model over this long (s; a smoothstep of the offset):
 #: the offline lock's hand-over
 LOCK_RELEASE_S = BLEND_S
+#: a planted foot glides to a stop: the step it was taking shrinks by exp(−1 / (this × fps)) a frame (s)
+LOCK_SETTLE_S = 0.04
 #: a held foot whose leg, straight, falls short of it by more than this (m) is let go; less, and the leg reaches
 #: as far as it can toward it (a standing dancer's legs are nearly straight: the foot then slides that little)
 LOCK_REACH_SLACK_M = 0.02
@@ -174,13 +176,15 @@ class OnlineFootLock:
     been lower than ``height_on`` metres and slower than ``speed_on`` m/s (its mean joint's horizontal speed
     from the frame before) for ``min_contact_s``; the contact thresholds are the offline lock's
     (:func:`~dancekit.motion.footlock.foot_contacts`). From then its ankle is held, horizontally, where the
-    shown ankle was (no jump: the hold starts where the foot is seen), the vertical the model's; the leg is
+    shown ankle was (no jump: the hold starts where the foot is seen) after a glide to a stop (the step it was
+    taking shrinking by :data:`LOCK_SETTLE_S`), the vertical the model's; the leg is
     solved to it (:func:`~dancekit.motion.footlock.two_bone_ik`, the hip fixed, the bones' lengths kept, the
     knee on its side) and the joints below the ankle follow it rigidly. The hold ends when the foot rises above
     ``height_off`` or moves faster than ``speed_off``, when the model's ankle is ``max_drift_m`` away from the
     held one, or when the straight leg falls short of it by more than :data:`LOCK_REACH_SLACK_M` (within that,
-    the ankle goes as far toward it as the leg reaches); the offset the hold had then fades over ``release_s`` (a
-    smoothstep), so the foot goes back to the model's without a jump. Joints outside the legs are untouched.
+    the ankle goes as far toward it as the leg reaches); the foot then goes from where it was held to the model's
+    over ``release_s`` (a smoothstep: it leaves at rest and arrives with the model foot's speed). Joints outside
+    the legs are untouched.
     """
 
     def __init__(self, skeleton, *, fps: float, height_on: float = CONTACT_HEIGHT_ON_M,
@@ -201,6 +205,9 @@ class OnlineFootLock:
         self.count = [0] * n  # frames the foot has been low and slow
         self.anchor: list[np.ndarray | None] = [None] * n  # the held ankle (horizontal axes), None: free
         self.fade: list[tuple[np.ndarray, int] | None] = [None] * n  # a released hold's offset and its age
+        self.shown_prev: list[np.ndarray | None] = [None] * n  # the ankle shown the frame before (horizontal axes)
+        self.glide: list[np.ndarray | None] = [None] * n  # a new hold's remaining step a frame (it comes to rest)
+        self.settle = float(np.exp(-1.0 / (LOCK_SETTLE_S * self.fps)))
         #: frames each leg was held so far
         self.held_frames = [0] * n
 
@@ -218,27 +225,33 @@ class OnlineFootLock:
                 model = p[ankle, self.horiz].copy()
                 if self.anchor[i] is None:
                     self.count[i] = self.count[i] + 1 if (h <= self.h_on and speed <= self.s_on) else 0
-                    offset = self._fading(i)
-                    if self.count[i] >= self.min_frames:  # planted: held where it is shown
-                        self.anchor[i] = model + offset
+                    offset = self._fading(i, model)
+                    if self.count[i] >= self.min_frames:  # planted where it is shown, gliding to a stop
+                        shown = model + offset
+                        last = self.shown_prev[i]
+                        self.anchor[i] = shown
+                        self.glide[i] = np.zeros_like(shown) if last is None else (shown - last) * self.settle
                         self.fade[i] = None
                 else:
+                    self.anchor[i] = self.anchor[i] + self.glide[i]
+                    self.glide[i] = self.glide[i] * self.settle
                     offset = self.anchor[i] - model
                     if h > self.h_off or speed > self.s_off or np.linalg.norm(offset) > self.max_drift:
-                        self._let_go(i, offset)
-                        offset = self._fading(i)
+                        self._let_go(i)
+                        offset = self._fading(i, model)
                 if self.anchor[i] is not None:
                     offset = self.anchor[i] - model
                 target = p[ankle].copy()
                 target[self.horiz] += offset
                 reach = np.linalg.norm(p[knee] - p[hip]) + np.linalg.norm(p[ankle] - p[knee])
                 if self.anchor[i] is not None and np.linalg.norm(target - p[hip]) > reach + self.reach_slack:
-                    self._let_go(i, offset)  # out of the leg's reach: the hold ends, its offset fades
-                    offset = self._fading(i)
+                    self._let_go(i)  # out of the leg's reach: the hold ends, the foot fades back to the model's
+                    offset = self._fading(i, model)
                     target = p[ankle].copy()
                     target[self.horiz] += offset
                 if self.anchor[i] is not None:
                     self.held_frames[i] += 1
+                self.shown_prev[i] = model + offset
                 if not np.any(offset):
                     continue
                 new_knee, new_ankle = two_bone_ik(p[hip][None], p[knee][None], p[ankle][None], target[None])
@@ -247,20 +260,22 @@ class OnlineFootLock:
                 p[below] += move
         return out
 
-    def _let_go(self, i: int, offset: np.ndarray) -> None:
+    def _let_go(self, i: int) -> None:
+        self.fade[i] = (self.anchor[i].copy(), 0)
         self.anchor[i] = None
         self.count[i] = 0
-        self.fade[i] = (offset.copy(), 0)
 
-    def _fading(self, i: int) -> np.ndarray:
-        """The offset a released hold still adds this frame (zeros once faded), its age advanced."""
+    def _fading(self, i: int, model: np.ndarray) -> np.ndarray:
+        """The offset from the model's ankle ``model`` of a foot let go: ``(held − model) · (1 − S(age / release))``,
+        S the smoothstep, so the foot leaves where it was held at rest and joins the model's foot with its speed
+        (zeros once faded); its age advanced."""
         if self.fade[i] is None:
             return np.zeros(len(self.horiz))
-        offset, age = self.fade[i]
+        held, age = self.fade[i]
         age += 1
         x = min(1.0, age / self.release)
-        self.fade[i] = None if x >= 1.0 else (offset, age)
-        return offset * (1.0 - x * x * (3 - 2 * x))
+        self.fade[i] = None if x >= 1.0 else (held, age)
+        return (held - model) * (1.0 - x * x * (3 - 2 * x))
 
 
 class OnlineStages:
