@@ -26,7 +26,8 @@ to the poses ``(k, J, 3)`` (world positions, the skeleton's units) as the model 
 
 6. **foot lock** (``LiveConfig.foot_lock``; offline: the ``foot_lock`` stage, :func:`dancekit.motion.footlock.lock_feet`,
    which looks ±1 s around each contact): :class:`OnlineFootLock`, causal — a foot that has been low and slow
-   for :data:`~dancekit.motion.footlock.MIN_CONTACT_S` is held where it is shown, the leg solved to it by
+   for :data:`~dancekit.motion.footlock.MIN_CONTACT_S` glides to a stop where it is shown (:data:`LOCK_SETTLE_S`)
+   and is held there, the leg solved to it by
    :func:`~dancekit.motion.footlock.two_bone_ik`, until it lifts, speeds up or drifts
    :data:`~dancekit.motion.footlock.MAX_DRIFT_M` from the model's foot; then it is handed back over
    :data:`LOCK_RELEASE_S`.
