@@ -76,8 +76,8 @@ MEAN_POSE_S = 2.0
 CAP_JITTER_S = 2.0
 #: time constant (s) of the smoothing cut-off's glide towards the one the jitter cap chooses (in log-frequency)
 CAP_GLIDE_S = 0.5
-#: the online foot lock hands a released foot back to the model over this long (s; a smoothstep of the offset):
-#: the offline lock's hand-over
+#: the online foot lock hands a released foot back to the model over this long (s; a smoothstep from where it
+#: was held to the model's foot): the offline lock's hand-over
 LOCK_RELEASE_S = BLEND_S
 #: a planted foot glides to a stop: the step it was taking shrinks by exp(−1 / (this × fps)) a frame (s)
 LOCK_SETTLE_S = 0.04
@@ -205,7 +205,7 @@ class OnlineFootLock:
         self.prev_centre: list[np.ndarray | None] = [None] * n  # the model's foot centre, the frame before
         self.count = [0] * n  # frames the foot has been low and slow
         self.anchor: list[np.ndarray | None] = [None] * n  # the held ankle (horizontal axes), None: free
-        self.fade: list[tuple[np.ndarray, int] | None] = [None] * n  # a released hold's offset and its age
+        self.fade: list[tuple[np.ndarray, int] | None] = [None] * n  # where a foot let go was held, and its age
         self.shown_prev: list[np.ndarray | None] = [None] * n  # the ankle shown the frame before (horizontal axes)
         self.glide: list[np.ndarray | None] = [None] * n  # a new hold's remaining step a frame (it comes to rest)
         self.settle = float(np.exp(-1.0 / (LOCK_SETTLE_S * self.fps)))
@@ -213,6 +213,7 @@ class OnlineFootLock:
         self.held_frames = [0] * n
 
     def process(self, poses: np.ndarray) -> np.ndarray:
+        """Poses ``(k, J, 3)`` → float64 poses ``(k, J, 3)``, the planted feet held (see the class)."""
         out = np.array(poses, np.float64)
         for k in range(len(out)):
             p = out[k]
