@@ -227,7 +227,7 @@ def test_position_blend_keeps_the_foot_velocity_continuous_at_a_hold():
     """The foot glides at 1 cm a frame; held over frames 20-29. An offset blend starts the held foot at the
     original's full speed (1 cm in the first frame out, a jump from rest); the position blend eases it in
     and out: the first step is the smoothstep's first weight times the distance to cover."""
-    from dancekit.motion.footlock import _offsets, _smoothstep, _wanted
+    from dancekit.motion.footlock import _offsets, _wanted, smoothstep
 
     T, blend = 60, 8
     orig = np.zeros((T, 1, 3))
@@ -239,7 +239,7 @@ def test_position_blend_keeps_the_foot_velocity_continuous_at_a_hold():
     want, weight = _wanted(target, orig, held, blend)
     step = np.diff(want[:, 0, 0])
     np.testing.assert_array_equal(want[20:30], np.broadcast_to(orig[20], (10, 1, 3)))  # still in the hold
-    w1 = float(_smoothstep(np.array(1 / (blend + 1))))
+    w1 = float(smoothstep(np.array(1 / (blend + 1))))
     # into the hold: from the frame before it (weight w1 on the original, 1 cm behind) -> w1 cm
     assert step[19] == pytest.approx(w1 * 1.0)
     # out of it: the original is 10 cm ahead after the first frame -> w1 * 10 cm, under half the glide speed
@@ -257,7 +257,7 @@ def test_position_blend_keeps_the_foot_velocity_continuous_at_a_hold():
 def test_a_short_swing_between_holds_starts_and_ends_at_rest():
     """Two holds 6 frames apart (a re-plant): the foot goes from one to the other with zero speed at both
     ends, and keeps the original swing's lift in the middle (sin² weight, exactly at the centre)."""
-    from dancekit.motion.footlock import _smoothstep, _wanted
+    from dancekit.motion.footlock import _wanted, smoothstep
 
     T = 40
     orig = np.zeros((T, 1, 3))
@@ -272,7 +272,7 @@ def test_a_short_swing_between_holds_starts_and_ends_at_rest():
     target[22:32] = orig[22]
     want, _ = _wanted(target, orig, held, 8)
     x = want[:, 0, 0]
-    first = float(_smoothstep(np.array(1 / 8))) * 17.0  # 7 swing frames: x = 1/8 .. 7/8 of the 17-cm step
+    first = float(smoothstep(np.array(1 / 8))) * 17.0  # 7 swing frames: x = 1/8 .. 7/8 of the 17-cm step
     assert x[15] - x[14] == pytest.approx(first) and x[22] - x[21] == pytest.approx(first)
     assert first < 0.4 * 17.0 / 8  # leaves and arrives at under 0.4 of the mean swing speed (from rest)
     assert np.all(np.diff(x[14:23]) >= 0)  # monotone: no foot going back

@@ -59,6 +59,7 @@ from dancekit.motion.footlock import (
     CONTACT_SPEED_ON,
     MAX_DRIFT_M,
     MIN_CONTACT_S,
+    smoothstep,
     two_bone_ik,
 )
 from dancekit.motion.jitter import CAP_CUTOFFS_HZ
@@ -277,7 +278,7 @@ class OnlineFootLock:
         age += 1
         x = min(1.0, age / self.release)
         self.fade[i] = None if x >= 1.0 else (held, age)
-        return (held - model) * (1.0 - x * x * (3 - 2 * x))
+        return (held - model) * (1.0 - smoothstep(x))
 
 
 class OnlineStages:

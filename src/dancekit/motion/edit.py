@@ -30,6 +30,7 @@ import numpy as np
 from dancekit.errors import ParameterError
 from dancekit.motion.analysis import heading_axes, horizontal_axes
 from dancekit.motion.cleanup import DEFAULT_RADIUS_M
+from dancekit.motion.footlock import smoothstep
 from dancekit.motion.skeleton import Skeleton
 
 __all__ = ["CROSSFADE_S", "KEY_SUPPORT_S", "Key", "MAX_SPEED_M_S", "MAX_SWAY_M", "PATH_CUTOFF_HZ", "apply_keyframes",
@@ -341,8 +342,7 @@ def continue_from(prefix: np.ndarray, positions: np.ndarray, *, skeleton: Skelet
     dv = (pre[n - 1] - pre[n - 2]) - (rel[1] - rel[0])  # (J, 3) and the velocity (per frame)
     w = max(int(round(crossfade_s * fps)), 1)
     k = np.arange(1, len(rel) - 1, dtype=np.float64)  # frames after n - 1
-    u = np.clip(k / w, 0.0, 1.0)
-    fade = 1.0 - u * u * (3.0 - 2.0 * u)  # 1 with zero slope at the seam, 0 from w frames on
+    fade = 1.0 - smoothstep(k / w)  # 1 with zero slope at the seam, 0 from w frames on
     out = np.empty_like(p)
     out[:n] = pre
     out[n:] = rel[2:] + fade[:, None, None] * (gap[None] + k[:, None, None] * dv[None])

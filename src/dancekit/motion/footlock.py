@@ -41,7 +41,7 @@ from dancekit.motion.floor import local_floor, planted_share
 from dancekit.motion.skeleton import Skeleton
 
 __all__ = ["PLANT_SCALES", "FootLockReport", "foot_contacts", "leg_chains", "leg_rotations", "lock_feet",
-           "lock_feet_to_share", "two_bone_ik"]
+           "lock_feet_to_share", "smoothstep", "two_bone_ik"]
 
 #: Contact thresholds (metres above the local floor, m/s), chosen on the validation songs
 #: (``benchmarks/tune_feet.py``): a foot enters a contact below ``ON`` and leaves it above ``OFF``.
@@ -220,7 +220,8 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(s), int(e) - 1) for s, e in zip(edges[::2], edges[1::2], strict=True)]
 
 
-def _smoothstep(x: np.ndarray) -> np.ndarray:
+def smoothstep(x: np.ndarray | float) -> np.ndarray:
+    """``3x² − 2x³`` of ``x`` clipped to [0, 1]: 0 → 1 with zero slope at both ends (float64 array)."""
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3 - 2 * x)
 
@@ -241,7 +242,7 @@ def _offsets(target: np.ndarray, original: np.ndarray, contact: np.ndarray, blen
     # before the first contact and after the last
     s0, e_last = runs[0][0], runs[-1][1]
     for k in range(1, blend + 1):
-        w = _smoothstep(np.array(1.0 - k / (blend + 1)))
+        w = smoothstep(np.array(1.0 - k / (blend + 1)))
         if s0 - k >= 0:
             off[s0 - k] = w * off[s0]
         if e_last + k < T:
@@ -252,11 +253,11 @@ def _offsets(target: np.ndarray, original: np.ndarray, contact: np.ndarray, blen
             continue
         t = np.arange(1, gap + 1)
         if gap <= 2 * blend:
-            w = _smoothstep(t / (gap + 1))[:, None, None]
+            w = smoothstep(t / (gap + 1))[:, None, None]
             off[e + 1 : s] = (1 - w) * off[e] + w * off[s]
         else:
-            w_out = _smoothstep(1.0 - t / (blend + 1))[:, None, None]
-            w_in = _smoothstep(1.0 - (gap + 1 - t) / (blend + 1))[:, None, None]
+            w_out = smoothstep(1.0 - t / (blend + 1))[:, None, None]
+            w_in = smoothstep(1.0 - (gap + 1 - t) / (blend + 1))[:, None, None]
             off[e + 1 : s] = w_out * off[e] + w_in * off[s]
     return off
 
@@ -287,7 +288,7 @@ def _wanted(target: np.ndarray, original: np.ndarray, held: np.ndarray, blend: i
         weight[t] = np.maximum(weight[t], 1 - w)
 
     k = np.arange(1, blend + 1)
-    w = _smoothstep(k / (blend + 1))
+    w = smoothstep(k / (blend + 1))
     s0, e_last = runs[0][0], runs[-1][1]
     before, after = s0 - k, e_last + k
     hand_over(before[before >= 0], s0, w[before >= 0])
@@ -300,7 +301,7 @@ def _wanted(target: np.ndarray, original: np.ndarray, held: np.ndarray, blend: i
         if gap <= 2 * blend:
             x = ((t - e) / (gap + 1))[:, None, None]
             line = (1 - x) * original[e] + x * original[s]
-            want[t] = (1 - _smoothstep(x)) * target[e] + _smoothstep(x) * target[s] \
+            want[t] = (1 - smoothstep(x)) * target[e] + smoothstep(x) * target[s] \
                 + np.sin(np.pi * x) ** 2 * (original[t] - line)
             weight[t] = 1.0
         else:
