@@ -375,8 +375,11 @@ class Music2DanceModel(nn.Module):
             return self.head(h)  # (B, T, out_dim)
         x = self.input_proj(prev.transpose(1, 2))  # (B, C, T)
         skips = 0.0
+        # the blocks' conditions as views: unbind's gradient is one stack, where indexing cond[:, :, i] in each
+        # block would allocate, zero and add a gradient of the whole (B, T, L, 2C) per block
+        conds = cond.unbind(2)
         for i, (conv, d) in enumerate(zip(self.dilated, c.dilations)):
-            h = conv(F.pad(x, ((c.kernel - 1) * d, 0))) + cond[:, :, i].transpose(1, 2)  # (B, 2C, T) causal
+            h = conv(F.pad(x, ((c.kernel - 1) * d, 0))) + conds[i].transpose(1, 2)  # (B, 2C, T) causal
             z = torch.tanh(h[:, : c.channels]) * torch.sigmoid(h[:, c.channels :])  # (B, C, T) gated
             skips = skips + self.skip[i](z)  # (B, S, T)
             x = x + self.res[i](z)
