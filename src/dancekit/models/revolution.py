@@ -62,7 +62,7 @@ class RevolutionConfig:
     """Hyper-parameters of :class:`RevolutionModel` (saved as ``config.json`` with the weights).
 
     The defaults are sized to train on the tang2018 training split on 2 CPU cores in well under an
-    hour (see ``benchmarks/bench_revolution.py``); the paper's own sizes are ``d_model=256,
+    hour (0.45 s a step of 16 windows on 2 cores: ``benchmarks/bench_train.py``); the paper's own sizes are ``d_model=256,
     n_heads=8, d_ff=1024, window=100, decoder_layers=3, decoder_hidden=1024``.
     """
 
