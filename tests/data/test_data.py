@@ -163,6 +163,23 @@ def test_mirror_and_heading_augmentations_are_the_moved_dance_re_encoded(rng):
                                atol=1e-4)
 
 
+def test_rot6d_heading_turns_the_decoded_dance_about_the_up_axis(rng):
+    """Derived independently: the rot6d window turned by the augmentation, decoded by forward kinematics, is the
+    original dance's world positions turned about the y axis through the origin."""
+    from dancekit.data.windows import augment_rot6d
+
+    m = _random_motion(rng, T=12)
+    x = encode_motion(m, "rot6d")
+    pos = decode_motion(x, m.skeleton, m.fps, "rot6d").to_positions().astype(np.float64)
+    theta = -1.1
+    c, s = np.cos(theta), np.sin(theta)
+    turned = pos.copy()
+    turned[..., 0], turned[..., 2] = c * pos[..., 0] - s * pos[..., 2], s * pos[..., 0] + c * pos[..., 2]
+    out = decode_motion(augment_rot6d(x, skeleton=m.skeleton, heading=theta), m.skeleton, m.fps, "rot6d")
+    np.testing.assert_allclose(out.to_positions(), turned, atol=1e-3)
+    np.testing.assert_array_equal(augment_rot6d(x, skeleton=m.skeleton), x)  # no turn: the window as it was
+
+
 @pytest.mark.slow
 def test_window_dataset_augmentations_are_seeded_and_keep_the_window(prepared_tang2018):
     data = prepared_tang2018
@@ -180,8 +197,25 @@ def test_window_dataset_augmentations_are_seeded_and_keep_the_window(prepared_ta
         assert float((a["music"] - p["music"]).abs().mean()) < float((a["music"] - plain[k + 1]["music"]).abs().mean())
     aug.set_epoch(1)
     assert not torch.allclose(aug[0]["dance"], again[0]["dance"])
-    with pytest.raises(ParameterError, match="positions3d"):
+    with pytest.raises(ParameterError, match="mirror augmentation needs positions3d"):
         WindowDataset(data, "train", preset="music2dance", window=100, representation="rot6d", mirror=0.5)
+    with pytest.raises(ParameterError, match="positions3d or rot6d"):
+        WindowDataset(data, "train", preset="music2dance", window=100, representation="rotations_rootdelta",
+                      heading=True)
+    # rot6d: turned and tempo-changed windows, seeded; the turn moves the root's columns alone
+    plain6 = WindowDataset(data, "train", preset="music2dance", window=100, stride=200, representation="rot6d")
+    turn6 = WindowDataset(data, "train", preset="music2dance", window=100, stride=200, representation="rot6d",
+                          stats=plain6.stats, heading=True)
+    a, p = turn6[3]["dance"], plain6[3]["dance"]
+    torch.testing.assert_close(a, WindowDataset(data, "train", preset="music2dance", window=100, stride=200,
+                                                representation="rot6d", stats=plain6.stats, heading=True)[3]["dance"])
+    root = 3 + 6 * data.skeleton.rig().root
+    changed = (a - p).abs().amax(0) > 1e-5
+    assert changed[:3].any() and changed[root : root + 6].any()
+    assert not changed[3:root].any() and not changed[root + 6 :].any()
+    slow6 = WindowDataset(data, "train", preset="music2dance", window=100, stride=200, representation="rot6d",
+                          stats=plain6.stats, tempo=0.1)
+    assert slow6[3]["dance"].shape == p.shape and not torch.allclose(slow6[3]["dance"], p)
 
 
 @pytest.mark.slow

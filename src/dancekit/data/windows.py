@@ -69,6 +69,34 @@ def augment_positions3d(dance: np.ndarray, *, skeleton, mirror: bool = False, he
     return out.astype(np.float32)
 
 
+def augment_rot6d(dance: np.ndarray, *, skeleton, heading: float = 0.0) -> np.ndarray:
+    """A ``rot6d`` window ``(L, 3 + 6·J_rig)`` (unnormalised) turned by ``heading`` radians about the up axis
+    through the origin: the root translation and the root's rotation (its 6D, the first two columns of its world
+    rotation) are turned, the other joints' rotations are local to their parents and stay. Exact: the turned
+    dance's positions are the original's turned (forward kinematics commutes with a rotation of the root).
+
+    There is no mirror for rotations here: a mirror image on the skeleton's own rig needs left and right bones
+    that are each other's mirror images, and tang2018's markers are not (forearm, wrist and hand markers differ
+    by up to 13 cm, the two head markers are a chain), so mirroring stays a ``positions3d`` augmentation.
+    """
+    from dancekit.motion.representations import ROT6D_TRANSLATION
+
+    out = np.array(dance, dtype=np.float64)
+    if heading:
+        up = skeleton.up_index
+        h0, h1 = (a for a in range(3) if a != up)
+        c, s_ = np.cos(heading), np.sin(heading)
+        root = skeleton.rig().root
+        cols = [slice(0, ROT6D_TRANSLATION)]  # the root translation, then the root's two rotation columns
+        base = ROT6D_TRANSLATION + 6 * root
+        cols += [slice(base, base + 3), slice(base + 3, base + 6)]
+        for sl in cols:
+            v = out[:, sl]
+            a, b = v[:, h0].copy(), v[:, h1].copy()
+            v[:, h0], v[:, h1] = c * a - s_ * b, s_ * a + c * b
+    return out.astype(np.float32)
+
+
 class WindowDataset(Dataset):
     """Windows of ``window`` frames from every dance of ``split``.
 
@@ -94,11 +122,12 @@ class WindowDataset(Dataset):
     ``genres`` keeps only the dances of these genres (names as in ``data.genres``), e.g. to
     fine-tune a genre-specific model; the normalisation statistics stay those of the whole split.
 
-    Augmentations true to dance (``positions3d`` only; issue 15), drawn per item from
+    Augmentations true to dance (issue 15; ``positions3d``, and ``rot6d`` but its mirror), drawn per item from
     ``np.random.default_rng([seed, epoch, k, 1])`` like the offsets: ``mirror`` the probability of the
     left–right mirror image (:func:`augment_positions3d`), ``heading=True`` a uniform random turn of the whole
-    dance about the up axis, ``tempo`` t a joint tempo change of music and motion by a factor r ∈ [1 − t, 1 + t]
-    (both resampled linearly at r frames per frame, the root's per-frame velocity scaled by r).
+    dance about the up axis (:func:`augment_rot6d` for ``rot6d``), ``tempo`` t a joint tempo change of music and
+    motion by a factor r ∈ [1 − t, 1 + t] (both resampled linearly at r frames per frame; ``positions3d``'s
+    per-frame root velocity scaled by r, ``rot6d``'s root position and 6D columns interpolated as they are).
     """
 
     def __init__(
@@ -122,8 +151,11 @@ class WindowDataset(Dataset):
     ):
         if not 0.0 <= mirror <= 1.0 or not 0.0 <= tempo < 0.5:
             raise ParameterError(f"mirror must be in [0, 1] and tempo in [0, 0.5), got {mirror!r}, {tempo!r}")
-        if (mirror or heading or tempo) and representation != "positions3d":
-            raise ParameterError(f"the mirror / heading / tempo augmentations need positions3d, got {representation!r}")
+        if (mirror or heading or tempo) and representation not in ("positions3d", "rot6d"):
+            raise ParameterError(f"the heading / tempo augmentations need positions3d or rot6d, got {representation!r}")
+        if mirror and representation != "positions3d":
+            raise ParameterError("the mirror augmentation needs positions3d (a mirror of rotations needs a left-right "
+                                 f"symmetric rig), got {representation!r}")
         self.mirror, self.heading, self.tempo = float(mirror), bool(heading), float(tempo)
         self.skeleton = data.skeleton
         if window < 2:
@@ -219,7 +251,10 @@ class WindowDataset(Dataset):
         music = _resample(self.music[i], times) if r != 1.0 else self.music[i][s : s + L]
         raw = self.stats.denormalize_dance(self.dance[i][int(np.floor(times[0])) : int(np.ceil(times[-1])) + 1])
         dance = _resample(raw, times - np.floor(times[0])) if r != 1.0 else raw[:L]
-        J = self.skeleton.num_joints
-        dance[:, 3 * J : 3 * J + 2] *= r  # per-frame root displacement at r source frames per frame
-        dance = augment_positions3d(dance, skeleton=self.skeleton, mirror=flip, heading=turn)
+        if self.representation == "rot6d":
+            dance = augment_rot6d(dance, skeleton=self.skeleton, heading=turn)
+        else:
+            J = self.skeleton.num_joints
+            dance[:, 3 * J : 3 * J + 2] *= r  # per-frame root displacement at r source frames per frame
+            dance = augment_positions3d(dance, skeleton=self.skeleton, mirror=flip, heading=turn)
         return np.ascontiguousarray(music, np.float32), self.stats.normalize_dance(dance).astype(np.float32)

@@ -117,8 +117,8 @@ class DataConfig:
     music_dropout: float = 0.0  # share of training windows whose music is replaced by the mean (zeros)
     representation: str = "positions3d"  # positions3d | keypoints2d
     augment_mirror: float = 0.0  # probability of a training window's left-right mirror image (positions3d)
-    augment_heading: bool = False  # turn each training window by a random angle about the up axis
-    augment_tempo: float = 0.0  # joint tempo change of music and motion by up to ± this share (e.g. 0.05)
+    augment_heading: bool = False  # turn each training window by a random angle about the up axis (positions3d, rot6d)
+    augment_tempo: float = 0.0  # joint tempo change of music and motion by up to ± this share (e.g. 0.05; positions3d, rot6d)
     # curriculum of autoregressive decoders (dynamic auto-condition)
     curriculum: str = "linear"  # teacher_forcing | const | linear | quadratic | exponential
     curriculum_lambda: float = 0.25  # λ per epoch
