@@ -34,6 +34,8 @@ def main() -> None:
     ap.add_argument("--screen", required=True)
     ap.add_argument("--runs", required=True)
     ap.add_argument("--embedded", help="the embedded model's report at the same seeds (a dashed line)")
+    ap.add_argument("--embedded-label", default="the embedded model (GPU round 2, m2d_e step 708)",
+                    help="what the dashed line is, for the caption")
     ap.add_argument("-o", "--output", required=True)
     a = ap.parse_args()
     curves: dict[str, list[tuple[int, float, float]]] = {}
@@ -79,7 +81,7 @@ def main() -> None:
             d.text((x0 + pw - 150, y0 + 10 + 16 * c), run, fill=COLOURS[c % 4])
         d.text((x0 + pw // 2 - 40, y1 + 24), "training step", fill="black")
     if embedded is not None:
-        d.text((pad, H - 24), "dashed: the embedded model (GPU round 2, m2d_e step 708) on the same screen; "
+        d.text((pad, H - 24), f"dashed: {a.embedded_label} on the same screen; "
                "grey: the bound (S 1 = the median random training dance)", fill="black")
     img.save(a.output)
 

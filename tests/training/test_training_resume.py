@@ -236,3 +236,15 @@ def test_assemble_run_merges_family_defaults_checkpoint_and_sets(tmp_path, rng):
         assemble_run("revolution", data_dir, out, resume=True)
     with pytest.raises(ParameterError, match="window=50"):
         assemble_run("music_attributes", data_dir, tmp_path / "other", sets=["seq_len=40", "window=50"])
+
+
+@pytest.mark.parametrize("family,setting", [("music2dance", "augment_tempo=0.1"), ("foot_constraint", "augment_heading=true"),
+                                            ("style", "augment_mirror=0.5")])
+def test_an_augmentation_a_family_would_not_apply_is_refused(tmp_path, rng, family, setting):
+    """The windows of music2dance, the Foot Constraint Model and the style classifier take no augmentation:
+    asking for one is an error that names it, not a run without it."""
+    data_dir = write_fake_prepared(tmp_path / "prepared", rng, preset="music2dance", dim=15)
+    out = tmp_path / "run"
+    with pytest.raises(ParameterError, match=setting.split("=")[0]):
+        assemble_run(family, data_dir, out, sets=[setting, "seq_len=40", "steps=1", "threads=1"]).fit(progress=False)
+    assert not (out / "checkpoints").exists()

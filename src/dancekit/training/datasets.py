@@ -31,6 +31,17 @@ def music_dance_windows(data: PreparedData, config: TrainConfig, stats: NormStat
     return train_set, val_set
 
 
+def refuse_augmentations(config: TrainConfig, what: str) -> None:
+    """Raise :class:`ParameterError` if ``config`` asks for an augmentation (``augment_mirror``,
+    ``augment_heading``, ``augment_tempo``) that the windows of ``what`` do not apply, rather than train
+    without it."""
+    asked = [f"{k}={v!r}" for k in ("augment_mirror", "augment_heading", "augment_tempo")
+             if (v := getattr(config, k))]
+    if asked:
+        raise ParameterError(f"{what} does not apply {', '.join(asked)} (the augmentations work on positions3d and "
+                             "rot6d windows: revolution, dual, music_attributes)")
+
+
 # --------------------------------------------------------------------------------- style classifier windows
 
 
@@ -125,6 +136,7 @@ def style_windows(data: PreparedData, config: TrainConfig, stats: NormStats | No
     frames every ``config.stride`` frames (default ``seq_len // 8``) of the training dances and their mirror
     images, and of the validation dances. Reads motion only (``stats`` and ``preset`` are unused: the
     classifier's input statistics are the training set's ``stats``)."""
+    refuse_augmentations(config, "the style classifier's windows (always with their mirror images)")
 
     def labelled(split: str) -> list[tuple[np.ndarray, int]]:
         return [(data.motion(n).to_positions(), data.genre_index(n)) for n in data.names(split)]

@@ -41,6 +41,7 @@ from dancekit.errors import CheckpointError, ParameterError
 from dancekit.models.foot_constraint import gaussian_smooth
 from dancekit.models.music2dance import Music2DanceModel, shift_right
 from dancekit.motion.root_delta import lower_body_cols, rootdelta_layout
+from dancekit.training.datasets import refuse_augmentations
 from dancekit.training.loop import StepContext, TrainConfig
 
 CLUSTERS = 8  # k of the motion clustering
@@ -132,6 +133,7 @@ def _rootdelta_windows(data: PreparedData, config: TrainConfig, stats: NormStats
     if config.representation != REPRESENTATION:
         raise ParameterError(f"music2dance trains on the {REPRESENTATION!r} representation, not "
                              f"{config.representation!r} (leave TrainConfig.representation at the family default)")
+    refuse_augmentations(config, f"{REPRESENTATION} (music2dance, foot_constraint; heading-free by construction)")
     lay = rootdelta_layout(data.skeleton)
     if len(stats.dance_mean) != lay.dim:
         raise ParameterError(f"dance statistics have {len(stats.dance_mean)} columns, {REPRESENTATION} has {lay.dim}")
