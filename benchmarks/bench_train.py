@@ -16,7 +16,6 @@ memory is the training process's. Run it on a quiet machine (the 1-minute load a
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import datetime
 import json
 import os
@@ -58,8 +57,7 @@ def defaults(family: str) -> tuple[int, int, int]:
     from dancekit import registry
     from dancekit.training.config import TrainConfig
 
-    keys = {f.name for f in dataclasses.fields(TrainConfig)}
-    c = TrainConfig(**{k: v for k, v in registry.get(family).train_defaults.items() if k in keys})
+    c = TrainConfig.from_saved({}, defaults=registry.get(family).train_defaults)  # as `dancekit train` builds it
     return c.steps, c.batch_size, c.seq_len
 
 

@@ -41,6 +41,12 @@ def _resample(x: np.ndarray, times: np.ndarray) -> np.ndarray:
     return ((1 - f) * x[i0] + f * x[i1]).astype(np.float32)
 
 
+def _turn(v: np.ndarray, a: int, b: int, c: float, s: float) -> None:
+    """Turn the 2-vectors ``(v[..., a], v[..., b])`` in place by the angle whose cosine and sine are ``c``, ``s``."""
+    x, y = v[..., a].copy(), v[..., b].copy()
+    v[..., a], v[..., b] = c * x - s * y, s * x + c * y
+
+
 def augment_positions3d(dance: np.ndarray, *, skeleton, mirror: bool = False, heading: float = 0.0) -> np.ndarray:
     """A ``positions3d`` window ``(L, 3J + 3)`` (unnormalised) mirrored and/or turned about the up axis.
 
@@ -62,10 +68,8 @@ def augment_positions3d(dance: np.ndarray, *, skeleton, mirror: bool = False, he
             vel[:, (h0, h1).index(0)] *= -1.0
     if heading:
         c, s_ = np.cos(heading), np.sin(heading)
-        a, b = local[..., h0].copy(), local[..., h1].copy()
-        local[..., h0], local[..., h1] = c * a - s_ * b, s_ * a + c * b
-        a, b = vel[:, 0].copy(), vel[:, 1].copy()
-        vel[:, 0], vel[:, 1] = c * a - s_ * b, s_ * a + c * b
+        _turn(local, h0, h1, c, s_)
+        _turn(vel, 0, 1, c, s_)
     return out.astype(np.float32)
 
 
@@ -91,9 +95,7 @@ def augment_rot6d(dance: np.ndarray, *, skeleton, heading: float = 0.0) -> np.nd
         base = ROT6D_TRANSLATION + 6 * root
         cols += [slice(base, base + 3), slice(base + 3, base + 6)]
         for sl in cols:
-            v = out[:, sl]
-            a, b = v[:, h0].copy(), v[:, h1].copy()
-            v[:, h0], v[:, h1] = c * a - s_ * b, s_ * a + c * b
+            _turn(out[:, sl], h0, h1, c, s_)
     return out.astype(np.float32)
 
 
