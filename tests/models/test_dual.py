@@ -18,6 +18,7 @@ from dancekit.models.dual import (
     dance_loss,
     geodesic_squared,
     music_loss,
+    sinusoidal_encoding,
 )
 from dancekit.models.gromov import entropic_gromov_wasserstein, l1_cost_matrix
 from dancekit.motion.rotations import axis_angle_to_matrix, matrix_to_rotation_6d, rotation_6d_to_matrix
@@ -960,3 +961,49 @@ def test_a_prefix_is_the_dance_and_the_decoders_context_across_windows():
     assert not torch.allclose(free[:, N], out[:, N])
     with pytest.raises(ParameterError, match="prefix"):
         model.generate_dance(music, start=dance[:, 0], prefix=dance[:, :4, :5])
+
+
+def test_parallel_decoder_reads_only_the_start_pose_and_generates_as_it_trains():
+    """m2d_decoder="parallel": a window's frames come from its first frame (and the music, and z) alone, in one
+    pass, so the training output and the generated dance are the same numbers (the autoregressive decoder's
+    teacher-forced output is not its free-running one: the closed loop differs)."""
+    torch.manual_seed(0)
+    model = DualModel(DualConfig(**TINY, m2d_decoder="parallel")).eval()
+    music, dance = _batch(B=2, T=8)
+    with torch.no_grad():
+        trained = model._m2d_predict(music, dance, None, None)
+        changed = dance.clone()
+        changed[:, 1:] += 1.0  # every frame after the first changed: the prediction is the same
+        torch.testing.assert_close(model._m2d_predict(music, changed, None, None), trained)
+        assert torch.equal(trained[:, 0], dance[:, 0])
+        # known answer: each frame is the decoder over the start pose repeated, no causal mask
+        memory = model.m2d.encode(music)
+        x = model.m2d.tgt_embed(dance[:, :1].expand(2, 7, 15))
+        x = x + sinusoidal_encoding(7, 16)
+        torch.testing.assert_close(trained[:, 1:], model.m2d.head(model.m2d.decoder(x, memory)))
+        for k in range(2):  # one window: the generated dance is the training output
+            gen = model.generate_dance(music[k : k + 1], start=dance[k : k + 1, 0])
+            torch.testing.assert_close(gen, trained[k : k + 1], atol=1e-5, rtol=1e-5)
+    # the autoregressive decoder (the paper's) differs between the two
+    ar = DualModel(DualConfig(**TINY)).eval()
+    with torch.no_grad():
+        gen = ar.generate_dance(music[:1], start=dance[:1, 0])
+        assert not torch.allclose(gen, ar._m2d_predict(music[:1], dance[:1], None, None), atol=1e-3)
+
+
+def test_parallel_decoder_trains_with_the_latent_and_refuses_the_closed_loop_settings():
+    model = _latent_model(m2d_decoder="parallel")
+    music, dance = torch.randn(4, 8, 17), torch.randn(4, 8, 15)
+    loss, parts = model(music, dance)
+    assert {"kl", "dance_rec", "dance_cycle"} <= set(parts)
+    loss.backward()
+    assert float(model.m2d_latent.weight.grad.abs().sum()) > 0
+    a = model.generate_dance(music[:1].repeat(1, 3, 1), start=dance[0, :1], generator=torch.Generator().manual_seed(0))
+    b = model.generate_dance(music[:1].repeat(1, 3, 1), start=dance[0, :1], generator=torch.Generator().manual_seed(1))
+    assert a.shape == (1, 24, 15) and float((a[0, 1:] - b[0, 1:]).abs().min(dim=-1).values.max()) > 0
+    for bad in (dict(m2d_decoder="nar"), dict(m2d_decoder="parallel", self_feed=0.5),
+                dict(m2d_decoder="parallel", rollout_frames=4)):
+        with pytest.raises(ParameterError, match="m2d_decoder|self_feed"):
+            DualConfig(**bad)
+    with pytest.raises(ParameterError, match="prefix"):
+        model.generate_dance(music[:1], start=dance[0, :1], prefix=dance[:1, :3])

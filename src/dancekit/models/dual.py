@@ -53,7 +53,11 @@ Against the flicker of the free-running G_M→D (docs/DUAL.md, "velocity term"):
 (:func:`dance_difference_loss`, on G_M→D's teacher-forced output, so they reach G_M→D only), and ``self_feed``
 replaces a share of the decoder's inputs by its own detached predictions (scheduled sampling);
 ``rollout_frames`` / ``rollout_weight`` decode the first frames of each window free-running (fed back, with
-gradients) and score their velocities and accelerations. All default to 0: the paper's objective.
+gradients) and score their velocities and accelerations. All default to 0: the paper's objective. ``m2d_decoder="parallel"`` decodes each window of G_M→D in one pass
+instead of frame by frame: every decoder input is the window's start pose (plus the latent and the position), the
+self-attention unmasked, so training and inference run the same computation and there is no closed loop to drift
+(the autoregressive decoder, trained on true previous frames, drifts into poses the training dances never hold
+when it is fed its own; docs/research/dual-latent.md).
 ``DualConfig(beat_pos_weight=1, decoder_noise=0, gw_normalize="none", gw_marginals="uniform")`` is the paper.
 """
 
@@ -72,6 +76,7 @@ from dancekit.models.gromov import entropic_gromov_wasserstein
 from dancekit.motion.rotations import rotation_6d_to_matrix
 
 GENERATORS = ("both", "m2d", "d2m")
+M2D_DECODERS = ("autoregressive", "parallel")
 PITCH_CLASSES = ("C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B")
 IDENTITY_6D = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
 
@@ -119,6 +124,7 @@ class DualConfig:
     latent_dim: int = 0  # G_M→D's per-window dance latent z (a conditional VAE; 0: off, the paper)
     kl_weight: float = 0.05  # weight of KL(q(z | dance window) || N(0, I)) (with latent_dim > 0)
     kl_free_bits: float = 0.25  # nats per latent dimension below which the KL is not penalised
+    m2d_decoder: str = "autoregressive"  # G_M→D's decoder: "autoregressive" (the paper) | "parallel" (below)
 
     def __post_init__(self) -> None:
         for name in ("music_dim", "pose_dim", "m2d_d_model", "m2d_layers", "m2d_heads", "m2d_ff", "d2m_d_model",
@@ -158,6 +164,11 @@ class DualConfig:
         if isinstance(self.self_feed, bool) or not isinstance(self.self_feed, (int, float)) \
                 or not 0.0 <= self.self_feed <= 1.0:
             raise ParameterError(f"DualConfig.self_feed must be a share in [0, 1], got {self.self_feed!r}")
+        if self.m2d_decoder not in M2D_DECODERS:
+            raise ParameterError(f"DualConfig.m2d_decoder must be one of {M2D_DECODERS}, got {self.m2d_decoder!r}")
+        if self.m2d_decoder == "parallel" and (self.self_feed > 0 or self.rollout_frames > 0):
+            raise ParameterError("DualConfig: self_feed and rollout_frames train the autoregressive decoder's "
+                                 "closed loop; the parallel decoder has none (set them to 0)")
         if isinstance(self.latent_dim, bool) or not isinstance(self.latent_dim, int) or self.latent_dim < 0:
             raise ParameterError(f"DualConfig.latent_dim must be an integer >= 0, got {self.latent_dim!r}")
         for name in ("kl_weight", "kl_free_bits"):
@@ -296,17 +307,31 @@ class Seq2Seq(nn.Module):
         x = x + sinusoidal_encoding(x.shape[1], x.shape[2], device=x.device, dtype=x.dtype)
         return self.encoder(x)
 
-    def decode(self, prev: torch.Tensor, memory: torch.Tensor, cond: torch.Tensor | None = None) -> torch.Tensor:
-        """Decoder inputs ``prev (B, L, out)`` (start token first) → next frames (B, L, out), causally.
+    def decode(self, prev: torch.Tensor, memory: torch.Tensor, cond: torch.Tensor | None = None, *,
+               causal: bool = True) -> torch.Tensor:
+        """Decoder inputs ``prev (B, L, out)`` (start token first) → next frames (B, L, out), causally
+        (``causal=False``: every input attends to every other, :meth:`parallel`'s decoding).
         ``cond (B, d)``, if given, is added to every input embedding (G_M→D's projected latent)."""
         L = prev.shape[1]
         x = self.tgt_embed(prev)  # (B, L, d)
         if cond is not None:
             x = x + cond[:, None, :]
         x = x + sinusoidal_encoding(L, x.shape[2], device=x.device, dtype=x.dtype)
-        mask = torch.triu(torch.full((L, L), float("-inf"), device=x.device, dtype=x.dtype), diagonal=1)
+        mask = torch.triu(torch.full((L, L), float("-inf"), device=x.device, dtype=x.dtype), diagonal=1) \
+            if causal else None
         y = self.head(self.decoder(x, memory, tgt_mask=mask))  # (B, L, out)
         return torch.sigmoid(y) if self.sigmoid else y
+
+    def parallel(self, memory: torch.Tensor, start: torch.Tensor, n: int, cond: torch.Tensor | None = None, *,
+                 noise: float = 0.0) -> torch.Tensor:
+        """A window decoded in one pass: ``start (B, out)`` then ``n - 1`` frames, each from the start pose at its
+        position (plus ``cond``) over ``memory (B, T, d)`` → (B, n, out). No frame is fed back, so training and
+        inference are the same computation. ``noise``: Gaussian noise of that std on the start pose the decoder
+        reads (training only), as :meth:`teacher_forced`'s on its inputs."""
+        given = start[:, None, :].expand(start.shape[0], n - 1, start.shape[1])  # (B, n-1, out)
+        if noise > 0 and self.training:
+            given = given + noise * torch.randn_like(start)[:, None, :]
+        return torch.cat([start[:, None, :], self.decode(given, memory, cond, causal=False)], dim=1)
 
     def teacher_forced(self, src: torch.Tensor, tgt: torch.Tensor, memory: torch.Tensor | None = None, *,
                        noise: float = 0.0, cond: torch.Tensor | None = None) -> torch.Tensor:
@@ -543,8 +568,7 @@ class DualModel(nn.Module):
             if c.latent_dim > 0:
                 cond, parts["kl"] = self._posterior(dance)  # (B, d_x), scalar
             dance_in = self._self_fed(dance, memory_x, cond) if c.self_feed > 0 and self.training else dance
-            dance_hat = self.m2d.teacher_forced(music, dance_in, memory_x, noise=c.decoder_noise,
-                                                cond=cond)  # (B, T, P)
+            dance_hat = self._m2d_predict(music, dance_in, memory_x, cond)  # (B, T, P)
             parts["dance_rec"] = dance_loss(dance_hat, dance, raw_from=c.dance_raw_from)
             if c.velocity_weight > 0:
                 parts["dance_vel"] = dance_difference_loss(dance_hat, dance, order=1)
@@ -567,8 +591,7 @@ class DualModel(nn.Module):
                 projection_iters=c.gw_projection_iters, normalize=c.gw_normalize, marginals=c.gw_marginals)
         if c.cycle:
             # dance cycle G_M→D(G_D→M(y)) updates G_M→D; music cycle G_D→M(G_M→D(x)) updates G_D→M
-            dance_cyc = self.m2d.teacher_forced(self.music_from_composed(music_hat.detach()), dance,
-                                                noise=c.decoder_noise, cond=cond)
+            dance_cyc = self._m2d_predict(self.music_from_composed(music_hat.detach()), dance, None, cond)
             parts["dance_cycle"] = dance_loss(dance_cyc, dance, raw_from=c.dance_raw_from)
             music_cyc = self.d2m.teacher_forced(dance_hat.detach(), target_music)
             parts["music_cycle"] = music_loss(music_cyc, target_music, beat_pos_weight=c.beat_pos_weight)
@@ -577,6 +600,16 @@ class DualModel(nn.Module):
                    "kl": c.kl_weight}
         loss = sum(weights.get(k, 1.0) * v for k, v in parts.items())
         return loss, parts
+
+    def _m2d_predict(self, music: torch.Tensor, dance: torch.Tensor, memory: torch.Tensor | None,
+                     cond: torch.Tensor | None) -> torch.Tensor:
+        """G_M→D's training output for ``dance (B, T, P)`` over ``music`` (its encoding ``memory`` if given):
+        teacher-forced, or in one pass from the window's first frame (``m2d_decoder="parallel"``)."""
+        c = self.config
+        if c.m2d_decoder == "parallel":
+            memory = self.m2d.encode(music) if memory is None else memory
+            return self.m2d.parallel(memory, dance[:, 0], dance.shape[1], cond, noise=c.decoder_noise)
+        return self.m2d.teacher_forced(music, dance, memory, noise=c.decoder_noise, cond=cond)
 
     def _posterior(self, dance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The latent of each window, sampled from q(z | dance (B, T, P)) by reparameterisation, projected to the
@@ -669,7 +702,11 @@ class DualModel(nn.Module):
                     z = torch.randn(B, self.config.latent_dim, generator=generator)  # (B, Z) from the prior
                     cond = self.m2d_latent(z.to(src.device, src.dtype))  # (B, d)
                 given = prefix[:, s : s + T] if prefix is not None and s + 1 < prefix.shape[1] else None
-                y = (net.rollout_numpy(net.encode(chunk), prev, chunk.shape[1]) if cached
+                parallel = net is self.m2d and self.config.m2d_decoder == "parallel"
+                if parallel and given is not None:
+                    raise ParameterError("the parallel decoder of G_M→D cannot continue a prefix frame by frame")
+                y = (net.parallel(net.encode(chunk), prev, chunk.shape[1], cond) if parallel
+                     else net.rollout_numpy(net.encode(chunk), prev, chunk.shape[1]) if cached
                      else net.generate(chunk, prev, cond) if given is None
                      else net.generate(chunk, prev, cond, given))  # (B, ≤T, out)
                 out.append(y[:, 1:])
