@@ -125,6 +125,7 @@ class DualConfig:
     kl_weight: float = 0.05  # weight of KL(q(z | dance window) || N(0, I)) (with latent_dim > 0)
     kl_free_bits: float = 0.25  # nats per latent dimension below which the KL is not penalised
     m2d_decoder: str = "autoregressive"  # G_M→D's decoder: "autoregressive" (the paper) | "parallel" (below)
+    posterior_position: bool = False  # q(z | window) reads each frame with its position in the window (else a bag)
 
     def __post_init__(self) -> None:
         for name in ("music_dim", "pose_dim", "m2d_d_model", "m2d_layers", "m2d_heads", "m2d_ff", "d2m_d_model",
@@ -164,6 +165,8 @@ class DualConfig:
         if isinstance(self.self_feed, bool) or not isinstance(self.self_feed, (int, float)) \
                 or not 0.0 <= self.self_feed <= 1.0:
             raise ParameterError(f"DualConfig.self_feed must be a share in [0, 1], got {self.self_feed!r}")
+        if not isinstance(self.posterior_position, bool):
+            raise ParameterError(f"DualConfig.posterior_position must be true or false, got {self.posterior_position!r}")
         if self.m2d_decoder not in M2D_DECODERS:
             raise ParameterError(f"DualConfig.m2d_decoder must be one of {M2D_DECODERS}, got {self.m2d_decoder!r}")
         if self.m2d_decoder == "parallel" and (self.self_feed > 0 or self.rollout_frames > 0):
@@ -614,9 +617,16 @@ class DualModel(nn.Module):
     def _posterior(self, dance: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The latent of each window, sampled from q(z | dance (B, T, P)) by reparameterisation, projected to the
         decoder's width → (B, d_x), and the KL to N(0, I) (free bits: each dimension's batch-mean KL below
-        ``kl_free_bits`` nats costs nothing, so the decoder is not pushed to ignore z)."""
+        ``kl_free_bits`` nats costs nothing, so the decoder is not pushed to ignore z). ``posterior_position``: each
+        frame's hidden features get its position in the window (sinusoidal) before the average over time."""
         c = self.config
-        mu, logvar = self.m2d_posterior(dance).mean(1).chunk(2, dim=-1)  # (B, Z) each
+        if c.posterior_position:  # each frame's features with its place in the window: z can say when
+            first, act, last = self.m2d_posterior
+            h = first(dance)  # (B, T, d)
+            h = h + sinusoidal_encoding(h.shape[1], h.shape[2], device=h.device, dtype=h.dtype)
+            mu, logvar = last(act(h)).mean(1).chunk(2, dim=-1)  # (B, Z) each
+        else:  # a bag of frames: the same z for the window's frames in any order
+            mu, logvar = self.m2d_posterior(dance).mean(1).chunk(2, dim=-1)  # (B, Z) each
         logvar = logvar.clamp(-8.0, 8.0)
         z = mu + torch.exp(0.5 * logvar) * torch.randn_like(mu) if self.training else mu
         kl = 0.5 * (mu.pow(2) + logvar.exp() - 1.0 - logvar).mean(0)  # (Z,) nats
