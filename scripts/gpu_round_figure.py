@@ -16,7 +16,7 @@ from pathlib import Path
 
 from PIL import Image, ImageDraw
 
-COLOURS = [(200, 60, 40), (40, 90, 200), (40, 150, 60), (150, 60, 170)]
+COLOURS = [(200, 60, 40), (40, 90, 200), (40, 150, 60), (150, 60, 170), (220, 140, 20), (20, 160, 170)]
 
 
 def screen_point(report: Path) -> tuple[float, float]:
@@ -63,7 +63,7 @@ def main() -> None:
             return y1 - min(v, ymax) / ymax * (y1 - y0)
         d.rectangle([x0, y0, x0 + pw, y1], outline="black")
         d.text((x0, y0 - 40), title, fill="black")
-        for t in range(0, int(xmax) + 1, 1000):
+        for t in range(0, int(xmax) + 1, 1000 if xmax > 3000 else 200):
             d.text((X(t) - 10, y1 + 6), str(t), fill="black")
         for v in (ymax * i / 5 for i in range(6)):
             d.text((x0 - 40, Y(v) - 6), f"{v:g}", fill="black")
@@ -75,10 +75,10 @@ def main() -> None:
         for c, (run, pts) in enumerate(sorted(curves.items())):
             pts.sort()
             xy = [(X(p[0]), Y(p[idx])) for p in pts]
-            d.line(xy, fill=COLOURS[c % 4], width=3)
+            d.line(xy, fill=COLOURS[c % len(COLOURS)], width=3)
             for x, y in xy:
-                d.ellipse([x - 4, y - 4, x + 4, y + 4], fill=COLOURS[c % 4])
-            d.text((x0 + pw - 150, y0 + 10 + 16 * c), run, fill=COLOURS[c % 4])
+                d.ellipse([x - 4, y - 4, x + 4, y + 4], fill=COLOURS[c % len(COLOURS)])
+            d.text((x0 + pw - 150, y0 + 10 + 16 * c), run, fill=COLOURS[c % len(COLOURS)])
         d.text((x0 + pw // 2 - 40, y1 + 24), "training step", fill="black")
     if embedded is not None:
         d.text((pad, H - 24), f"dashed: {a.embedded_label} on the same screen; "
