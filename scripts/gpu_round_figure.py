@@ -73,12 +73,13 @@ def main() -> None:
             for xs in range(x0, x0 + pw, 16):
                 d.line([xs, ye, xs + 8, ye], fill="black", width=2)
         for c, (run, pts) in enumerate(sorted(curves.items())):
+            colour = COLOURS[c % len(COLOURS)]
             pts.sort()
             xy = [(X(p[0]), Y(p[idx])) for p in pts]
-            d.line(xy, fill=COLOURS[c % len(COLOURS)], width=3)
+            d.line(xy, fill=colour, width=3)
             for x, y in xy:
-                d.ellipse([x - 4, y - 4, x + 4, y + 4], fill=COLOURS[c % len(COLOURS)])
-            d.text((x0 + pw - 150, y0 + 10 + 16 * c), run, fill=COLOURS[c % len(COLOURS)])
+                d.ellipse([x - 4, y - 4, x + 4, y + 4], fill=colour)
+            d.text((x0 + pw - 150, y0 + 10 + 16 * c), run, fill=colour)
         d.text((x0 + pw // 2 - 40, y1 + 24), "training step", fill="black")
     if embedded is not None:
         d.text((pad, H - 24), f"dashed: {a.embedded_label} on the same screen; "

@@ -53,11 +53,12 @@ Against the flicker of the free-running G_M→D (docs/DUAL.md, "velocity term"):
 (:func:`dance_difference_loss`, on G_M→D's teacher-forced output, so they reach G_M→D only), and ``self_feed``
 replaces a share of the decoder's inputs by its own detached predictions (scheduled sampling);
 ``rollout_frames`` / ``rollout_weight`` decode the first frames of each window free-running (fed back, with
-gradients) and score their velocities and accelerations. All default to 0: the paper's objective. ``m2d_decoder="parallel"`` decodes each window of G_M→D in one pass
-instead of frame by frame: every decoder input is the window's start pose (plus the latent and the position), the
-self-attention unmasked, so training and inference run the same computation and there is no closed loop to drift
-(the autoregressive decoder, trained on true previous frames, drifts into poses the training dances never hold
-when it is fed its own; docs/research/dual-latent.md).
+gradients) and score their velocities and accelerations. All default to 0: the paper's objective.
+``m2d_decoder="parallel"`` decodes each window of G_M→D in one pass instead of frame by frame: every decoder input
+is the window's start pose (plus the latent and the position), the self-attention unmasked, so training and
+inference run the same computation and there is no closed loop to drift (the autoregressive decoder, trained on
+true previous frames, drifts into poses the training dances never hold when it is fed its own;
+docs/research/dual-latent.md).
 ``DualConfig(beat_pos_weight=1, decoder_noise=0, gw_normalize="none", gw_marginals="uniform")`` is the paper.
 """
 
@@ -620,13 +621,11 @@ class DualModel(nn.Module):
         ``kl_free_bits`` nats costs nothing, so the decoder is not pushed to ignore z). ``posterior_position``: each
         frame's hidden features get its position in the window (sinusoidal) before the average over time."""
         c = self.config
+        first, act, last = self.m2d_posterior
+        h = first(dance)  # (B, T, d); without positions a bag of frames: the same z for them in any order
         if c.posterior_position:  # each frame's features with its place in the window: z can say when
-            first, act, last = self.m2d_posterior
-            h = first(dance)  # (B, T, d)
             h = h + sinusoidal_encoding(h.shape[1], h.shape[2], device=h.device, dtype=h.dtype)
-            mu, logvar = last(act(h)).mean(1).chunk(2, dim=-1)  # (B, Z) each
-        else:  # a bag of frames: the same z for the window's frames in any order
-            mu, logvar = self.m2d_posterior(dance).mean(1).chunk(2, dim=-1)  # (B, Z) each
+        mu, logvar = last(act(h)).mean(1).chunk(2, dim=-1)  # (B, Z) each
         logvar = logvar.clamp(-8.0, 8.0)
         z = mu + torch.exp(0.5 * logvar) * torch.randn_like(mu) if self.training else mu
         kl = 0.5 * (mu.pow(2) + logvar.exp() - 1.0 - logvar).mean(0)  # (Z,) nats
@@ -705,6 +704,7 @@ class DualModel(nn.Module):
                                          f"{tuple(prefix.shape)}")
                 start = prefix[:, 0]
             out, s, prev = [start[:, None, :]], 0, start
+            parallel = net is self.m2d and self.config.m2d_decoder == "parallel"
             while s + 1 < n:
                 chunk = src[:, s: s + T]  # (B, ≤T, in)
                 cond = None
@@ -712,7 +712,6 @@ class DualModel(nn.Module):
                     z = torch.randn(B, self.config.latent_dim, generator=generator)  # (B, Z) from the prior
                     cond = self.m2d_latent(z.to(src.device, src.dtype))  # (B, d)
                 given = prefix[:, s : s + T] if prefix is not None and s + 1 < prefix.shape[1] else None
-                parallel = net is self.m2d and self.config.m2d_decoder == "parallel"
                 if parallel and given is not None:
                     raise ParameterError("the parallel decoder of G_M→D cannot continue a prefix frame by frame")
                 y = (net.parallel(net.encode(chunk), prev, chunk.shape[1], cond) if parallel
